@@ -1,0 +1,17 @@
+#!/usr/bin/env bash
+# Runs every test: formatting and lints, Rust unit and integration tests (including the
+# header-up-to-date check), and the C harness with and without sanitizers.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+echo "== cargo fmt --check"
+cargo fmt --check
+echo "== cargo clippy"
+cargo clippy --all-targets --quiet -- -D warnings
+echo "== cargo test"
+cargo test --quiet 2>&1 | tee target/cargo-test.log
+if [ -x capi-tests/run.sh ]; then
+  echo "== C harness"
+  capi-tests/run.sh
+fi
+echo "all test stages passed"

@@ -1,0 +1,107 @@
+//! The C boundary: every `extern "C"` function of the ANARI API and nothing else. Functions here
+//! check arguments, look handles up, guard against panics and report misuse; the work happens
+//! in `crate::device`. No panic ever unwinds into C.
+
+// C entry points receive raw pointers by the API's contract; they cannot be `unsafe fn` (C calls
+// them), so each dereference carries its own SAFETY note instead.
+#![allow(clippy::not_unsafe_ptr_arg_deref)]
+
+pub mod array;
+pub mod cache;
+pub mod extension;
+pub mod frame;
+pub mod introspect;
+pub mod library;
+pub mod object;
+pub mod params;
+pub mod types;
+
+use std::ffi::{CStr, c_char};
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::Arc;
+
+use crate::device::status::*;
+use crate::device::{Device, registry};
+
+/// Runs `body`, turning a panic into an UNKNOWN_ERROR report and `fallback`.
+pub(crate) fn guard<R>(
+    function: &'static str,
+    device: *mut std::ffi::c_void,
+    fallback: R,
+    body: impl FnOnce() -> R,
+) -> R {
+    match catch_unwind(AssertUnwindSafe(body)) {
+        Ok(result) => result,
+        Err(payload) => {
+            let what = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into());
+            let text = format!("{function}: internal error ({what}); the call had no effect");
+            match registry::device(device as usize) {
+                Some(device) => device.error(ANARI_STATUS_UNKNOWN_ERROR, None, text),
+                None => eprintln!("[cavetrace] error: {text}"),
+            }
+            fallback
+        }
+    }
+}
+
+/// The live device behind a handle, or a report on stderr (there is no callback to use).
+pub(crate) fn device_of(function: &str, device: *mut std::ffi::c_void) -> Option<Arc<Device>> {
+    if device.is_null() {
+        eprintln!("[cavetrace] error: {function}: the device handle is NULL");
+        return None;
+    }
+    let found = registry::device(device as usize);
+    if found.is_none() {
+        eprintln!(
+            "[cavetrace] error: {function}: {device:p} is not a live cavetrace device \
+             (never created, or already released)"
+        );
+    }
+    found
+}
+
+/// Reads a C string argument; NULL and invalid UTF-8 are reported through the device.
+pub(crate) fn string_arg(
+    device: &Device,
+    function: &str,
+    argument: &str,
+    value: *const c_char,
+) -> Option<String> {
+    if value.is_null() {
+        device.error(
+            ANARI_STATUS_INVALID_ARGUMENT,
+            None,
+            format!("{function}: '{argument}' is NULL"),
+        );
+        return None;
+    }
+    // SAFETY: the caller passes a NUL-terminated C string, as the ANARI API requires.
+    let text = unsafe { CStr::from_ptr(value) };
+    match text.to_str() {
+        Ok(s) => Some(s.to_owned()),
+        Err(_) => {
+            device.error(
+                ANARI_STATUS_INVALID_ARGUMENT,
+                None,
+                format!("{function}: '{argument}' is not valid UTF-8"),
+            );
+            None
+        }
+    }
+}
+
+/// Reads an optional C string without a device to report to.
+pub(crate) fn plain_string(value: *const c_char) -> Option<String> {
+    if value.is_null() {
+        return None;
+    }
+    // SAFETY: the caller passes a NUL-terminated C string, as the ANARI API requires.
+    unsafe { CStr::from_ptr(value) }
+        .to_str()
+        .ok()
+        .map(str::to_owned)
+}

@@ -1,0 +1,59 @@
+//! Colour encoding for frame channels.
+
+/// sRGB transfer function: linear [0,1] → encoded [0,1].
+pub fn linear_to_srgb(linear: f32) -> f32 {
+    let c = linear.clamp(0.0, 1.0);
+    if c <= 0.003_130_8 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Inverse sRGB transfer function: encoded [0,1] → linear.
+pub fn srgb_to_linear(encoded: f32) -> f32 {
+    if encoded <= 0.040_45 {
+        encoded / 12.92
+    } else {
+        ((encoded + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Quantises [0,1] to a byte, rounding to nearest.
+pub fn to_unorm8(value: f32) -> u8 {
+    (value.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
+}
+
+/// A 256-entry-per-step table would be faster; this is per pixel once per frame, not per ray.
+pub fn encode_srgb8(linear: f32) -> u8 {
+    to_unorm8(linear_to_srgb(linear))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn known_values_encode_to_the_right_bytes() {
+        assert_eq!(encode_srgb8(0.0), 0);
+        assert_eq!(encode_srgb8(1.0), 255);
+        // 0.5 linear is 0.7354 encoded → 188.
+        assert_eq!(encode_srgb8(0.5), 188);
+        // 0.2140 linear encodes to 0.49995 → 127.49 → 127; 0.2159 encodes to 128/255.
+        assert_eq!(encode_srgb8(0.214), 127);
+        assert_eq!(encode_srgb8(0.2159), 128);
+        // The linear segment: 0.002 × 12.92 × 255 = 6.59 → 7.
+        assert_eq!(encode_srgb8(0.002), 7);
+        assert_eq!(to_unorm8(0.5), 128);
+        assert_eq!(encode_srgb8(-1.0), 0);
+        assert_eq!(encode_srgb8(7.0), 255);
+    }
+
+    #[test]
+    fn round_trip() {
+        for i in 0..=100 {
+            let v = i as f32 / 100.0;
+            assert!((srgb_to_linear(linear_to_srgb(v)) - v).abs() < 1e-5);
+        }
+    }
+}

@@ -1,0 +1,477 @@
+//! Frames: asynchronous, tile-parallel rendering on the device's own threads, channel
+//! encoding, accumulation, mapping and the completion callback.
+
+use std::collections::HashMap;
+use std::ffi::c_void;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::time::Instant;
+
+use glam::{Vec2, Vec3, Vec4};
+
+use crate::accel::Ray;
+use crate::camera::{Camera, EyeRays};
+use crate::device::datatype::*;
+use crate::device::property::PropertyValue;
+use crate::render::color::{encode_srgb8, to_unorm8};
+use crate::render::renderer::{RendererSettings, primary_sample};
+use crate::scene::world::SceneSnapshot;
+
+/// Side of the square tiles the threads share out.
+pub const TILE_SIZE: u32 = 32;
+
+/// `ANARIFrameCompletionCallback`: (userData, device, frame).
+pub type ANARIFrameCompletionCallback =
+    Option<unsafe extern "C" fn(user_data: *const c_void, device: *mut c_void, frame: *mut c_void)>;
+
+/// The channels a frame can produce and the types each may be mapped as.
+pub const CHANNELS: &[(&str, &[ANARIDataType])] = &[
+    (
+        "channel.color",
+        &[
+            ANARI_UFIXED8_RGBA_SRGB,
+            ANARI_UFIXED8_VEC4,
+            ANARI_FLOAT32_VEC4,
+        ],
+    ),
+    ("channel.depth", &[ANARI_FLOAT32]),
+    ("channel.primitiveId", &[ANARI_UINT32]),
+    ("channel.objectId", &[ANARI_UINT32]),
+    ("channel.instanceId", &[ANARI_UINT32]),
+    (
+        "channel.albedo",
+        &[
+            ANARI_UFIXED8_VEC3,
+            ANARI_UFIXED8_RGB_SRGB,
+            ANARI_FLOAT32_VEC3,
+        ],
+    ),
+    ("channel.normal", &[ANARI_FLOAT32_VEC3]),
+    ("channel.windowDepth", &[ANARI_FLOAT32]),
+];
+
+/// Everything a render needs, captured when anariRenderFrame is called.
+pub struct RenderSetup {
+    pub width: u32,
+    pub height: u32,
+    pub scene: Arc<SceneSnapshot>,
+    pub camera: Option<Arc<dyn Camera>>,
+    pub settings: RendererSettings,
+    /// Requested channel types by channel name.
+    pub channels: HashMap<&'static str, ANARIDataType>,
+    pub accumulate: bool,
+    /// Device-wide commit count: accumulation restarts whenever it changes.
+    pub scene_version: u64,
+    pub completion: Option<(ANARIFrameCompletionCallback, usize, usize, usize)>,
+}
+
+/// Linear per-pixel results, shared by the tiles of one render.
+struct Buffers {
+    color: Vec<Vec4>,
+    depth: Vec<f32>,
+    window_depth: Vec<f32>,
+    primitive_id: Vec<u32>,
+    object_id: Vec<u32>,
+    instance_id: Vec<u32>,
+    albedo: Vec<Vec3>,
+    normal: Vec<Vec3>,
+}
+
+impl Buffers {
+    fn try_new(pixels: usize) -> Option<Buffers> {
+        fn filled<T: Clone>(n: usize, v: T) -> Option<Vec<T>> {
+            let mut out = Vec::new();
+            out.try_reserve_exact(n).ok()?;
+            out.resize(n, v);
+            Some(out)
+        }
+        Some(Buffers {
+            color: filled(pixels, Vec4::ZERO)?,
+            depth: filled(pixels, f32::INFINITY)?,
+            window_depth: filled(pixels, 1.0)?,
+            primitive_id: filled(pixels, u32::MAX)?,
+            object_id: filled(pixels, u32::MAX)?,
+            instance_id: filled(pixels, u32::MAX)?,
+            albedo: filled(pixels, Vec3::ZERO)?,
+            normal: filled(pixels, Vec3::ZERO)?,
+        })
+    }
+}
+
+/// Encoded channels of a finished render; mapped pointers point into these.
+pub struct Output {
+    pub width: u32,
+    pub height: u32,
+    pub channels: HashMap<&'static str, (ANARIDataType, Vec<u8>)>,
+}
+
+struct Job {
+    setup: RenderSetup,
+    cancel: AtomicBool,
+    next_tile: AtomicUsize,
+    tiles_x: u32,
+    tile_count: usize,
+    workers_left: AtomicUsize,
+    buffers: Mutex<Buffers>,
+    /// Accumulation pass number (0 = first) and the running colour sum.
+    pass: u32,
+    accumulated: Option<Vec<Vec4>>,
+    started: Instant,
+}
+
+#[derive(Default)]
+struct Inner {
+    /// The render in flight, if any.
+    running: Option<Arc<Job>>,
+    output: Option<Arc<Output>>,
+    /// Mapped outputs by channel, alive until unmapped.
+    mapped: HashMap<String, Arc<Output>>,
+    duration: f32,
+    /// Accumulation state: colour sum, passes so far and what they were rendered with.
+    accumulation: Option<(Vec<Vec4>, u32, u64, u32, u32)>,
+}
+
+#[derive(Default)]
+pub struct FrameState {
+    inner: Mutex<Inner>,
+    finished: Condvar,
+}
+
+impl FrameState {
+    fn lock(&self) -> MutexGuard<'_, Inner> {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    pub fn is_ready(&self) -> bool {
+        self.lock().running.is_none()
+    }
+
+    /// Blocks until no render is in flight.
+    pub fn wait(&self) {
+        let mut inner = self.lock();
+        while inner.running.is_some() {
+            inner = self.finished.wait(inner).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+
+    /// Asks the render in flight to stop after the tiles being rendered now.
+    pub fn discard(&self) {
+        if let Some(job) = &self.lock().running {
+            job.cancel.store(true, Ordering::Release);
+        }
+    }
+
+    pub fn property(&self, name: &str, wait: bool) -> Option<PropertyValue> {
+        if wait {
+            self.wait();
+        }
+        match name {
+            "duration" => Some(PropertyValue::Float32(self.lock().duration)),
+            _ => None,
+        }
+    }
+
+    /// Starts a render. `pixels` was checked by the caller; allocation failure returns false.
+    pub fn start(
+        self: &Arc<Self>,
+        setup: RenderSetup,
+        pool: &crate::device::pool::WorkerPool,
+    ) -> bool {
+        // One render per frame at a time: a second request waits for the first.
+        self.wait();
+        let pixels = setup.width as usize * setup.height as usize;
+        let Some(buffers) = Buffers::try_new(pixels) else {
+            return false;
+        };
+        let (pass, accumulated) = {
+            let mut inner = self.lock();
+            let previous = inner.accumulation.take();
+            match previous {
+                Some((sum, passes, version, w, h))
+                    if setup.accumulate
+                        && version == setup.scene_version
+                        && w == setup.width
+                        && h == setup.height =>
+                {
+                    (passes, Some(sum))
+                }
+                _ if setup.accumulate => {
+                    let mut sum = Vec::new();
+                    if sum.try_reserve_exact(pixels).is_err() {
+                        return false;
+                    }
+                    sum.resize(pixels, Vec4::ZERO);
+                    (0, Some(sum))
+                }
+                _ => (0, None),
+            }
+        };
+        let tiles_x = setup.width.div_ceil(TILE_SIZE);
+        let tiles_y = setup.height.div_ceil(TILE_SIZE);
+        let workers = pool.thread_count();
+        let job = Arc::new(Job {
+            setup,
+            cancel: AtomicBool::new(false),
+            next_tile: AtomicUsize::new(0),
+            tiles_x,
+            tile_count: (tiles_x * tiles_y) as usize,
+            workers_left: AtomicUsize::new(workers),
+            buffers: Mutex::new(buffers),
+            pass,
+            accumulated,
+            started: Instant::now(),
+        });
+        self.lock().running = Some(Arc::clone(&job));
+        for _ in 0..workers {
+            let frame = Arc::clone(self);
+            let job = Arc::clone(&job);
+            pool.submit(move || frame.work(&job));
+        }
+        true
+    }
+
+    /// One worker's share: tiles until none are left, then the last worker finishes the frame.
+    fn work(&self, job: &Job) {
+        let eyes = prepare_eyes(&job.setup);
+        while !job.cancel.load(Ordering::Acquire) {
+            let tile = job.next_tile.fetch_add(1, Ordering::AcqRel);
+            if tile >= job.tile_count {
+                break;
+            }
+            render_tile(job, &eyes, tile);
+        }
+        if job.workers_left.fetch_sub(1, Ordering::AcqRel) == 1 {
+            self.finish(job);
+        }
+    }
+
+    fn finish(&self, job: &Job) {
+        let setup = &job.setup;
+        let mut buffers = job.buffers.lock().unwrap_or_else(|e| e.into_inner());
+        let mut accumulation = None;
+        if let Some(sum) = &job.accumulated {
+            let mut sum = sum.clone();
+            let passes = job.pass + 1;
+            for (s, c) in sum.iter_mut().zip(buffers.color.iter_mut()) {
+                *s += *c;
+                *c = *s / passes as f32;
+            }
+            accumulation = Some((sum, passes, setup.scene_version, setup.width, setup.height));
+        }
+        let output = Arc::new(encode(setup, &buffers));
+        drop(buffers);
+        {
+            let mut inner = self.lock();
+            inner.output = Some(output);
+            inner.duration = job.started.elapsed().as_secs_f32();
+            inner.accumulation = accumulation;
+            inner.running = None;
+        }
+        self.finished.notify_all();
+        if let Some((Some(callback), user, device, frame)) = setup.completion {
+            // SAFETY: the application registered this callback for this frame; it is called
+            // once per completed render with the values it was registered with.
+            unsafe {
+                callback(
+                    user as *const c_void,
+                    device as *mut c_void,
+                    frame as *mut c_void,
+                )
+            }
+        }
+    }
+
+    /// Waits for the render and returns the channel's pixels (kept alive until unmap).
+    pub fn map(&self, channel: &str) -> Option<(*const c_void, u32, u32, ANARIDataType)> {
+        self.wait();
+        let mut inner = self.lock();
+        let output = inner.output.clone()?;
+        let (data_type, bytes) = output.channels.get(channel)?;
+        let result = (
+            bytes.as_ptr() as *const c_void,
+            output.width,
+            output.height,
+            *data_type,
+        );
+        inner.mapped.insert(channel.to_owned(), Arc::clone(&output));
+        Some(result)
+    }
+
+    pub fn unmap(&self, channel: &str) -> bool {
+        self.lock().mapped.remove(channel).is_some()
+    }
+}
+
+/// Per-eye ray generators for the frame's viewports.
+fn prepare_eyes(setup: &RenderSetup) -> Vec<(crate::camera::EyeViewport, EyeRays)> {
+    match &setup.camera {
+        Some(camera) => camera
+            .viewports(setup.width, setup.height)
+            .into_iter()
+            .filter(|v| v.width > 0 && v.height > 0)
+            .map(|v| (v, camera.prepare(v.eye, v.width, v.height)))
+            .collect(),
+        None => Vec::new(),
+    }
+}
+
+/// A deterministic sub-pixel offset in [0,1)²: sample 0 of pass 0 is the pixel centre, the rest
+/// follow a 2D Halton sequence so that accumulation converges.
+fn jitter(index: u32) -> Vec2 {
+    if index == 0 {
+        return Vec2::splat(0.5);
+    }
+    fn radical_inverse(mut i: u32, base: u32) -> f32 {
+        let (mut result, mut f) = (0.0f32, 1.0f32 / base as f32);
+        while i > 0 {
+            result += f * (i % base) as f32;
+            i /= base;
+            f /= base as f32;
+        }
+        result
+    }
+    Vec2::new(radical_inverse(index, 2), radical_inverse(index, 3))
+}
+
+fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: usize) {
+    let setup = &job.setup;
+    let tx = (tile as u32 % job.tiles_x) * TILE_SIZE;
+    let ty = (tile as u32 / job.tiles_x) * TILE_SIZE;
+    let x_end = (tx + TILE_SIZE).min(setup.width);
+    let y_end = (ty + TILE_SIZE).min(setup.height);
+    let samples = setup.settings.pixel_samples;
+    let mut results = Vec::with_capacity(((x_end - tx) * (y_end - ty)) as usize);
+    for y in ty..y_end {
+        for x in tx..x_end {
+            let eye = eyes
+                .iter()
+                .find(|(v, _)| x >= v.x && x < v.x + v.width && y >= v.y && y < v.y + v.height);
+            let Some((viewport, rays)) = eye else {
+                results.push(None);
+                continue;
+            };
+            let mut color = Vec4::ZERO;
+            let mut first = None;
+            for s in 0..samples {
+                let offset = jitter(job.pass * samples + s);
+                let u = (x - viewport.x) as f32 + offset.x;
+                let v = (y - viewport.y) as f32 + offset.y;
+                let lens = jitter(job.pass * samples + s + 1);
+                let camera_ray =
+                    rays.ray(u / viewport.width as f32, v / viewport.height as f32, lens);
+                let ray = Ray {
+                    origin: camera_ray.origin,
+                    direction: camera_ray.direction,
+                    t_min: camera_ray.t_min,
+                    t_max: camera_ray.t_max,
+                };
+                let sample = primary_sample(&setup.scene, &setup.settings, &ray);
+                color += sample.color;
+                if s == 0 {
+                    first = Some((sample, camera_ray));
+                }
+            }
+            results
+                .push(first.map(|(sample, camera_ray)| {
+                    (color / samples as f32, sample, camera_ray, rays)
+                }));
+        }
+    }
+    let mut buffers = job.buffers.lock().unwrap_or_else(|e| e.into_inner());
+    let mut k = 0;
+    for y in ty..y_end {
+        for x in tx..x_end {
+            let index = (y * setup.width + x) as usize;
+            match results[k].take() {
+                Some((color, sample, camera_ray, rays)) => {
+                    buffers.color[index] = color;
+                    if let Some(hit) = sample.hit {
+                        buffers.depth[index] = rays.depth(&camera_ray, hit.t);
+                        buffers.window_depth[index] = rays.window_depth(hit.point);
+                        buffers.primitive_id[index] = hit.primitive_id;
+                        buffers.object_id[index] = hit.object_id;
+                        buffers.instance_id[index] = hit.instance_id;
+                        buffers.albedo[index] = hit.albedo;
+                        buffers.normal[index] = hit.normal;
+                    }
+                }
+                None => buffers.color[index] = setup.settings.background,
+            }
+            k += 1;
+        }
+    }
+}
+
+fn bytes_of_f32s(values: impl Iterator<Item = f32>) -> Vec<u8> {
+    values.flat_map(f32::to_ne_bytes).collect()
+}
+
+fn bytes_of_u32s(values: &[u32]) -> Vec<u8> {
+    values.iter().flat_map(|v| v.to_ne_bytes()).collect()
+}
+
+/// Encodes each requested channel into the type it was requested as.
+fn encode(setup: &RenderSetup, b: &Buffers) -> Output {
+    let mut channels = HashMap::new();
+    for (&name, &data_type) in &setup.channels {
+        let bytes = match (name, data_type) {
+            ("channel.color", ANARI_UFIXED8_RGBA_SRGB) => b
+                .color
+                .iter()
+                .flat_map(|c| {
+                    [
+                        encode_srgb8(c.x),
+                        encode_srgb8(c.y),
+                        encode_srgb8(c.z),
+                        to_unorm8(c.w),
+                    ]
+                })
+                .collect(),
+            ("channel.color", ANARI_UFIXED8_VEC4) => b
+                .color
+                .iter()
+                .flat_map(|c| c.to_array().map(to_unorm8))
+                .collect(),
+            ("channel.color", _) => bytes_of_f32s(b.color.iter().flat_map(|c| c.to_array())),
+            ("channel.depth", _) => bytes_of_f32s(b.depth.iter().copied()),
+            ("channel.windowDepth", _) => bytes_of_f32s(b.window_depth.iter().copied()),
+            ("channel.primitiveId", _) => bytes_of_u32s(&b.primitive_id),
+            ("channel.objectId", _) => bytes_of_u32s(&b.object_id),
+            ("channel.instanceId", _) => bytes_of_u32s(&b.instance_id),
+            ("channel.albedo", ANARI_UFIXED8_RGB_SRGB) => b
+                .albedo
+                .iter()
+                .flat_map(|c| c.to_array().map(encode_srgb8))
+                .collect(),
+            ("channel.albedo", ANARI_UFIXED8_VEC3) => b
+                .albedo
+                .iter()
+                .flat_map(|c| c.to_array().map(to_unorm8))
+                .collect(),
+            ("channel.albedo", _) => bytes_of_f32s(b.albedo.iter().flat_map(|c| c.to_array())),
+            ("channel.normal", _) => bytes_of_f32s(b.normal.iter().flat_map(|c| c.to_array())),
+            _ => continue,
+        };
+        channels.insert(name, (data_type, bytes));
+    }
+    Output {
+        width: setup.width,
+        height: setup.height,
+        channels,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn first_sample_is_the_pixel_centre_and_the_rest_stay_inside() {
+        assert_eq!(jitter(0), Vec2::splat(0.5));
+        assert_eq!(jitter(1), Vec2::new(0.5, 1.0 / 3.0));
+        for i in 1..100 {
+            let j = jitter(i);
+            assert!(j.x > 0.0 && j.x < 1.0 && j.y > 0.0 && j.y < 1.0);
+        }
+    }
+}

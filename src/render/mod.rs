@@ -1,0 +1,256 @@
+//! Rendering: renderers (shading), frames (tiles, threads, channels) and colour encoding.
+
+pub mod color;
+pub mod frame;
+pub mod renderer;
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use crate::device::Device;
+use crate::device::datatype::*;
+use crate::device::object::Object;
+use crate::device::spec::{ObjectSpec, ParamSpec};
+use crate::device::status::*;
+use crate::render::frame::{CHANNELS, RenderSetup};
+use crate::render::renderer::RendererSettings;
+use crate::scene::world::SceneSnapshot;
+
+const DATA_TYPE: &[ANARIDataType] = &[ANARI_DATA_TYPE];
+
+pub const FRAME: ObjectSpec = ObjectSpec::new(
+    ANARI_FRAME,
+    "",
+    "an image of a world seen by a camera, rendered by a renderer",
+    &[
+        ParamSpec::new("world", &[ANARI_WORLD], "world to render").required(),
+        ParamSpec::new(
+            "renderer",
+            &[ANARI_RENDERER],
+            "renderer that renders the frame",
+        )
+        .required(),
+        ParamSpec::new("camera", &[ANARI_CAMERA], "camera the world is seen by").required(),
+        ParamSpec::new("size", &[ANARI_UINT32_VEC2], "width and height in pixels").required(),
+        ParamSpec::new("channel.color", DATA_TYPE, "colour channel type").values(&[
+            "ANARI_UFIXED8_RGBA_SRGB",
+            "ANARI_UFIXED8_VEC4",
+            "ANARI_FLOAT32_VEC4",
+        ]),
+        ParamSpec::new(
+            "channel.depth",
+            DATA_TYPE,
+            "distance from the eye along the primary ray (+inf on miss)",
+        )
+        .values(&["ANARI_FLOAT32"]),
+        ParamSpec::new(
+            "channel.primitiveId",
+            DATA_TYPE,
+            "primitive index of the hit",
+        )
+        .values(&["ANARI_UINT32"]),
+        ParamSpec::new("channel.objectId", DATA_TYPE, "surface 'id' of the hit")
+            .values(&["ANARI_UINT32"]),
+        ParamSpec::new("channel.instanceId", DATA_TYPE, "instance 'id' of the hit")
+            .values(&["ANARI_UINT32"]),
+        ParamSpec::new("channel.albedo", DATA_TYPE, "base colour of the hit").values(&[
+            "ANARI_UFIXED8_VEC3",
+            "ANARI_UFIXED8_RGB_SRGB",
+            "ANARI_FLOAT32_VEC3",
+        ]),
+        ParamSpec::new(
+            "channel.normal",
+            DATA_TYPE,
+            "world-space shading normal of the hit",
+        )
+        .values(&["ANARI_FLOAT32_VEC3"]),
+        ParamSpec::new(
+            "channel.windowDepth",
+            DATA_TYPE,
+            "OpenGL window-space depth in [0,1] under the camera's projection (1 on miss), \
+             for compositing with rasterised content",
+        )
+        .values(&["ANARI_FLOAT32"]),
+        ParamSpec::new(
+            "accumulation",
+            &[ANARI_BOOL],
+            "refine progressively over repeated renders while nothing changes",
+        ),
+        ParamSpec::new(
+            "frameCompletionCallback",
+            &[ANARI_FRAME_COMPLETION_CALLBACK],
+            "called on a render thread when a render completes",
+        ),
+        ParamSpec::new(
+            "frameCompletionCallbackUserData",
+            &[ANARI_VOID_POINTER],
+            "first argument of frameCompletionCallback",
+        ),
+    ],
+)
+.channels(&[
+    "channel.color",
+    "channel.depth",
+    "channel.primitiveId",
+    "channel.objectId",
+    "channel.instanceId",
+    "channel.albedo",
+    "channel.normal",
+    "channel.windowDepth",
+])
+.extensions(&[
+    "KHR_FRAME_CHANNEL_PRIMITIVE_ID",
+    "KHR_FRAME_CHANNEL_ALBEDO",
+    "KHR_FRAME_ACCUMULATION",
+    "KHR_FRAME_COMPLETION_CALLBACK",
+    "CAVETRACE_FRAME_CHANNEL_WINDOW_DEPTH",
+]);
+
+pub const SPECS: &[ObjectSpec] = &[renderer::DEFAULT, renderer::FAST, FRAME];
+
+/// Largest frame side accepted (beyond this, sizes are reported as out of memory).
+pub const MAX_FRAME_SIDE: u32 = 1 << 15;
+
+pub fn commit(device: &Device, object: &Object) {
+    match object.kind {
+        ANARI_RENDERER => {
+            object.set_derived(Some(Arc::new(RendererSettings::from_object(object))));
+        }
+        ANARI_FRAME => {
+            let params = object.committed();
+            for (name, accepted) in CHANNELS {
+                if let Some(t) = params.get_data_type(name)
+                    && !accepted.contains(&t)
+                {
+                    device.error(
+                        ANARI_STATUS_INVALID_ARGUMENT,
+                        Some(object),
+                        format!(
+                            "anariCommitParameters: frame parameter '{name}': {} is not a type \
+                             this channel can be mapped as (accepted: {})",
+                            type_name(t),
+                            accepted
+                                .iter()
+                                .map(|t| type_name(*t))
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    );
+                }
+            }
+            if let Some(size) = params.get_uvec2("size")
+                && (size.x == 0 || size.y == 0)
+            {
+                device.error(
+                    ANARI_STATUS_INVALID_ARGUMENT,
+                    Some(object),
+                    format!(
+                        "anariCommitParameters: frame 'size' {}×{} is empty; nothing can be rendered",
+                        size.x, size.y
+                    ),
+                );
+            }
+        }
+        _ => {}
+    }
+}
+
+/// anariRenderFrame: snapshots the committed scene and starts rendering on the device's threads.
+pub fn render_frame(device: &Device, frame: &Object) {
+    let Some(state) = &frame.frame else { return };
+    let params = frame.committed();
+    let fail = |code, text: String| {
+        device.error(code, Some(frame), format!("anariRenderFrame: {text}"));
+    };
+    let Some(size) = params.get_uvec2("size") else {
+        fail(
+            ANARI_STATUS_INVALID_OPERATION,
+            "frame has no committed 'size' (ANARI_UINT32_VEC2); nothing is rendered".into(),
+        );
+        return;
+    };
+    if size.x == 0 || size.y == 0 {
+        fail(
+            ANARI_STATUS_INVALID_ARGUMENT,
+            format!(
+                "frame 'size' {}×{} is empty; nothing is rendered",
+                size.x, size.y
+            ),
+        );
+        return;
+    }
+    if size.x > MAX_FRAME_SIDE || size.y > MAX_FRAME_SIDE {
+        fail(
+            ANARI_STATUS_OUT_OF_MEMORY,
+            format!(
+                "frame 'size' {}×{} exceeds {MAX_FRAME_SIDE} pixels per side; nothing is rendered",
+                size.x, size.y
+            ),
+        );
+        return;
+    }
+    let camera = params
+        .get_object("camera")
+        .and_then(|c| c.derived_as::<crate::camera::CameraModel>())
+        .map(|c| Arc::clone(&c.0));
+    if camera.is_none() {
+        fail(
+            ANARI_STATUS_INVALID_OPERATION,
+            "frame has no valid committed 'camera'; only the background is rendered".into(),
+        );
+    }
+    let settings = params
+        .get_object("renderer")
+        .and_then(|r| r.derived_as::<RendererSettings>())
+        .map(|s| (*s).clone())
+        .unwrap_or_default();
+    let scene = match params.get_object("world") {
+        Some(world) => crate::scene::world::snapshot(device, world),
+        None => {
+            fail(
+                ANARI_STATUS_INVALID_OPERATION,
+                "frame has no committed 'world'; only the background is rendered".into(),
+            );
+            SceneSnapshot::empty()
+        }
+    };
+    let mut channels = HashMap::new();
+    for (name, accepted) in CHANNELS {
+        if let Some(t) = params.get_data_type(name)
+            && accepted.contains(&t)
+        {
+            channels.insert(*name, t);
+        }
+    }
+    let completion = params
+        .get_pointer("frameCompletionCallback", ANARI_FRAME_COMPLETION_CALLBACK)
+        .map(|address| {
+            // SAFETY: the application passed this address as an ANARIFrameCompletionCallback.
+            let callback: frame::ANARIFrameCompletionCallback =
+                unsafe { std::mem::transmute(address) };
+            let user = params
+                .get_pointer("frameCompletionCallbackUserData", ANARI_VOID_POINTER)
+                .unwrap_or(0);
+            (callback, user, device.handle, frame.handle)
+        });
+    let setup = RenderSetup {
+        width: size.x,
+        height: size.y,
+        scene: Arc::new(scene),
+        camera,
+        settings,
+        channels,
+        accumulate: params.get_bool("accumulation").unwrap_or(false),
+        scene_version: device.commit_epoch(),
+        completion,
+    };
+    if !state.start(setup, &device.pool()) {
+        fail(
+            ANARI_STATUS_OUT_OF_MEMORY,
+            format!(
+                "cannot allocate the buffers of a {}×{} frame; nothing is rendered",
+                size.x, size.y
+            ),
+        );
+    }
+}

@@ -1,0 +1,68 @@
+//! Scene objects: one file per ANARI object kind. Commits validate parameters and build what is
+//! expensive (geometry BVHs, sampler images) once; frames take cheap snapshots of the rest.
+
+pub mod array;
+pub mod attributes;
+pub mod geometry;
+pub mod group;
+pub mod instance;
+pub mod light;
+pub mod material;
+pub mod sampler;
+pub mod surface;
+pub mod world;
+
+use std::sync::Arc;
+
+use crate::device::Device;
+use crate::device::datatype::*;
+use crate::device::object::Object;
+use crate::device::spec::ObjectSpec;
+
+pub const SPECS: &[ObjectSpec] = &[
+    geometry::TRIANGLE,
+    geometry::QUAD,
+    geometry::SPHERE,
+    geometry::CYLINDER,
+    material::MATTE,
+    material::PHYSICALLY_BASED,
+    sampler::IMAGE1D,
+    sampler::IMAGE2D,
+    sampler::TRANSFORM,
+    light::DIRECTIONAL,
+    light::POINT,
+    light::SPOT,
+    surface::SURFACE,
+    group::GROUP,
+    instance::TRANSFORM,
+    world::WORLD,
+];
+
+/// Kind-specific work after an object's parameters were committed.
+pub fn commit(device: &Device, object: &Object) {
+    if object.spec.is_none() {
+        return;
+    }
+    match object.kind {
+        ANARI_GEOMETRY => {
+            let geometry = geometry::commit(device, object);
+            object.set_derived(geometry.map(|g| Arc::new(g) as _));
+        }
+        ANARI_SAMPLER => {
+            let sampler = sampler::commit(device, object);
+            object.set_derived(sampler.map(|s| Arc::new(s) as _));
+        }
+        ANARI_CAMERA => crate::camera::commit(device, object),
+        ANARI_RENDERER | ANARI_FRAME => crate::render::commit(device, object),
+        _ => {}
+    }
+}
+
+/// The "bounds" property of worlds and groups.
+pub fn bounds(device: &Device, object: &Object) -> Option<[f32; 6]> {
+    match object.kind {
+        ANARI_WORLD => Some(world::snapshot(device, object).bounds()),
+        ANARI_GROUP => world::group_bounds(device, object),
+        _ => None,
+    }
+}
