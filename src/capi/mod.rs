@@ -105,3 +105,43 @@ pub(crate) fn plain_string(value: *const c_char) -> Option<String> {
         .ok()
         .map(str::to_owned)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Mutex;
+
+    static SEEN: Mutex<Vec<(i32, String)>> = Mutex::new(Vec::new());
+
+    unsafe extern "C" fn remember(
+        _: *const std::ffi::c_void,
+        _: *mut std::ffi::c_void,
+        _: *mut std::ffi::c_void,
+        _: crate::device::datatype::ANARIDataType,
+        _: ANARIStatusSeverity,
+        code: ANARIStatusCode,
+        message: *const c_char,
+    ) {
+        // SAFETY: the device passes a valid C string.
+        let text = unsafe { CStr::from_ptr(message) }
+            .to_string_lossy()
+            .into_owned();
+        SEEN.lock().unwrap().push((code, text));
+    }
+
+    #[test]
+    fn a_panic_becomes_an_unknown_error_and_the_device_stays_usable() {
+        let device = Device::new(Some(remember), 0);
+        let handle = device.handle as *mut std::ffi::c_void;
+        let result = guard("anariTest", handle, 7, || -> i32 { panic!("boom") });
+        assert_eq!(result, 7);
+        let seen = SEEN.lock().unwrap().clone();
+        assert_eq!(seen.len(), 1);
+        assert_eq!(seen[0].0, ANARI_STATUS_UNKNOWN_ERROR);
+        assert!(seen[0].1.contains("anariTest") && seen[0].1.contains("boom"));
+        // Still usable afterwards.
+        let object = device.new_object("anariNewWorld", crate::device::datatype::ANARI_WORLD, "");
+        assert!(device.lookup(object).is_some());
+        device.release("anariRelease", device.handle);
+    }
+}
