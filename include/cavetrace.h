@@ -10,6 +10,29 @@
 #include <stdint.h>
 #include <stddef.h>
 
+/*
+ Default interpupillary distance in meters (KHR_CAMERA_STEREO).
+ */
+#define DEFAULT_INTERPUPILLARY_DISTANCE 0.0635
+
+/*
+ Largest |cos| of the angle between the screen's bottom and right edges that still counts as
+ a right angle (≈ 0.057°): tracked or hand-measured corners are never exact.
+ */
+#define RIGHT_ANGLE_TOLERANCE 1e-3
+
+/*
+ Near plane used by `EyeRays::window_depth` for perspective-like cameras whose `near` is
+ unset or 0 (a zero near plane has no OpenGL depth mapping), in meters.
+ */
+#define DEFAULT_WINDOW_DEPTH_NEAR 0.01
+
+/*
+ Far plane used by `EyeRays::window_depth` for orthographic cameras whose `far` is unset, in
+ meters. Perspective-like cameras use an infinite far plane instead.
+ */
+#define DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR 1000.0
+
 typedef void *ANARIArray1D;
 
 typedef void *ANARIDevice;
@@ -34,6 +57,8 @@ typedef void *ANARIFrame;
 
 typedef unsigned int ANARIWaitMask;
 
+typedef int ANARIStatusCode;
+
 typedef void *ANARIObject;
 
 /*
@@ -44,8 +69,6 @@ typedef void (*ANARIProcAddress)(void);
 typedef void *ANARILibrary;
 
 typedef int ANARIStatusSeverity;
-
-typedef int ANARIStatusCode;
 
 /*
  `ANARIStatusCallback`: (userPtr, device, source, sourceType, severity, code, message).
@@ -453,6 +476,23 @@ const void *anariMapFrame(ANARIDevice device, ANARIFrame frame, const char *chan
 
 void anariUnmapFrame(ANARIDevice device, ANARIFrame frame, const char *channel);
 
+/*
+ Writes one channel of a rendered frame to a PNG file (waiting for the render in flight).
+ Colour is written as sRGB, depth as grey (nearest white, no hit black), ids as distinct
+ colours (no hit black), normals as (n + 1) / 2. The channel must not be mapped by the
+ application during the call. Returns ANARI_STATUS_NO_ERROR, or the code it reported through
+ the device's status callback.
+ */
+ANARIStatusCode cavetraceWriteFramePNG(ANARIDevice device, ANARIFrame frame, const char *channel, const char *path);
+
+/*
+ Writes `width`×`height` pixels of `pixelType` (rows bottom to top, as ANARI frames store
+ them) to a PNG file. Accepts the colour types of channel.color and channel.albedo, ANARI_FLOAT32
+ (shown as distance) and ANARI_UINT32 (shown as ids). Returns ANARI_STATUS_NO_ERROR, or the
+ code it reported through the device's status callback.
+ */
+ANARIStatusCode cavetraceWriteImagePNG(ANARIDevice device, const char *path, uint32_t width, uint32_t height, ANARIDataType pixel_type, const void *pixels);
+
 const char **anariGetObjectSubtypes(ANARIDevice device, ANARIDataType object_type);
 
 const void *anariGetObjectInfo(ANARIDevice device, ANARIDataType object_type, const char *object_subtype, const char *info_name, ANARIDataType info_type);
@@ -507,6 +547,28 @@ void anariRelease(ANARIDevice device, ANARIObject object);
  Number of live cavetrace devices in the process (for tests and leak checks).
  */
 uint64_t cavetraceLiveDeviceCount(void);
+
+/*
+ Pape's off-axis view and projection matrices (column-major, OpenGL conventions) for a screen
+ given by its lower-left, lower-right and upper-right corners and an eye in front of it.
+ `view` = R·T(−eye) with R's rows the screen's axes, so walls of any orientation work.
+ Inputs: `ll`, `lr`, `ur`, `eye` float[3]; outputs `view`, `proj` float[16].
+ */
+ANARIStatusCode cavetraceOffAxisMatrices(const float *ll, const float *lr, const float *ur, const float *eye, float near, float far, float *view, float *proj);
+
+/*
+ Strategy 2: the ANARI "perspective" camera parameters (position, direction, up, fovy, aspect,
+ imageRegion) that render exactly the off-axis frustum of an eye and a screen.
+ Inputs float[3]; outputs float[3], float[3], float[3], float*, float*, float[4].
+ */
+ANARIStatusCode cavetraceOffAxisPerspective(const float *ll, const float *lr, const float *ur, const float *eye, float *position, float *direction, float *up, float *fovy, float *aspect, float *image_region);
+
+/*
+ Strategy 3: recovers eye and screen from an application's view and projection matrices
+ (column-major float[16]) and returns the equivalent "perspective" camera parameters.
+ Matrices that are not a perspective frustum (orthographic, singular, non-finite) are rejected.
+ */
+ANARIStatusCode cavetracePerspectiveFromMatrices(const float *view, const float *proj, float *position, float *direction, float *up, float *fovy, float *aspect, float *image_region);
 
 void anariSetParameter(ANARIDevice device, ANARIObject object, const char *name, ANARIDataType data_type, const void *mem);
 

@@ -352,7 +352,7 @@ fn properties_are_typed_and_never_written_past_size() {
         ),
         1
     );
-    assert!(duration >= 0.0 && duration < 10.0);
+    assert!((0.0..10.0).contains(&duration));
     for o in [geometry, surface, world, frame] {
         anariRelease(dev, o);
     }

@@ -1,32 +1,175 @@
-//! TEMPORARY stand-in until the camera module lands.
-use crate::device::Device;
-use crate::device::object::Object;
-use crate::device::spec::ObjectSpec;
-use glam::{Vec2, Vec3};
-use std::sync::Arc;
+//! Cameras: validated camera descriptions and primary-ray generation.
+//!
+//! Conventions used throughout:
+//! - World space is right-handed, in meters (CAVE space).
+//! - Matrices are column-major like OpenGL/glm; NDC is `[-1, 1]³`.
+//! - Frames store rows bottom-to-top (ANARI): `t = 0` is the bottom edge.
+//! - Geometry is computed in f64 and rounded to f32 only in the outputs.
 
-pub const SPECS: &[ObjectSpec] = &[ObjectSpec::new(
-    crate::device::datatype::ANARI_CAMERA,
-    "perspective",
-    "stub",
-    &[crate::device::spec::ParamSpec::new(
-        "position",
-        &[crate::device::datatype::ANARI_FLOAT32_VEC3],
-        "p",
-    )],
-)];
+pub mod anari;
+pub mod matrix;
+pub mod offaxis;
+pub mod orthographic;
+pub mod perspective;
+mod rays;
+pub mod screen;
+mod validate;
+
+#[cfg(test)]
+mod equivalence_tests;
+#[cfg(test)]
+mod test_support;
+
+pub use anari::{SPECS, camera_from_params};
+pub use matrix::MatrixDesc;
+pub use offaxis::{OffAxisError, PerspectiveFit};
+pub use orthographic::OrthographicDesc;
+pub use perspective::PerspectiveDesc;
+pub use rays::{DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR, DEFAULT_WINDOW_DEPTH_NEAR, EyeRays};
+pub use screen::OffAxisDesc;
+
+use std::fmt;
+
+/// Default interpupillary distance in meters (KHR_CAMERA_STEREO).
+pub const DEFAULT_INTERPUPILLARY_DISTANCE: f32 = 0.0635;
+
+/// One primary ray. The visible segment is `origin + t·direction` for `t` in `[t_min, t_max]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CameraRay {
-    pub origin: Vec3,
-    pub direction: Vec3,
+    pub origin: glam::Vec3,
+    /// Unit length.
+    pub direction: glam::Vec3,
     pub t_min: f32,
     pub t_max: f32,
 }
+
+/// Which eye a viewport or a ray generator belongs to.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub enum Eye {
     Mono,
     Left,
     Right,
 }
+
+impl Eye {
+    /// Offset of this eye from the head centre along the head's right vector, in units of the
+    /// interpupillary distance.
+    pub(crate) fn ipd_fraction(self) -> f64 {
+        match self {
+            Eye::Mono => 0.0,
+            Eye::Left => -0.5,
+            Eye::Right => 0.5,
+        }
+    }
+}
+
+/// KHR_CAMERA_STEREO `stereoMode`.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
+pub enum StereoMode {
+    #[default]
+    None,
+    Left,
+    Right,
+    SideBySide,
+    TopBottom,
+}
+
+impl StereoMode {
+    /// Parses the ANARI string value; `None` for anything not in the extension's value list.
+    pub fn parse(s: &str) -> Option<StereoMode> {
+        match s {
+            "none" => Some(StereoMode::None),
+            "left" => Some(StereoMode::Left),
+            "right" => Some(StereoMode::Right),
+            "sideBySide" => Some(StereoMode::SideBySide),
+            "topBottom" => Some(StereoMode::TopBottom),
+            _ => None,
+        }
+    }
+
+    /// The ANARI string value.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StereoMode::None => "none",
+            StereoMode::Left => "left",
+            StereoMode::Right => "right",
+            StereoMode::SideBySide => "sideBySide",
+            StereoMode::TopBottom => "topBottom",
+        }
+    }
+
+    /// The eyes this mode renders.
+    pub fn eyes(self) -> &'static [Eye] {
+        match self {
+            StereoMode::None => &[Eye::Mono],
+            StereoMode::Left => &[Eye::Left],
+            StereoMode::Right => &[Eye::Right],
+            StereoMode::SideBySide | StereoMode::TopBottom => &[Eye::Left, Eye::Right],
+        }
+    }
+
+    /// Splits a `width`×`height` frame among the eyes of this mode.
+    ///
+    /// `sideBySide`: left eye in the left half (`x` in `[0, width/2)`), right eye in the rest.
+    /// `topBottom`: left eye in the top half, i.e. the upper rows (rows count from the bottom),
+    /// right eye in the bottom `height/2` rows. With odd sizes the second half gets the extra
+    /// column (sideBySide) and the top half the extra row (topBottom), so the viewports always
+    /// tile the frame exactly. Zero-sized viewports are returned as they are.
+    pub fn viewports(self, width: u32, height: u32) -> Vec<EyeViewport> {
+        let whole = |eye| EyeViewport {
+            eye,
+            x: 0,
+            y: 0,
+            width,
+            height,
+        };
+        match self {
+            StereoMode::None => vec![whole(Eye::Mono)],
+            StereoMode::Left => vec![whole(Eye::Left)],
+            StereoMode::Right => vec![whole(Eye::Right)],
+            StereoMode::SideBySide => {
+                let left_width = width / 2;
+                vec![
+                    EyeViewport {
+                        eye: Eye::Left,
+                        x: 0,
+                        y: 0,
+                        width: left_width,
+                        height,
+                    },
+                    EyeViewport {
+                        eye: Eye::Right,
+                        x: left_width,
+                        y: 0,
+                        width: width - left_width,
+                        height,
+                    },
+                ]
+            }
+            StereoMode::TopBottom => {
+                let bottom_height = height / 2;
+                vec![
+                    EyeViewport {
+                        eye: Eye::Left,
+                        x: 0,
+                        y: bottom_height,
+                        width,
+                        height: height - bottom_height,
+                    },
+                    EyeViewport {
+                        eye: Eye::Right,
+                        x: 0,
+                        y: 0,
+                        width,
+                        height: bottom_height,
+                    },
+                ]
+            }
+        }
+    }
+}
+
+/// A rectangle of the frame rendered by one eye. y counts rows from the bottom (ANARI row order).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EyeViewport {
     pub eye: Eye,
@@ -35,56 +178,172 @@ pub struct EyeViewport {
     pub width: u32,
     pub height: u32,
 }
-pub trait Camera: Send + Sync + std::fmt::Debug {
+
+/// A camera validated at commit time, usable for any frame size; Send + Sync, shared by render
+/// threads.
+pub trait Camera: Send + Sync + fmt::Debug {
+    /// How a width×height frame is split among eyes (one viewport for mono/left/right; two for
+    /// sideBySide/topBottom).
     fn viewports(&self, width: u32, height: u32) -> Vec<EyeViewport>;
-    fn prepare(&self, eye: Eye, w: u32, h: u32) -> EyeRays;
+    /// Per-frame, per-eye precomputation for a viewport of the given pixel size.
+    ///
+    /// The requested eye is honoured even if the stereo mode does not use it (a mono camera
+    /// asked for `Eye::Left` renders the left eye); cameras without stereo (orthographic,
+    /// matrix) render the same rays for every eye.
+    fn prepare(&self, eye: Eye, viewport_width: u32, viewport_height: u32) -> EyeRays;
 }
-pub struct EyeRays {
-    pos: Vec3,
-    aspect: f32,
+
+/// A rejected camera parameter: `parameter` is the ANARI parameter name.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CameraError {
+    pub parameter: String,
+    pub message: String,
 }
-impl EyeRays {
-    pub fn ray(&self, s: f32, t: f32, _lens: Vec2) -> CameraRay {
-        let h = (std::f32::consts::FRAC_PI_3 / 2.0).tan();
-        let d = Vec3::new((2.0 * s - 1.0) * h * self.aspect, (2.0 * t - 1.0) * h, -1.0).normalize();
-        CameraRay {
-            origin: self.pos,
-            direction: d,
-            t_min: 0.0,
-            t_max: f32::INFINITY,
-        }
-    }
-    pub fn depth(&self, _ray: &CameraRay, t: f32) -> f32 {
-        t
-    }
-    pub fn window_depth(&self, _p: Vec3) -> f32 {
-        0.5
-    }
-}
-#[derive(Debug)]
-struct Persp {
-    pos: Vec3,
-}
-impl Camera for Persp {
-    fn viewports(&self, width: u32, height: u32) -> Vec<EyeViewport> {
-        vec![EyeViewport {
-            eye: Eye::Mono,
-            x: 0,
-            y: 0,
-            width,
-            height,
-        }]
-    }
-    fn prepare(&self, _eye: Eye, w: u32, h: u32) -> EyeRays {
-        EyeRays {
-            pos: self.pos,
-            aspect: w as f32 / h as f32,
+
+impl CameraError {
+    pub fn new(parameter: impl Into<String>, message: impl Into<String>) -> CameraError {
+        CameraError {
+            parameter: parameter.into(),
+            message: message.into(),
         }
     }
 }
-pub struct CameraModel(pub Arc<dyn Camera>);
-pub fn commit(_device: &Device, object: &Object) {
-    let p = object.committed();
-    let pos = p.get_vec3("position").unwrap_or(Vec3::ZERO);
-    object.set_derived(Some(Arc::new(CameraModel(Arc::new(Persp { pos })))));
+
+impl fmt::Display for CameraError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "camera parameter '{}': {}", self.parameter, self.message)
+    }
+}
+
+impl std::error::Error for CameraError {}
+
+/// The aspect ratio a viewport implies when the camera's `aspect` is unset (1 for an empty
+/// viewport, so that no NaN reaches the ray generator).
+pub(crate) fn viewport_aspect(width: u32, height: u32) -> f64 {
+    if width == 0 || height == 0 {
+        1.0
+    } else {
+        f64::from(width) / f64::from(height)
+    }
+}
+
+/// A committed camera, as the frame finds it on the camera object.
+pub struct CameraModel(pub std::sync::Arc<dyn Camera>);
+
+/// Validates a camera's committed parameters; problems are reported naming the parameter and
+/// leave the camera without a model (frames using it render only the background).
+pub fn commit(device: &crate::device::Device, object: &crate::device::object::Object) {
+    match camera_from_params(&object.subtype, &object.committed()) {
+        Ok(camera) => object.set_derived(Some(std::sync::Arc::new(CameraModel(camera)))),
+        Err(error) => {
+            device.error(
+                crate::device::status::ANARI_STATUS_INVALID_ARGUMENT,
+                Some(object),
+                format!(
+                    "anariCommitParameters: {} parameter '{}': {}; frames using this camera \
+                     render only the background",
+                    object.describe(),
+                    error.parameter,
+                    error.message
+                ),
+            );
+            object.set_derived(None);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stereo_mode_parses_every_anari_value_and_nothing_else() {
+        for mode in [
+            StereoMode::None,
+            StereoMode::Left,
+            StereoMode::Right,
+            StereoMode::SideBySide,
+            StereoMode::TopBottom,
+        ] {
+            assert_eq!(StereoMode::parse(mode.as_str()), Some(mode));
+        }
+        assert_eq!(
+            StereoMode::parse("sideBySide"),
+            Some(StereoMode::SideBySide)
+        );
+        assert_eq!(StereoMode::parse("topBottom"), Some(StereoMode::TopBottom));
+        assert_eq!(StereoMode::parse("sidebyside"), None);
+        assert_eq!(StereoMode::parse("both"), None);
+        assert_eq!(StereoMode::parse(""), None);
+    }
+
+    #[test]
+    fn side_by_side_puts_left_eye_in_left_half() {
+        let v = StereoMode::SideBySide.viewports(101, 40);
+        assert_eq!(
+            v,
+            vec![
+                EyeViewport {
+                    eye: Eye::Left,
+                    x: 0,
+                    y: 0,
+                    width: 50,
+                    height: 40
+                },
+                EyeViewport {
+                    eye: Eye::Right,
+                    x: 50,
+                    y: 0,
+                    width: 51,
+                    height: 40
+                },
+            ]
+        );
+    }
+
+    #[test]
+    fn top_bottom_puts_left_eye_in_upper_rows() {
+        let v = StereoMode::TopBottom.viewports(64, 31);
+        assert_eq!(
+            v,
+            vec![
+                EyeViewport {
+                    eye: Eye::Left,
+                    x: 0,
+                    y: 15,
+                    width: 64,
+                    height: 16
+                },
+                EyeViewport {
+                    eye: Eye::Right,
+                    x: 0,
+                    y: 0,
+                    width: 64,
+                    height: 15
+                },
+            ]
+        );
+        // Rows count from the bottom, so the left eye's first row is above every right-eye row.
+        assert!(v[0].y >= v[1].y + v[1].height);
+    }
+
+    #[test]
+    fn single_eye_modes_cover_the_whole_frame() {
+        for (mode, eye) in [
+            (StereoMode::None, Eye::Mono),
+            (StereoMode::Left, Eye::Left),
+            (StereoMode::Right, Eye::Right),
+        ] {
+            assert_eq!(
+                mode.viewports(7, 5),
+                vec![EyeViewport {
+                    eye,
+                    x: 0,
+                    y: 0,
+                    width: 7,
+                    height: 5
+                }]
+            );
+        }
+    }
 }

@@ -13,6 +13,53 @@ pub fn lookup(name: &str) -> ANARIProcAddress {
                     crate::capi::object::cavetraceLiveDeviceCount,
                 )
             }
+            "cavetraceOffAxisMatrices" => {
+                std::mem::transmute::<
+                    extern "C" fn(
+                        *const f32,
+                        *const f32,
+                        *const f32,
+                        *const f32,
+                        f32,
+                        f32,
+                        *mut f32,
+                        *mut f32,
+                    ) -> i32,
+                    unsafe extern "C" fn(),
+                >(crate::capi::offaxis::cavetraceOffAxisMatrices)
+            }
+            "cavetraceOffAxisPerspective" => {
+                std::mem::transmute::<
+                    extern "C" fn(
+                        *const f32,
+                        *const f32,
+                        *const f32,
+                        *const f32,
+                        *mut f32,
+                        *mut f32,
+                        *mut f32,
+                        *mut f32,
+                        *mut f32,
+                        *mut f32,
+                    ) -> i32,
+                    unsafe extern "C" fn(),
+                >(crate::capi::offaxis::cavetraceOffAxisPerspective)
+            }
+            "cavetracePerspectiveFromMatrices" => {
+                std::mem::transmute::<
+                    extern "C" fn(
+                        *const f32,
+                        *const f32,
+                        *mut f32,
+                        *mut f32,
+                        *mut f32,
+                        *mut f32,
+                        *mut f32,
+                        *mut f32,
+                    ) -> i32,
+                    unsafe extern "C" fn(),
+                >(crate::capi::offaxis::cavetracePerspectiveFromMatrices)
+            }
             _ => return None,
         }
     };

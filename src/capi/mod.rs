@@ -10,9 +10,11 @@ pub mod array;
 pub mod cache;
 pub mod extension;
 pub mod frame;
+pub mod image;
 pub mod introspect;
 pub mod library;
 pub mod object;
+pub mod offaxis;
 pub mod params;
 pub mod types;
 

@@ -321,16 +321,23 @@ fn jitter(index: u32) -> Vec2 {
     if index == 0 {
         return Vec2::splat(0.5);
     }
-    fn radical_inverse(mut i: u32, base: u32) -> f32 {
-        let (mut result, mut f) = (0.0f32, 1.0f32 / base as f32);
-        while i > 0 {
-            result += f * (i % base) as f32;
-            i /= base;
-            f /= base as f32;
-        }
-        result
-    }
     Vec2::new(radical_inverse(index, 2), radical_inverse(index, 3))
+}
+
+/// The depth-of-field lens sample for a sample index: a Halton sequence in bases 5 and 7, so it
+/// is independent of the pixel offsets (bases 2 and 3).
+fn lens_sample(index: u32) -> Vec2 {
+    Vec2::new(radical_inverse(index + 1, 5), radical_inverse(index + 1, 7))
+}
+
+fn radical_inverse(mut i: u32, base: u32) -> f32 {
+    let (mut result, mut f) = (0.0f32, 1.0f32 / base as f32);
+    while i > 0 {
+        result += f * (i % base) as f32;
+        i /= base;
+        f /= base as f32;
+    }
+    result
 }
 
 fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: usize) {
@@ -356,7 +363,7 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
                 let offset = jitter(job.pass * samples + s);
                 let u = (x - viewport.x) as f32 + offset.x;
                 let v = (y - viewport.y) as f32 + offset.y;
-                let lens = jitter(job.pass * samples + s + 1);
+                let lens = lens_sample(job.pass * samples + s);
                 let camera_ray =
                     rays.ray(u / viewport.width as f32, v / viewport.height as f32, lens);
                 let ray = Ray {

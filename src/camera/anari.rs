@@ -1,0 +1,581 @@
+//! ANARI glue: camera objects from committed parameter sets, and the introspection tables of
+//! the camera subtypes.
+
+use std::sync::Arc;
+
+use crate::device::datatype::*;
+use crate::device::params::ParamSet;
+use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
+
+use super::{
+    Camera, CameraError, DEFAULT_INTERPUPILLARY_DISTANCE, MatrixDesc, OffAxisDesc,
+    OrthographicDesc, PerspectiveDesc, StereoMode,
+};
+
+/// Builds and validates the camera of `subtype` ("perspective", "orthographic", "matrix",
+/// "offAxis") from its committed parameters. Unset parameters (and parameters of another type,
+/// which the getters report as unset) take their defaults.
+pub fn camera_from_params(
+    subtype: &str,
+    params: &ParamSet,
+) -> Result<Arc<dyn Camera>, CameraError> {
+    match subtype {
+        "perspective" => perspective_desc(params)?.build(),
+        "orthographic" => orthographic_desc(params).build(),
+        "matrix" => matrix_desc(params).build(),
+        "offAxis" => offaxis_desc(params)?.build(),
+        other => Err(CameraError::new(
+            "subtype",
+            format!("unknown camera subtype '{other}'"),
+        )),
+    }
+}
+
+fn stereo_mode(params: &ParamSet) -> Result<StereoMode, CameraError> {
+    match params.get_string("stereoMode") {
+        None => Ok(StereoMode::None),
+        Some(value) => StereoMode::parse(value).ok_or_else(|| {
+            CameraError::new(
+                "stereoMode",
+                format!(
+                    "unknown value '{value}' (expected none, left, right, sideBySide or topBottom)"
+                ),
+            )
+        }),
+    }
+}
+
+fn perspective_desc(params: &ParamSet) -> Result<PerspectiveDesc, CameraError> {
+    let defaults = PerspectiveDesc::default();
+    Ok(PerspectiveDesc {
+        position: params.get_vec3("position").unwrap_or(defaults.position),
+        direction: params.get_vec3("direction").unwrap_or(defaults.direction),
+        up: params.get_vec3("up").unwrap_or(defaults.up),
+        fovy: params.get_f32("fovy").unwrap_or(defaults.fovy),
+        aspect: params.get_f32("aspect"),
+        image_region: params
+            .get_box2("imageRegion")
+            .unwrap_or(defaults.image_region),
+        near: params.get_f32("near"),
+        far: params.get_f32("far"),
+        stereo_mode: stereo_mode(params)?,
+        interpupillary_distance: params
+            .get_f32("interpupillaryDistance")
+            .unwrap_or(defaults.interpupillary_distance),
+        aperture_radius: params
+            .get_f32("apertureRadius")
+            .unwrap_or(defaults.aperture_radius),
+        focus_distance: params
+            .get_f32("focusDistance")
+            .unwrap_or(defaults.focus_distance),
+    })
+}
+
+fn orthographic_desc(params: &ParamSet) -> OrthographicDesc {
+    let defaults = OrthographicDesc::default();
+    OrthographicDesc {
+        position: params.get_vec3("position").unwrap_or(defaults.position),
+        direction: params.get_vec3("direction").unwrap_or(defaults.direction),
+        up: params.get_vec3("up").unwrap_or(defaults.up),
+        height: params.get_f32("height").unwrap_or(defaults.height),
+        aspect: params.get_f32("aspect"),
+        image_region: params
+            .get_box2("imageRegion")
+            .unwrap_or(defaults.image_region),
+        near: params.get_f32("near"),
+        far: params.get_f32("far"),
+    }
+}
+
+fn matrix_desc(params: &ParamSet) -> MatrixDesc {
+    let defaults = MatrixDesc::default();
+    MatrixDesc {
+        view: params.get_mat4("view").unwrap_or(defaults.view),
+        proj: params.get_mat4("proj").unwrap_or(defaults.proj),
+        image_region: params
+            .get_box2("imageRegion")
+            .unwrap_or(defaults.image_region),
+    }
+}
+
+fn offaxis_desc(params: &ParamSet) -> Result<OffAxisDesc, CameraError> {
+    let defaults = OffAxisDesc::default();
+    Ok(OffAxisDesc {
+        lower_left: params.get_vec3("screen.lowerLeft"),
+        lower_right: params.get_vec3("screen.lowerRight"),
+        upper_right: params.get_vec3("screen.upperRight"),
+        position: params.get_vec3("position").unwrap_or(defaults.position),
+        right: params.get_vec3("right"),
+        stereo_mode: stereo_mode(params)?,
+        interpupillary_distance: params
+            .get_f32("interpupillaryDistance")
+            .unwrap_or(defaults.interpupillary_distance),
+        near: params.get_f32("near"),
+        far: params.get_f32("far"),
+        image_region: params
+            .get_box2("imageRegion")
+            .unwrap_or(defaults.image_region),
+    })
+}
+
+const POSITION: ParamSpec = ParamSpec::new("position", &[ANARI_FLOAT32_VEC3], "camera position")
+    .default(SpecValue::Floats(&[0.0, 0.0, 0.0]));
+const DIRECTION: ParamSpec =
+    ParamSpec::new("direction", &[ANARI_FLOAT32_VEC3], "main viewing direction")
+        .default(SpecValue::Floats(&[0.0, 0.0, -1.0]));
+const UP: ParamSpec = ParamSpec::new("up", &[ANARI_FLOAT32_VEC3], "camera up direction")
+    .default(SpecValue::Floats(&[0.0, 1.0, 0.0]));
+const IMAGE_REGION: ParamSpec = ParamSpec::new(
+    "imageRegion",
+    &[ANARI_FLOAT32_BOX2],
+    "region of the image plane mapped to the frame, [lo.x, lo.y, hi.x, hi.y] inside [0,1]²",
+)
+.default(SpecValue::Floats(&[0.0, 0.0, 1.0, 1.0]));
+const ASPECT: ParamSpec = ParamSpec::new(
+    "aspect",
+    &[ANARI_FLOAT32],
+    "width / height of the image plane (unset: the viewport's aspect)",
+);
+const NEAR: ParamSpec = ParamSpec::new(
+    "near",
+    &[ANARI_FLOAT32],
+    "near clip distance along the view axis",
+);
+const FAR: ParamSpec = ParamSpec::new(
+    "far",
+    &[ANARI_FLOAT32],
+    "far clip distance along the view axis",
+);
+const STEREO_MODE: ParamSpec = ParamSpec::new("stereoMode", &[ANARI_STRING], "stereo mode")
+    .default(SpecValue::Str("none"))
+    .values(&["none", "left", "right", "sideBySide", "topBottom"]);
+const INTERPUPILLARY_DISTANCE: ParamSpec = ParamSpec::new(
+    "interpupillaryDistance",
+    &[ANARI_FLOAT32],
+    "distance between the eyes, which sit at ±half of it along the camera's right vector",
+)
+.default(SpecValue::Float(DEFAULT_INTERPUPILLARY_DISTANCE));
+
+pub const PERSPECTIVE: ObjectSpec = ObjectSpec::new(
+    ANARI_CAMERA,
+    "perspective",
+    "perspective camera with parallel-axis off-axis stereo and thin-lens depth of field",
+    &[
+        POSITION,
+        DIRECTION,
+        UP,
+        IMAGE_REGION,
+        ParamSpec::new(
+            "fovy",
+            &[ANARI_FLOAT32],
+            "vertical field of view in radians",
+        )
+        .default(SpecValue::Float(std::f32::consts::FRAC_PI_3)),
+        ASPECT,
+        NEAR,
+        FAR,
+        STEREO_MODE,
+        INTERPUPILLARY_DISTANCE,
+        ParamSpec::new("apertureRadius", &[ANARI_FLOAT32], "aperture radius")
+            .default(SpecValue::Float(0.0)),
+        ParamSpec::new(
+            "focusDistance",
+            &[ANARI_FLOAT32],
+            "distance of the focus plane, also the zero-parallax plane in stereo",
+        )
+        .default(SpecValue::Float(1.0)),
+    ],
+)
+.extensions(&[
+    "KHR_CAMERA_PERSPECTIVE",
+    "KHR_CAMERA_STEREO",
+    "KHR_CAMERA_DEPTH_OF_FIELD",
+]);
+
+pub const ORTHOGRAPHIC: ObjectSpec = ObjectSpec::new(
+    ANARI_CAMERA,
+    "orthographic",
+    "orthographic camera",
+    &[
+        POSITION,
+        DIRECTION,
+        UP,
+        IMAGE_REGION,
+        ASPECT,
+        ParamSpec::new("height", &[ANARI_FLOAT32], "height of the image plane")
+            .default(SpecValue::Float(1.0)),
+        NEAR,
+        FAR,
+    ],
+)
+.extensions(&["KHR_CAMERA_ORTHOGRAPHIC"]);
+
+pub const MATRIX: ObjectSpec = ObjectSpec::new(
+    ANARI_CAMERA,
+    "matrix",
+    "camera given by OpenGL view and projection matrices (column-major, NDC z in [-1,1])",
+    &[
+        ParamSpec::new(
+            "view",
+            &[ANARI_FLOAT32_MAT4],
+            "world to eye space (default identity)",
+        )
+        .default(SpecValue::Floats(&IDENTITY)),
+        ParamSpec::new(
+            "proj",
+            &[ANARI_FLOAT32_MAT4],
+            "eye to clip space: any glFrustum, glOrtho or infinite-far projection (default identity)",
+        )
+        .default(SpecValue::Floats(&IDENTITY)),
+        IMAGE_REGION,
+    ],
+)
+.extensions(&["ANARI_VSNRAY_CAMERA_MATRIX"]);
+
+const IDENTITY: [f32; 16] = [
+    1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
+];
+
+pub const OFF_AXIS: ObjectSpec = ObjectSpec::new(
+    ANARI_CAMERA,
+    "offAxis",
+    "tracked eye looking at a physical screen rectangle (CAVE wall, powerwall): each eye gets \
+     its exact off-axis frustum, the screen is the zero-parallax plane",
+    &[
+        ParamSpec::new(
+            "screen.lowerLeft",
+            &[ANARI_FLOAT32_VEC3],
+            "lower-left screen corner in world space",
+        )
+        .required(),
+        ParamSpec::new(
+            "screen.lowerRight",
+            &[ANARI_FLOAT32_VEC3],
+            "lower-right screen corner in world space",
+        )
+        .required(),
+        ParamSpec::new(
+            "screen.upperRight",
+            &[ANARI_FLOAT32_VEC3],
+            "upper-right screen corner in world space",
+        )
+        .required(),
+        ParamSpec::new(
+            "position",
+            &[ANARI_FLOAT32_VEC3],
+            "tracked eye, or the head centre between the eyes in stereo; must be in front of the screen",
+        )
+        .default(SpecValue::Floats(&[0.0, 0.0, 0.0])),
+        ParamSpec::new(
+            "right",
+            &[ANARI_FLOAT32_VEC3],
+            "the head's right vector for stereo (unset: the screen's lower edge direction)",
+        ),
+        STEREO_MODE,
+        INTERPUPILLARY_DISTANCE,
+        ParamSpec::new(
+            "near",
+            &[ANARI_FLOAT32],
+            "near clip distance from the eye, perpendicular to the screen",
+        ),
+        ParamSpec::new(
+            "far",
+            &[ANARI_FLOAT32],
+            "far clip distance from the eye, perpendicular to the screen",
+        ),
+        IMAGE_REGION,
+    ],
+)
+.extensions(&["CAVETRACE_CAMERA_OFF_AXIS", "KHR_CAMERA_STEREO"]);
+
+/// The camera subtypes this module implements.
+pub const SPECS: &[ObjectSpec] = &[PERSPECTIVE, ORTHOGRAPHIC, MATRIX, OFF_AXIS];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{Eye, EyeViewport};
+    use crate::device::params::ParamValue;
+    use glam::{Mat4, Vec2, Vec3};
+
+    fn floats(set: &mut ParamSet, name: &str, data_type: ANARIDataType, values: &[f32]) {
+        set.set(name, ParamValue::from_f32s(data_type, values));
+    }
+
+    fn same_rays(a: &dyn Camera, b: &dyn Camera) {
+        assert_eq!(a.viewports(40, 30), b.viewports(40, 30));
+        for viewport in a.viewports(40, 30) {
+            let ra = a.prepare(viewport.eye, viewport.width, viewport.height);
+            let rb = b.prepare(viewport.eye, viewport.width, viewport.height);
+            for (s, t) in [(0.1, 0.2), (0.5, 0.5), (0.95, 0.7)] {
+                assert_eq!(
+                    ra.ray(s, t, Vec2::splat(0.3)),
+                    rb.ray(s, t, Vec2::splat(0.3))
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn perspective_parameters_reach_the_camera() {
+        let mut set = ParamSet::default();
+        floats(&mut set, "position", ANARI_FLOAT32_VEC3, &[1.0, 2.0, 3.0]);
+        floats(&mut set, "direction", ANARI_FLOAT32_VEC3, &[0.0, 0.0, 1.0]);
+        floats(&mut set, "up", ANARI_FLOAT32_VEC3, &[0.0, 1.0, 0.2]);
+        floats(&mut set, "fovy", ANARI_FLOAT32, &[0.7]);
+        floats(&mut set, "aspect", ANARI_FLOAT32, &[1.25]);
+        floats(
+            &mut set,
+            "imageRegion",
+            ANARI_FLOAT32_BOX2,
+            &[0.1, 0.2, 0.9, 0.8],
+        );
+        floats(&mut set, "near", ANARI_FLOAT32, &[0.1]);
+        floats(&mut set, "far", ANARI_FLOAT32, &[100.0]);
+        floats(&mut set, "interpupillaryDistance", ANARI_FLOAT32, &[0.07]);
+        floats(&mut set, "apertureRadius", ANARI_FLOAT32, &[0.02]);
+        floats(&mut set, "focusDistance", ANARI_FLOAT32, &[3.0]);
+        set.set("stereoMode", ParamValue::String("topBottom".into()));
+        let from_params = camera_from_params("perspective", &set).unwrap();
+        let expected = PerspectiveDesc {
+            position: Vec3::new(1.0, 2.0, 3.0),
+            direction: Vec3::Z,
+            up: Vec3::new(0.0, 1.0, 0.2),
+            fovy: 0.7,
+            aspect: Some(1.25),
+            image_region: [0.1, 0.2, 0.9, 0.8],
+            near: Some(0.1),
+            far: Some(100.0),
+            stereo_mode: StereoMode::TopBottom,
+            interpupillary_distance: 0.07,
+            aperture_radius: 0.02,
+            focus_distance: 3.0,
+        }
+        .build()
+        .unwrap();
+        same_rays(&*from_params, &*expected);
+        // And not the default camera.
+        let default = PerspectiveDesc::default().build().unwrap();
+        let ray = |c: &dyn Camera| c.prepare(Eye::Left, 4, 4).ray(0.5, 0.5, Vec2::ZERO);
+        assert_ne!(ray(&*from_params).origin, ray(&*default).origin);
+    }
+
+    #[test]
+    fn empty_parameter_sets_give_the_default_cameras() {
+        let empty = ParamSet::default();
+        same_rays(
+            &*camera_from_params("perspective", &empty).unwrap(),
+            &*PerspectiveDesc::default().build().unwrap(),
+        );
+        same_rays(
+            &*camera_from_params("orthographic", &empty).unwrap(),
+            &*OrthographicDesc::default().build().unwrap(),
+        );
+        same_rays(
+            &*camera_from_params("matrix", &empty).unwrap(),
+            &*MatrixDesc::default().build().unwrap(),
+        );
+        let error = camera_from_params("offAxis", &empty).unwrap_err();
+        assert_eq!(error.parameter, "screen.lowerLeft");
+    }
+
+    #[test]
+    fn orthographic_matrix_and_off_axis_parameters_reach_the_camera() {
+        let mut set = ParamSet::default();
+        floats(&mut set, "position", ANARI_FLOAT32_VEC3, &[0.0, 5.0, 0.0]);
+        floats(&mut set, "direction", ANARI_FLOAT32_VEC3, &[0.0, -1.0, 0.0]);
+        floats(&mut set, "up", ANARI_FLOAT32_VEC3, &[0.0, 0.0, -1.0]);
+        floats(&mut set, "height", ANARI_FLOAT32, &[4.0]);
+        floats(&mut set, "near", ANARI_FLOAT32, &[1.0]);
+        let ortho = camera_from_params("orthographic", &set).unwrap();
+        let ray = ortho.prepare(Eye::Mono, 2, 1).ray(1.0, 1.0, Vec2::ZERO);
+        assert_eq!(ray.origin, Vec3::new(4.0, 5.0, -2.0));
+        assert_eq!(ray.direction, Vec3::NEG_Y);
+        assert_eq!(ray.t_min, 1.0);
+
+        let view =
+            glam::camera::rh::view::look_at_mat4(Vec3::new(0.0, 1.0, 2.0), Vec3::ZERO, Vec3::Y);
+        let proj = glam::camera::rh::proj::opengl::perspective(1.0, 1.5, 0.1, 10.0);
+        let mut set = ParamSet::default();
+        floats(&mut set, "view", ANARI_FLOAT32_MAT4, &view.to_cols_array());
+        floats(&mut set, "proj", ANARI_FLOAT32_MAT4, &proj.to_cols_array());
+        let matrix = camera_from_params("matrix", &set).unwrap();
+        same_rays(
+            &*matrix,
+            &*MatrixDesc {
+                view,
+                proj,
+                ..MatrixDesc::default()
+            }
+            .build()
+            .unwrap(),
+        );
+
+        let mut set = ParamSet::default();
+        floats(
+            &mut set,
+            "screen.lowerLeft",
+            ANARI_FLOAT32_VEC3,
+            &[-1.5, 0.0, -1.5],
+        );
+        floats(
+            &mut set,
+            "screen.lowerRight",
+            ANARI_FLOAT32_VEC3,
+            &[1.5, 0.0, -1.5],
+        );
+        floats(
+            &mut set,
+            "screen.upperRight",
+            ANARI_FLOAT32_VEC3,
+            &[1.5, 3.0, -1.5],
+        );
+        floats(&mut set, "position", ANARI_FLOAT32_VEC3, &[0.2, 1.7, 0.5]);
+        floats(&mut set, "right", ANARI_FLOAT32_VEC3, &[1.0, 0.1, 0.0]);
+        floats(&mut set, "near", ANARI_FLOAT32, &[0.05]);
+        set.set("stereoMode", ParamValue::String("sideBySide".into()));
+        let offaxis = camera_from_params("offAxis", &set).unwrap();
+        same_rays(
+            &*offaxis,
+            &*OffAxisDesc {
+                lower_left: Some(Vec3::new(-1.5, 0.0, -1.5)),
+                lower_right: Some(Vec3::new(1.5, 0.0, -1.5)),
+                upper_right: Some(Vec3::new(1.5, 3.0, -1.5)),
+                position: Vec3::new(0.2, 1.7, 0.5),
+                right: Some(Vec3::new(1.0, 0.1, 0.0)),
+                near: Some(0.05),
+                stereo_mode: StereoMode::SideBySide,
+                ..OffAxisDesc::default()
+            }
+            .build()
+            .unwrap(),
+        );
+        assert_eq!(
+            offaxis.viewports(10, 4)[1],
+            EyeViewport {
+                eye: Eye::Right,
+                x: 5,
+                y: 0,
+                width: 5,
+                height: 4
+            }
+        );
+    }
+
+    #[test]
+    fn bad_values_are_reported_with_their_parameter() {
+        let mut set = ParamSet::default();
+        set.set("stereoMode", ParamValue::String("anaglyph".into()));
+        assert_eq!(
+            camera_from_params("perspective", &set)
+                .unwrap_err()
+                .parameter,
+            "stereoMode"
+        );
+        let mut set = ParamSet::default();
+        floats(&mut set, "fovy", ANARI_FLOAT32, &[4.0]);
+        assert_eq!(
+            camera_from_params("perspective", &set)
+                .unwrap_err()
+                .parameter,
+            "fovy"
+        );
+        let mut set = ParamSet::default();
+        floats(&mut set, "proj", ANARI_FLOAT32_MAT4, &[0.0; 16]);
+        assert_eq!(
+            camera_from_params("matrix", &set).unwrap_err().parameter,
+            "proj"
+        );
+        let error = camera_from_params("omnidirectional", &ParamSet::default()).unwrap_err();
+        assert_eq!(error.parameter, "subtype");
+    }
+
+    #[test]
+    fn specs_declare_every_parameter_read_with_the_descriptions_defaults() {
+        let spec = |subtype: &str| SPECS.iter().find(|s| s.subtype == subtype).unwrap();
+        let read = [
+            (
+                "perspective",
+                &[
+                    "position",
+                    "direction",
+                    "up",
+                    "fovy",
+                    "aspect",
+                    "imageRegion",
+                    "near",
+                    "far",
+                    "stereoMode",
+                    "interpupillaryDistance",
+                    "apertureRadius",
+                    "focusDistance",
+                ][..],
+            ),
+            (
+                "orthographic",
+                &[
+                    "position",
+                    "direction",
+                    "up",
+                    "height",
+                    "aspect",
+                    "imageRegion",
+                    "near",
+                    "far",
+                ][..],
+            ),
+            ("matrix", &["view", "proj", "imageRegion"][..]),
+            (
+                "offAxis",
+                &[
+                    "screen.lowerLeft",
+                    "screen.lowerRight",
+                    "screen.upperRight",
+                    "position",
+                    "right",
+                    "stereoMode",
+                    "interpupillaryDistance",
+                    "near",
+                    "far",
+                    "imageRegion",
+                ][..],
+            ),
+        ];
+        for (subtype, names) in read {
+            let spec = spec(subtype);
+            assert_eq!(spec.kind, ANARI_CAMERA);
+            assert_eq!(spec.params.len(), names.len(), "{subtype}");
+            for name in names {
+                assert!(spec.param(name).is_some(), "{subtype} lacks {name}");
+            }
+        }
+        let perspective = PerspectiveDesc::default();
+        assert_eq!(
+            spec("perspective").param("fovy").unwrap().default,
+            SpecValue::Float(perspective.fovy)
+        );
+        assert_eq!(
+            spec("perspective").param("focusDistance").unwrap().default,
+            SpecValue::Float(perspective.focus_distance)
+        );
+        assert_eq!(
+            spec("offAxis")
+                .param("interpupillaryDistance")
+                .unwrap()
+                .default,
+            SpecValue::Float(OffAxisDesc::default().interpupillary_distance)
+        );
+        assert_eq!(IDENTITY, Mat4::IDENTITY.to_cols_array());
+        assert_eq!(
+            spec("matrix").param("view").unwrap().default,
+            SpecValue::Floats(&IDENTITY)
+        );
+        assert!(spec("offAxis").param("screen.lowerLeft").unwrap().required);
+        assert_eq!(spec("matrix").extensions, &["ANARI_VSNRAY_CAMERA_MATRIX"]);
+        assert!(
+            spec("offAxis")
+                .extensions
+                .contains(&"CAVETRACE_CAMERA_OFF_AXIS")
+        );
+    }
+}

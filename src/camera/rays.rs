@@ -1,0 +1,336 @@
+//! Per-eye ray generators: the concrete `EyeRays` type shared by every camera model.
+
+use glam::{DMat4, DVec2, DVec3, DVec4, Vec2, Vec3};
+
+use super::CameraRay;
+
+/// Near plane used by `EyeRays::window_depth` for perspective-like cameras whose `near` is
+/// unset or 0 (a zero near plane has no OpenGL depth mapping), in meters.
+pub const DEFAULT_WINDOW_DEPTH_NEAR: f64 = 0.01;
+
+/// Far plane used by `EyeRays::window_depth` for orthographic cameras whose `far` is unset, in
+/// meters. Perspective-like cameras use an infinite far plane instead.
+pub const DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR: f64 = 1000.0;
+
+/// The imageRegion box `[lo.x, lo.y, hi.x, hi.y]` as an affine map from the viewport's `[0,1]²`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct ImageRegion {
+    lo: DVec2,
+    extent: DVec2,
+}
+
+impl ImageRegion {
+    /// `region` must already be validated (finite, inside `[0,1]²`, non-empty).
+    pub(crate) fn from_box(region: [f32; 4]) -> ImageRegion {
+        let lo = DVec2::new(f64::from(region[0]), f64::from(region[1]));
+        let hi = DVec2::new(f64::from(region[2]), f64::from(region[3]));
+        ImageRegion {
+            lo,
+            extent: hi - lo,
+        }
+    }
+
+    #[inline]
+    fn apply(&self, s: f32, t: f32) -> DVec2 {
+        self.lo + DVec2::new(f64::from(s), f64::from(t)) * self.extent
+    }
+}
+
+/// Optional near/far clip distances, measured perpendicular to the clip planes.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub(crate) struct ClipRange {
+    pub near: Option<f64>,
+    pub far: Option<f64>,
+}
+
+/// Rays from one point (eye, or a point on the lens) through a window rectangle:
+/// perspective and offAxis cameras.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Pinhole {
+    pub eye: DVec3,
+    /// Window point of `(s', t') = (0, 0)`; the window is `origin + s'·right + t'·up`.
+    pub window_origin: DVec3,
+    pub window_right: DVec3,
+    pub window_up: DVec3,
+    /// Unit normal of the near/far planes, pointing from the eye into the scene.
+    pub forward: DVec3,
+    /// Lens disk axes scaled by the aperture radius; zero for a pinhole.
+    pub lens_right: DVec3,
+    pub lens_up: DVec3,
+    pub clip: ClipRange,
+}
+
+/// Parallel rays starting on a rectangle: orthographic camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Parallel {
+    pub plane_origin: DVec3,
+    pub plane_right: DVec3,
+    pub plane_up: DVec3,
+    /// Unit ray direction, also the normal of the image and near/far planes.
+    pub forward: DVec3,
+    pub clip: ClipRange,
+}
+
+/// Rays unprojected from NDC through proj⁻¹ then view⁻¹: matrix camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Unproject {
+    pub view: DMat4,
+    pub proj: DMat4,
+    pub inv_view: DMat4,
+    pub inv_proj: DMat4,
+    /// World-space centre of projection for perspective matrices, `None` for parallel ones.
+    pub eye: Option<DVec3>,
+}
+
+impl Unproject {
+    /// Homogeneous world point of an NDC point; proj⁻¹ and view⁻¹ are applied one after the
+    /// other (never premultiplied) so that a tiny near plane keeps its precision.
+    #[inline]
+    pub(crate) fn unproject(&self, ndc: DVec3) -> DVec4 {
+        self.inv_view * (self.inv_proj * ndc.extend(1.0))
+    }
+
+    /// The near point, the (unnormalized) direction to the far point, and the distance to the
+    /// far point (infinite when the far plane is at infinity) for NDC `(u, v)`.
+    #[inline]
+    pub(crate) fn segment(&self, u: f64, v: f64) -> (DVec3, DVec3, f64) {
+        let near = self.unproject(DVec3::new(u, v, -1.0));
+        let far = self.unproject(DVec3::new(u, v, 1.0));
+        let near_point = near.truncate() / near.w;
+        // (far_point − near_point)·near.w·far.w, still finite when far.w is 0 (far plane at
+        // infinity). Validation guarantees near.w and far.w do not have opposite signs, so the
+        // scale factor is non-negative and the direction is right.
+        let scaled = far.truncate() * near.w - near.truncate() * far.w;
+        let weight = (near.w * far.w).abs();
+        let length = if weight > 0.0 {
+            scaled.length() / weight
+        } else {
+            f64::INFINITY
+        };
+        (near_point, scaled, length)
+    }
+}
+
+// EyeRays is built once per eye and frame and then read for every ray: keeping the matrices
+// inline avoids a pointer chase per ray, the size difference costs nothing.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Generator {
+    Pinhole(Pinhole),
+    Parallel(Parallel),
+    Unproject(Unproject),
+}
+
+/// Precomputed ray generator for one eye and one viewport size.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EyeRays {
+    region: ImageRegion,
+    generator: Generator,
+}
+
+impl EyeRays {
+    pub(crate) fn pinhole(region: ImageRegion, pinhole: Pinhole) -> EyeRays {
+        EyeRays {
+            region,
+            generator: Generator::Pinhole(pinhole),
+        }
+    }
+
+    pub(crate) fn parallel(region: ImageRegion, parallel: Parallel) -> EyeRays {
+        EyeRays {
+            region,
+            generator: Generator::Parallel(parallel),
+        }
+    }
+
+    pub(crate) fn unproject(region: ImageRegion, unproject: Unproject) -> EyeRays {
+        EyeRays {
+            region,
+            generator: Generator::Unproject(unproject),
+        }
+    }
+
+    /// (s, t) in `[0,1]²` across the viewport (s rightwards, t upwards; a pixel centre is
+    /// ((x+½)/w, (y+½)/h)), BEFORE imageRegion — the camera applies imageRegion itself:
+    /// s' = lo.x + s·(hi.x−lo.x), t' = lo.y + t·(hi.y−lo.y).
+    /// lens in `[0,1)²` is the depth-of-field sample (ignored when apertureRadius is 0).
+    /// t_min/t_max implement near/far clipping: the clip planes are perpendicular to the view
+    /// axis (OpenGL style), so for perspective rays `t_min = near / cos θ`. Unset near/far give
+    /// t_min 0 and t_max +inf. The matrix camera's ray starts on the near plane (t_min 0) and
+    /// ends on the far plane.
+    #[inline]
+    pub fn ray(&self, s: f32, t: f32, lens: Vec2) -> CameraRay {
+        let st = self.region.apply(s, t);
+        match &self.generator {
+            Generator::Pinhole(p) => {
+                let target = p.window_origin + st.x * p.window_right + st.y * p.window_up;
+                let origin = if p.lens_right == DVec3::ZERO && p.lens_up == DVec3::ZERO {
+                    p.eye
+                } else {
+                    let disk = concentric_disk(lens);
+                    p.eye + disk.x * p.lens_right + disk.y * p.lens_up
+                };
+                let direction = (target - origin).normalize();
+                // The lens disk lies in the plane through the eye perpendicular to `forward`,
+                // so plane distances from the origin along `forward` equal those from the eye.
+                let cos_theta = direction.dot(p.forward);
+                CameraRay {
+                    origin: origin.as_vec3(),
+                    direction: direction.as_vec3(),
+                    t_min: p.clip.near.map_or(0.0, |near| (near / cos_theta) as f32),
+                    t_max: p
+                        .clip
+                        .far
+                        .map_or(f32::INFINITY, |far| (far / cos_theta) as f32),
+                }
+            }
+            Generator::Parallel(p) => CameraRay {
+                origin: (p.plane_origin + st.x * p.plane_right + st.y * p.plane_up).as_vec3(),
+                direction: p.forward.as_vec3(),
+                t_min: p.clip.near.map_or(0.0, |near| near as f32),
+                t_max: p.clip.far.map_or(f32::INFINITY, |far| far as f32),
+            },
+            Generator::Unproject(m) => {
+                let (origin, towards_far, length) = m.segment(2.0 * st.x - 1.0, 2.0 * st.y - 1.0);
+                CameraRay {
+                    origin: origin.as_vec3(),
+                    direction: towards_far.normalize().as_vec3(),
+                    t_min: 0.0,
+                    t_max: length as f32,
+                }
+            }
+        }
+    }
+
+    /// channel.depth of a hit at parameter `t` along `ray`: the world-space distance from this
+    /// eye's point (perspective, offAxis, perspective matrix — for depth of field the lens
+    /// centre); for the orthographic camera the distance from the image plane through
+    /// `position` (where its rays start, so simply `t`); for an orthographic matrix the distance
+    /// from the near plane (again `t`).
+    #[inline]
+    pub fn depth(&self, ray: &CameraRay, t: f32) -> f32 {
+        let eye = match &self.generator {
+            // Without a lens the ray starts at the eye and `t` already is the distance.
+            Generator::Pinhole(p) if p.lens_right == DVec3::ZERO && p.lens_up == DVec3::ZERO => {
+                return t;
+            }
+            Generator::Pinhole(p) => p.eye,
+            Generator::Unproject(Unproject { eye: Some(eye), .. }) => *eye,
+            Generator::Parallel(_) | Generator::Unproject(Unproject { eye: None, .. }) => {
+                return t;
+            }
+        };
+        let hit = ray.origin.as_dvec3() + ray.direction.as_dvec3() * f64::from(t);
+        (hit - eye).length() as f32
+    }
+
+    /// OpenGL window-space depth in `[0,1]` (glDepthRange 0..1) of world point p under this
+    /// camera's projection, clamped to `[0,1]`.
+    ///
+    /// - matrix camera: exactly `((proj·view·p).z / w)·½ + ½`.
+    /// - perspective and offAxis: the glFrustum depth mapping of this eye's frustum with the
+    ///   camera's near/far; when near is unset (or 0) [`DEFAULT_WINDOW_DEPTH_NEAR`] is used and
+    ///   when far is unset the far plane is at infinity (depth = 1 − near/z).
+    /// - orthographic: the glOrtho depth mapping with near/far; unset near means 0 and unset
+    ///   far means [`DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR`].
+    pub fn window_depth(&self, p: Vec3) -> f32 {
+        let p = p.as_dvec3();
+        let depth = match &self.generator {
+            Generator::Pinhole(pinhole) => {
+                let z = (p - pinhole.eye).dot(pinhole.forward);
+                let near = pinhole
+                    .clip
+                    .near
+                    .filter(|near| *near > 0.0)
+                    .unwrap_or(DEFAULT_WINDOW_DEPTH_NEAR);
+                perspective_window_depth(z, near, pinhole.clip.far)
+            }
+            Generator::Parallel(parallel) => {
+                let z = (p - parallel.plane_origin).dot(parallel.forward);
+                let near = parallel.clip.near.unwrap_or(0.0);
+                let far = parallel
+                    .clip
+                    .far
+                    .unwrap_or(DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR);
+                (z - near) / (far - near)
+            }
+            Generator::Unproject(m) => {
+                let clip = m.proj * (m.view * p.extend(1.0));
+                0.5 * (clip.z / clip.w) + 0.5
+            }
+        };
+        if depth.is_nan() {
+            0.0
+        } else {
+            depth.clamp(0.0, 1.0) as f32
+        }
+    }
+}
+
+/// Window depth of eye-space distance `z` for a glFrustum-style projection; `far = None` is the
+/// infinite far plane.
+fn perspective_window_depth(z: f64, near: f64, far: Option<f64>) -> f64 {
+    if z <= 0.0 {
+        return 0.0;
+    }
+    let ndc = match far {
+        Some(far) => (far + near) / (far - near) - 2.0 * far * near / ((far - near) * z),
+        None => 1.0 - 2.0 * near / z,
+    };
+    0.5 * ndc + 0.5
+}
+
+/// Shirley–Chiu concentric mapping of the unit square onto the unit disk (area preserving, so
+/// uniform lens samples stay uniform).
+fn concentric_disk(sample: Vec2) -> DVec2 {
+    let a = 2.0 * f64::from(sample.x) - 1.0;
+    let b = 2.0 * f64::from(sample.y) - 1.0;
+    if a == 0.0 && b == 0.0 {
+        return DVec2::ZERO;
+    }
+    let quarter_pi = std::f64::consts::FRAC_PI_4;
+    let (radius, angle) = if a.abs() > b.abs() {
+        (a, quarter_pi * (b / a))
+    } else {
+        (b, 2.0 * quarter_pi - quarter_pi * (a / b))
+    };
+    DVec2::new(radius * angle.cos(), radius * angle.sin())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn concentric_disk_maps_square_edges_onto_the_unit_circle() {
+        for sample in [
+            Vec2::new(1.0, 0.5),
+            Vec2::new(0.0, 0.5),
+            Vec2::new(0.5, 1.0),
+            Vec2::new(0.5, 0.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(0.0, 0.3),
+        ] {
+            let p = concentric_disk(sample);
+            assert!((p.length() - 1.0).abs() < 1e-12, "{sample:?} -> {p:?}");
+        }
+        assert_eq!(concentric_disk(Vec2::splat(0.5)), DVec2::ZERO);
+        let p = concentric_disk(Vec2::new(0.75, 0.5));
+        assert!((p - DVec2::new(0.5, 0.0)).length() < 1e-12);
+        let p = concentric_disk(Vec2::new(0.5, 0.25));
+        assert!((p - DVec2::new(0.0, -0.5)).length() < 1e-12);
+    }
+
+    #[test]
+    fn perspective_window_depth_matches_gl_frustum_values() {
+        // glFrustum with n = 0.5, f = 10: near plane → 0, far plane → 1.
+        assert!((perspective_window_depth(0.5, 0.5, Some(10.0)) - 0.0).abs() < 1e-12);
+        assert!((perspective_window_depth(10.0, 0.5, Some(10.0)) - 1.0).abs() < 1e-12);
+        // In between: f(z − n) / (z(f − n)).
+        let expected = 10.0 * (2.0 - 0.5) / (2.0 * 9.5);
+        assert!((perspective_window_depth(2.0, 0.5, Some(10.0)) - expected).abs() < 1e-12);
+        // Infinite far plane: 1 − n/z.
+        assert!((perspective_window_depth(4.0, 0.5, None) - 0.875).abs() < 1e-12);
+        assert_eq!(perspective_window_depth(-1.0, 0.5, None), 0.0);
+    }
+}
