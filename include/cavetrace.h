@@ -10,29 +10,6 @@
 #include <stdint.h>
 #include <stddef.h>
 
-/*
- Default interpupillary distance in meters (KHR_CAMERA_STEREO).
- */
-#define DEFAULT_INTERPUPILLARY_DISTANCE 0.0635
-
-/*
- Largest |cos| of the angle between the screen's bottom and right edges that still counts as
- a right angle (≈ 0.057°): tracked or hand-measured corners are never exact.
- */
-#define RIGHT_ANGLE_TOLERANCE 1e-3
-
-/*
- Near plane used by `EyeRays::window_depth` for perspective-like cameras whose `near` is
- unset or 0 (a zero near plane has no OpenGL depth mapping), in meters.
- */
-#define DEFAULT_WINDOW_DEPTH_NEAR 0.01
-
-/*
- Far plane used by `EyeRays::window_depth` for orthographic cameras whose `far` is unset, in
- meters. Perspective-like cameras use an infinite far plane instead.
- */
-#define DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR 1000.0
-
 typedef void *ANARIArray1D;
 
 typedef void *ANARIDevice;
@@ -84,31 +61,31 @@ typedef struct {
   const void *value;
 } ANARIParameterValue;
 
-typedef int ANARILogLevel;
+typedef void *ANARILight;
 
 typedef void *ANARICamera;
 
 typedef void *ANARIGeometry;
 
-typedef void *ANARIGroup;
+typedef void *ANARISpatialField;
 
-typedef void *ANARIInstance;
-
-typedef void *ANARILight;
+typedef void *ANARIVolume;
 
 typedef void *ANARIMaterial;
 
 typedef void *ANARISampler;
 
-typedef void *ANARISurface;
+typedef void *ANARIInstance;
 
 typedef void *ANARIRenderer;
 
-typedef void *ANARISpatialField;
+typedef void *ANARISurface;
 
-typedef void *ANARIVolume;
+typedef void *ANARIGroup;
 
 typedef void *ANARIWorld;
+
+typedef int ANARILogLevel;
 
 typedef void *ANARIFuture;
 
@@ -532,6 +509,32 @@ ANARIDevice anariNewInitializedDevice(ANARILibrary library, const char *subtype,
 const char **anariGetDeviceSubtypes(ANARILibrary library);
 
 const char **anariGetDeviceExtensions(ANARILibrary library, const char *device_subtype);
+
+ANARILight anariNewLight(ANARIDevice device, const char *subtype);
+
+ANARICamera anariNewCamera(ANARIDevice device, const char *subtype);
+
+ANARIGeometry anariNewGeometry(ANARIDevice device, const char *subtype);
+
+ANARISpatialField anariNewSpatialField(ANARIDevice device, const char *subtype);
+
+ANARIVolume anariNewVolume(ANARIDevice device, const char *subtype);
+
+ANARIMaterial anariNewMaterial(ANARIDevice device, const char *subtype);
+
+ANARISampler anariNewSampler(ANARIDevice device, const char *subtype);
+
+ANARIInstance anariNewInstance(ANARIDevice device, const char *subtype);
+
+ANARIRenderer anariNewRenderer(ANARIDevice device, const char *subtype);
+
+ANARISurface anariNewSurface(ANARIDevice device);
+
+ANARIGroup anariNewGroup(ANARIDevice device);
+
+ANARIWorld anariNewWorld(ANARIDevice device);
+
+ANARIFrame anariNewFrame(ANARIDevice device);
 
 ANARIObject anariNewObject(ANARIDevice device, const char *object_type, const char *subtype);
 

@@ -10,3 +10,4 @@ pub mod capi;
 pub mod device;
 pub mod render;
 pub mod scene;
+pub mod sdk;

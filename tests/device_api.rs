@@ -315,10 +315,10 @@ fn properties_are_typed_and_never_written_past_size() {
         }
     }
     assert!(
-        names.contains(&"KHR_GEOMETRY_TRIANGLE".to_string()),
+        names.contains(&"ANARI_KHR_GEOMETRY_TRIANGLE".to_string()),
         "{names:?}"
     );
-    assert!(names.contains(&"KHR_FRAME_ACCUMULATION".to_string()));
+    assert!(names.contains(&"ANARI_KHR_FRAME_ACCUMULATION".to_string()));
 
     // World bounds follow the geometry.
     let (geometry, surface, world) = triangle_scene(dev, -2.0);
@@ -526,6 +526,64 @@ fn parameters_set_during_a_render_affect_only_the_next_frame() {
     assert!((depth[128 * 256 + 128] - 2.0).abs() < 1e-3);
     assert!((centre_depth(dev, frame, [256, 256]) - 7.0).abs() < 1e-3);
     for o in [geometry, surface, world, frame] {
+        anariRelease(dev, o);
+    }
+    anariRelease(dev, dev);
+    anariUnloadLibrary(lib);
+    assert!(log.errors().is_empty());
+}
+
+#[test]
+fn a_released_shared_array_is_copied_before_the_application_frees_it() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let mut memory = [[-1.0f32, -1.0, -2.0], [1.0, -1.0, -2.0], [0.0, 1.0, -2.0]];
+    let array = anariNewArray1D(
+        dev,
+        memory.as_ptr() as *const c_void,
+        None,
+        std::ptr::null(),
+        ANARI_FLOAT32_VEC3,
+        3,
+    );
+    let geometry = anariNewGeometry(dev, c("triangle").as_ptr());
+    set_object(dev, geometry, "vertex.position", ANARI_ARRAY1D, array);
+    anariRelease(dev, array);
+    // The application may now reuse its memory; the device must not see it.
+    memory.iter_mut().for_each(|v| *v = [100.0; 3]);
+    commit(dev, geometry);
+    let surface = matte_surface(dev, geometry, [1.0; 3]);
+    let world = world_of(dev, &[surface]);
+    let mut bounds = [0f32; 6];
+    assert_eq!(
+        anariGetProperty(
+            dev,
+            world,
+            c("bounds").as_ptr(),
+            ANARI_FLOAT32_BOX3,
+            bounds.as_mut_ptr() as _,
+            24,
+            ANARI_WAIT
+        ),
+        1
+    );
+    assert_eq!(bounds, [-1.0, -1.0, -2.0, 1.0, 1.0, -2.0]);
+    // An empty world has no bounds.
+    let empty = anariNewWorld(dev);
+    commit(dev, empty);
+    assert_eq!(
+        anariGetProperty(
+            dev,
+            empty,
+            c("bounds").as_ptr(),
+            ANARI_FLOAT32_BOX3,
+            bounds.as_mut_ptr() as _,
+            24,
+            ANARI_WAIT
+        ),
+        0
+    );
+    for o in [geometry, surface, world, empty] {
         anariRelease(dev, o);
     }
     anariRelease(dev, dev);

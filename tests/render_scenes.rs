@@ -524,10 +524,13 @@ fn frames_poll_wait_discard_and_accumulate() {
     let (third, _, _) = render_channel::<[f32; 4]>(dev, frame, "channel.color");
     let changed = |a: &[[f32; 4]], b: &[[f32; 4]]| a.iter().zip(b).filter(|(x, y)| x != y).count();
     assert!(
-        changed(&first, &second) > 20,
-        "a second pass refines the edge pixels"
+        changed(&first, &second) > 5 && changed(&first, &third) > 20,
+        "later passes refine the edge pixels: {} {} {}",
+        changed(&first, &second),
+        changed(&second, &third),
+        changed(&first, &third)
     );
-    assert!(changed(&second, &third) > 20);
+    assert!(changed(&second, &third) > 5);
     assert!(
         changed(&first, &third) < 64 * 64 / 2,
         "only edge pixels change"

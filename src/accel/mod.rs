@@ -1,31 +1,101 @@
-//! TEMPORARY brute-force stand-in until the accel module lands.
-#![allow(clippy::collapsible_if)]
-use glam::{Affine3A, UVec3, UVec4, Vec2, Vec3};
+//! Ray-tracing acceleration structures: one obvhs compressed wide BVH (CWBVH) per geometry
+//! ([`GeometryBvh`]) and a top-level BVH over instanced geometries ([`SceneBvh`]).
+//!
+//! # Conventions callers must follow
+//!
+//! * **Hit interval.** A hit at parameter `t` is reported only if `t_min <= t <= t_max`; both ends
+//!   are inclusive. Among equally distant hits any one may be reported.
+//! * **Ray validity.** `origin` and `direction` must be finite, `origin` within
+//!   [`MAX_COORDINATE`] and `direction` non-zero (it should be unit length so that `t` is a
+//!   distance; lengths from 1e-18 up still give correct ray parameters). `t_min`/`t_max` must
+//!   not be NaN and `t_min <= t_max`; `t_max` may be `f32::INFINITY`. Invalid rays never hit and
+//!   are never occluded. `t_min` may be 0 or even negative: unlike obvhs' own traversal, no hit
+//!   is culled for being close to the origin. An instance whose transform takes a ray outside
+//!   these limits (absurd scales) is skipped for that ray.
+//! * **Self-intersection.** The layer does not know which primitive a secondary ray starts on.
+//!   Start secondary rays at the hit point with `t_min = surface_epsilon(hit_point)` (shadow rays
+//!   may also end at `t_max = distance_to_light - surface_epsilon(light_position)`). The epsilon is
+//!   relative to the magnitude of the coordinates because float rounding of the hit point is.
+//!   Sphere and cylinder tests run in f64, so rays leaving such a surface at 0.6 degrees or more
+//!   above the tangent plane do not re-hit it (tested); more grazing ones may.
+//! * **Normals** are geometric, unit length and not flipped towards the ray: triangles use
+//!   `(v1 - v0) x (v2 - v0)`, quads the normal of the half that was hit, spheres and cylinder
+//!   bodies point outwards, cylinder caps point away from the cylinder along its axis.
+//! * **Empty boxes.** Bounds of empty geometries and scenes are [`EMPTY_BOUNDS`]: `min = +inf`,
+//!   `max = -inf`, so that a union with any other box yields that box.
+//! * **Skipped primitives.** Primitives with non-finite data, coordinates beyond
+//!   [`MAX_COORDINATE`], out-of-range indices, zero area, or non-positive radius / zero length are
+//!   left out of the BVH and can never be hit; they are counted by
+//!   [`GeometryBvh::skipped_primitive_count`]. Instances whose transform is not finite or not
+//!   invertible are left out of the scene.
+//! * **Threads.** Builds are parallel through rayon (obvhs' `parallel` feature for the binary
+//!   BVH, rayon iterators for packing and collapsing) and use the pool of the calling thread:
+//!   call them inside the device pool's `ThreadPool::install`, or they fall back to rayon's
+//!   global pool. Traversal is read-only and single-threaded per call; the structures are
+//!   `Send + Sync`, so render threads share them.
+//! * **Primary rays.** Trace them with `intersect_packet`, 64 rays per 8x8 pixel tile from one
+//!   eye point, the tile ordered as sixteen 2x2 blocks; it returns the same hits as `intersect`
+//!   (bit-identical `t`, `uv` and normals; only exact ties between surfaces may resolve
+//!   differently) at a fraction of the cost. Secondary rays use `intersect`/`occluded`.
+//! * **Rebuilds.** [`SceneBvh::build`] only reads the `Arc<GeometryBvh>`s it is given; rebuild a
+//!   [`GeometryBvh`] only when its primitives change ([`geometry_build_count`] counts builds).
+
+mod geometry;
+mod packet;
+mod primitives;
+mod scene;
+mod wide_bvh;
+
+#[cfg(test)]
+mod tests;
+
+pub use geometry::{GeometryBvh, geometry_build_count};
+pub use scene::SceneBvh;
+
+use glam::{Vec2, Vec3};
 use std::sync::Arc;
-use std::sync::atomic::{AtomicU64, Ordering};
-static BUILDS: AtomicU64 = AtomicU64::new(0);
-pub fn geometry_build_count() -> u64 {
-    BUILDS.load(Ordering::SeqCst)
-}
+
+/// A ray segment `origin + t * direction` for `t` in `[t_min, t_max]` (both inclusive).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
     pub origin: Vec3,
+    /// Unit length, so that `t` is a distance.
     pub direction: Vec3,
     pub t_min: f32,
     pub t_max: f32,
 }
+
+impl Ray {
+    /// A ray over `[t_min, t_max]`.
+    pub fn new(origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> Ray {
+        Ray {
+            origin,
+            direction,
+            t_min,
+            t_max,
+        }
+    }
+}
+
+/// Primitives of one ANARI geometry, already validated by the scene layer. Anything still invalid
+/// is skipped during the build (see the module documentation).
+#[derive(Clone, Debug)]
 pub enum GeometryPrims {
     Triangles {
         positions: Vec<Vec3>,
-        indices: Vec<UVec3>,
+        indices: Vec<glam::UVec3>,
     },
+    /// ANARI quads: quad `(v0, v1, v2, v3)` is split into triangles `(v0, v1, v2)` and
+    /// `(v0, v2, v3)`; the reported primitive id is the quad index.
     Quads {
         positions: Vec<Vec3>,
-        indices: Vec<UVec4>,
+        indices: Vec<glam::UVec4>,
     },
     Spheres {
         centers: Vec<Vec3>,
         radii: Vec<f32>,
     },
+    /// Cylinders between two points; `caps` = flat end caps.
     Cylinders {
         starts: Vec<Vec3>,
         ends: Vec<Vec3>,
@@ -33,155 +103,67 @@ pub enum GeometryPrims {
         caps: bool,
     },
 }
+
+/// Closest hit against one geometry, in the geometry's object space.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PrimHit {
     pub t: f32,
+    /// Index of the primitive in the `GeometryPrims` arrays (the quad index for quads).
     pub primitive: u32,
+    /// Triangles: barycentrics `(b1, b2)` of `v1` and `v2`. Quads: local coordinates with
+    /// `v0 = (0,0)`, `v1 = (1,0)`, `v2 = (1,1)`, `v3 = (0,1)` (exact for parallelograms).
+    /// Spheres: `(longitude / 2pi in [0,1), colatitude / pi in [0,1])` of the object normal
+    /// around +z. Cylinders: `(axial position / length in [0,1], 0)` on the body; caps give
+    /// `(0 or 1, distance from axis / radius)`.
     pub uv: Vec2,
+    /// Geometric normal in object space, unit length, not faced towards the ray.
     pub normal: Vec3,
 }
-#[derive(Debug)]
-pub struct GeometryBvh {
-    tris: Vec<[Vec3; 3]>,
-    ids: Vec<u32>,
-}
-impl GeometryBvh {
-    pub fn build(prims: GeometryPrims) -> GeometryBvh {
-        BUILDS.fetch_add(1, Ordering::SeqCst);
-        let mut tris = Vec::new();
-        let mut ids = Vec::new();
-        if let GeometryPrims::Triangles { positions, indices } = prims {
-            for (i, t) in indices.iter().enumerate() {
-                tris.push([
-                    positions[t.x as usize],
-                    positions[t.y as usize],
-                    positions[t.z as usize],
-                ]);
-                ids.push(i as u32);
-            }
-        }
-        GeometryBvh { tris, ids }
-    }
-    pub fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
-        let mut best: Option<PrimHit> = None;
-        for (k, t) in self.tris.iter().enumerate() {
-            let e1 = t[1] - t[0];
-            let e2 = t[2] - t[0];
-            let p = ray.direction.cross(e2);
-            let det = e1.dot(p);
-            if det.abs() < 1e-12 {
-                continue;
-            }
-            let inv = 1.0 / det;
-            let s = ray.origin - t[0];
-            let u = s.dot(p) * inv;
-            if !(0.0..=1.0).contains(&u) {
-                continue;
-            }
-            let q = s.cross(e1);
-            let v = ray.direction.dot(q) * inv;
-            if v < 0.0 || u + v > 1.0 {
-                continue;
-            }
-            let d = e2.dot(q) * inv;
-            if d >= ray.t_min && d <= ray.t_max && best.as_ref().is_none_or(|b| d < b.t) {
-                best = Some(PrimHit {
-                    t: d,
-                    primitive: self.ids[k],
-                    uv: Vec2::new(u, v),
-                    normal: e1.cross(e2).normalize(),
-                });
-            }
-        }
-        best
-    }
-    pub fn occluded(&self, ray: &Ray) -> bool {
-        self.intersect(ray).is_some()
-    }
-    pub fn bounds(&self) -> (Vec3, Vec3) {
-        let mut lo = Vec3::INFINITY;
-        let mut hi = Vec3::NEG_INFINITY;
-        for t in &self.tris {
-            for v in t {
-                lo = lo.min(*v);
-                hi = hi.max(*v);
-            }
-        }
-        (lo, hi)
-    }
-    pub fn primitive_count(&self) -> usize {
-        self.tris.len()
-    }
-    pub fn memory_bytes(&self) -> usize {
-        self.tris.len() * 40
-    }
-}
+
+/// One instance: a transform and the geometries it places.
+#[derive(Clone)]
 pub struct InstanceDesc {
-    pub transform: Affine3A,
+    /// Object to world.
+    pub transform: glam::Affine3A,
     pub geometries: Vec<Arc<GeometryBvh>>,
 }
+
+/// Closest hit against a scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SceneHit {
+    /// World-space ray parameter (a distance for unit directions).
     pub t: f32,
+    /// Index into the `instances` passed to [`SceneBvh::build`].
     pub instance: u32,
+    /// Index into that instance's `geometries`.
     pub geometry: u32,
     pub primitive: u32,
+    /// Same meaning as [`PrimHit::uv`].
     pub uv: Vec2,
+    /// Geometric normal in world space, unit length.
     pub normal: Vec3,
+    /// Geometric normal in object space, unit length.
     pub object_normal: Vec3,
 }
-pub struct SceneBvh {
-    instances: Vec<InstanceDesc>,
+
+/// Bounds of anything empty: `min = +inf`, `max = -inf`.
+pub const EMPTY_BOUNDS: (Vec3, Vec3) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+
+/// Primitives with any coordinate (or bound) beyond this magnitude are skipped, and rays whose
+/// origin lies beyond it are invalid. Keeps every intermediate of the box and triangle tests
+/// finite (the watertight triangle test multiplies three coordinate differences).
+pub const MAX_COORDINATE: f32 = 1.0e12;
+
+/// Relative epsilon of [`surface_epsilon`].
+pub const SURFACE_EPSILON_SCALE: f32 = 1.0e-4;
+
+/// `t_min` to use for a ray leaving a surface at `point` (shadow, reflection and bounce rays).
+/// Equals `SURFACE_EPSILON_SCALE * max(1, largest |coordinate| of point)`.
+pub fn surface_epsilon(point: Vec3) -> f32 {
+    SURFACE_EPSILON_SCALE * point.abs().max_element().max(1.0)
 }
-impl SceneBvh {
-    pub fn build(instances: Vec<InstanceDesc>) -> SceneBvh {
-        SceneBvh { instances }
-    }
-    pub fn intersect(&self, ray: &Ray) -> Option<SceneHit> {
-        let mut best: Option<SceneHit> = None;
-        for (i, inst) in self.instances.iter().enumerate() {
-            let inv = inst.transform.inverse();
-            let o = inv.transform_point3(ray.origin);
-            let d = inv.transform_vector3(ray.direction);
-            for (g, geo) in inst.geometries.iter().enumerate() {
-                if let Some(h) = geo.intersect(&Ray {
-                    origin: o,
-                    direction: d,
-                    t_min: ray.t_min,
-                    t_max: ray.t_max,
-                }) {
-                    if best.as_ref().is_none_or(|b| h.t < b.t) {
-                        let n = (inst.transform.matrix3.inverse().transpose()
-                            * glam::Vec3A::from(h.normal))
-                        .normalize();
-                        best = Some(SceneHit {
-                            t: h.t,
-                            instance: i as u32,
-                            geometry: g as u32,
-                            primitive: h.primitive,
-                            uv: h.uv,
-                            normal: n.into(),
-                            object_normal: h.normal,
-                        });
-                    }
-                }
-            }
-        }
-        best
-    }
-    pub fn occluded(&self, ray: &Ray) -> bool {
-        self.intersect(ray).is_some()
-    }
-    pub fn bounds(&self) -> (Vec3, Vec3) {
-        let mut lo = Vec3::INFINITY;
-        let mut hi = Vec3::NEG_INFINITY;
-        for inst in &self.instances {
-            for g in &inst.geometries {
-                let (a, b) = g.bounds();
-                if a.x <= b.x {
-                    lo = lo.min(inst.transform.transform_point3(a));
-                    hi = hi.max(inst.transform.transform_point3(b));
-                }
-            }
-        }
-        (lo, hi)
-    }
+
+/// Returns whether a box is empty (min > max on some axis, as for [`EMPTY_BOUNDS`]).
+pub fn bounds_are_empty(bounds: (Vec3, Vec3)) -> bool {
+    bounds.0.cmpgt(bounds.1).any()
 }

@@ -187,9 +187,9 @@ pub const PERSPECTIVE: ObjectSpec = ObjectSpec::new(
     ],
 )
 .extensions(&[
-    "KHR_CAMERA_PERSPECTIVE",
-    "KHR_CAMERA_STEREO",
-    "KHR_CAMERA_DEPTH_OF_FIELD",
+    "ANARI_KHR_CAMERA_PERSPECTIVE",
+    "ANARI_KHR_CAMERA_STEREO",
+    "ANARI_KHR_CAMERA_DEPTH_OF_FIELD",
 ]);
 
 pub const ORTHOGRAPHIC: ObjectSpec = ObjectSpec::new(
@@ -208,7 +208,7 @@ pub const ORTHOGRAPHIC: ObjectSpec = ObjectSpec::new(
         FAR,
     ],
 )
-.extensions(&["KHR_CAMERA_ORTHOGRAPHIC"]);
+.extensions(&["ANARI_KHR_CAMERA_ORTHOGRAPHIC"]);
 
 pub const MATRIX: ObjectSpec = ObjectSpec::new(
     ANARI_CAMERA,
@@ -286,7 +286,7 @@ pub const OFF_AXIS: ObjectSpec = ObjectSpec::new(
         IMAGE_REGION,
     ],
 )
-.extensions(&["CAVETRACE_CAMERA_OFF_AXIS", "KHR_CAMERA_STEREO"]);
+.extensions(&["ANARI_CAVETRACE_CAMERA_OFF_AXIS", "ANARI_KHR_CAMERA_STEREO"]);
 
 /// The camera subtypes this module implements.
 pub const SPECS: &[ObjectSpec] = &[PERSPECTIVE, ORTHOGRAPHIC, MATRIX, OFF_AXIS];
@@ -575,7 +575,7 @@ mod tests {
         assert!(
             spec("offAxis")
                 .extensions
-                .contains(&"CAVETRACE_CAMERA_OFF_AXIS")
+                .contains(&"ANARI_CAVETRACE_CAMERA_OFF_AXIS")
         );
     }
 }

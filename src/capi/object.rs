@@ -29,37 +29,80 @@ fn new_object(
     })
 }
 
-macro_rules! new_with_subtype {
-    ($name:ident, $handle:ty, $kind:expr) => {
-        #[unsafe(no_mangle)]
-        pub extern "C" fn $name(device: ANARIDevice, subtype: *const c_char) -> $handle {
-            new_object(stringify!($name), device, $kind, Some(subtype))
-        }
-    };
+// Written out one by one (not by a macro) so that cbindgen puts each in the header.
+
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewLight(device: ANARIDevice, subtype: *const c_char) -> ANARILight {
+    new_object("anariNewLight", device, ANARI_LIGHT, Some(subtype))
 }
 
-macro_rules! new_without_subtype {
-    ($name:ident, $handle:ty, $kind:expr) => {
-        #[unsafe(no_mangle)]
-        pub extern "C" fn $name(device: ANARIDevice) -> $handle {
-            new_object(stringify!($name), device, $kind, None)
-        }
-    };
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewCamera(device: ANARIDevice, subtype: *const c_char) -> ANARICamera {
+    new_object("anariNewCamera", device, ANARI_CAMERA, Some(subtype))
 }
 
-new_with_subtype!(anariNewLight, ANARILight, ANARI_LIGHT);
-new_with_subtype!(anariNewCamera, ANARICamera, ANARI_CAMERA);
-new_with_subtype!(anariNewGeometry, ANARIGeometry, ANARI_GEOMETRY);
-new_with_subtype!(anariNewSpatialField, ANARISpatialField, ANARI_SPATIAL_FIELD);
-new_with_subtype!(anariNewVolume, ANARIVolume, ANARI_VOLUME);
-new_with_subtype!(anariNewMaterial, ANARIMaterial, ANARI_MATERIAL);
-new_with_subtype!(anariNewSampler, ANARISampler, ANARI_SAMPLER);
-new_with_subtype!(anariNewInstance, ANARIInstance, ANARI_INSTANCE);
-new_with_subtype!(anariNewRenderer, ANARIRenderer, ANARI_RENDERER);
-new_without_subtype!(anariNewSurface, ANARISurface, ANARI_SURFACE);
-new_without_subtype!(anariNewGroup, ANARIGroup, ANARI_GROUP);
-new_without_subtype!(anariNewWorld, ANARIWorld, ANARI_WORLD);
-new_without_subtype!(anariNewFrame, ANARIFrame, ANARI_FRAME);
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewGeometry(device: ANARIDevice, subtype: *const c_char) -> ANARIGeometry {
+    new_object("anariNewGeometry", device, ANARI_GEOMETRY, Some(subtype))
+}
+
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewSpatialField(
+    device: ANARIDevice,
+    subtype: *const c_char,
+) -> ANARISpatialField {
+    new_object(
+        "anariNewSpatialField",
+        device,
+        ANARI_SPATIAL_FIELD,
+        Some(subtype),
+    )
+}
+
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewVolume(device: ANARIDevice, subtype: *const c_char) -> ANARIVolume {
+    new_object("anariNewVolume", device, ANARI_VOLUME, Some(subtype))
+}
+
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewMaterial(device: ANARIDevice, subtype: *const c_char) -> ANARIMaterial {
+    new_object("anariNewMaterial", device, ANARI_MATERIAL, Some(subtype))
+}
+
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewSampler(device: ANARIDevice, subtype: *const c_char) -> ANARISampler {
+    new_object("anariNewSampler", device, ANARI_SAMPLER, Some(subtype))
+}
+
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewInstance(device: ANARIDevice, subtype: *const c_char) -> ANARIInstance {
+    new_object("anariNewInstance", device, ANARI_INSTANCE, Some(subtype))
+}
+
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewRenderer(device: ANARIDevice, subtype: *const c_char) -> ANARIRenderer {
+    new_object("anariNewRenderer", device, ANARI_RENDERER, Some(subtype))
+}
+
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewSurface(device: ANARIDevice) -> ANARISurface {
+    new_object("anariNewSurface", device, ANARI_SURFACE, None)
+}
+
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewGroup(device: ANARIDevice) -> ANARIGroup {
+    new_object("anariNewGroup", device, ANARI_GROUP, None)
+}
+
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewWorld(device: ANARIDevice) -> ANARIWorld {
+    new_object("anariNewWorld", device, ANARI_WORLD, None)
+}
+
+#[unsafe(no_mangle)]
+pub extern "C" fn anariNewFrame(device: ANARIDevice) -> ANARIFrame {
+    new_object("anariNewFrame", device, ANARI_FRAME, None)
+}
 
 /// The kind named by anariNewObject's objectType ("geometry", "spatialField", …).
 fn kind_from_name(name: &str) -> Option<ANARIDataType> {

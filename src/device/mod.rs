@@ -593,7 +593,8 @@ impl Device {
         }
     }
 
-    fn requested_thread_count(&self) -> usize {
+    /// Render and build threads: `numThreads`, or one per core.
+    pub fn requested_thread_count(&self) -> usize {
         let params = self.self_object.committed();
         match params.get_u32("numThreads") {
             Some(n) if n > 0 => n as usize,
@@ -637,6 +638,12 @@ impl Device {
                         .lock()
                         .unwrap_or_else(|e| e.into_inner())
                         .remove(&handle);
+                    // Still used by another object: stop relying on application memory.
+                    if Arc::strong_count(&object) > 1
+                        && let Some(store) = &object.array
+                    {
+                        store.detach_from_application();
+                    }
                 }
                 false
             }

@@ -76,6 +76,27 @@ impl Drop for WorkerPool {
     }
 }
 
+/// Runs a parallel BVH build on a rayon pool that exists only for this call. obvhs and the
+/// accel layer parallelise through rayon on the calling thread's pool; a scoped pool keeps that
+/// work off the application's global rayon pool and joins its threads before returning, so no
+/// thread outlives the call (a library unload leaves none behind).
+pub fn with_build_pool<R: Send>(thread_count: usize, build: impl FnOnce() -> R + Send) -> R {
+    let mut build = Some(build);
+    let scoped = rayon::ThreadPoolBuilder::new()
+        .num_threads(thread_count.max(1))
+        .thread_name(|i| format!("cavetrace-build-{i}"))
+        .build_scoped(
+            |thread| thread.run(),
+            |pool| pool.install(|| (build.take().expect("runs once"))()),
+        );
+    match scoped {
+        Ok(result) => result,
+        // No threads could be started: build on this thread (rayon then runs sequentially
+        // inside a one-thread pool, or the global pool as a last resort).
+        Err(_) => (build.take().expect("not run yet"))(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -60,9 +60,11 @@ pub fn object_property(
     wait: bool,
 ) -> Option<PropertyValue> {
     match (object.kind, name) {
-        (ANARI_WORLD | ANARI_GROUP, "bounds") => {
-            crate::scene::bounds(device, object).map(PropertyValue::Box3)
-        }
+        // An empty world or group has no bounds: the query fails rather than return an
+        // inverted box.
+        (ANARI_WORLD | ANARI_GROUP, "bounds") => crate::scene::bounds(device, object)
+            .filter(|b| b[0] <= b[3] && b[1] <= b[4] && b[2] <= b[5])
+            .map(PropertyValue::Box3),
         (ANARI_FRAME, _) => object.frame.as_ref()?.property(name, wait),
         _ => None,
     }

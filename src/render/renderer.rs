@@ -4,7 +4,7 @@
 
 use glam::{Vec3, Vec4};
 
-use crate::accel::{Ray, SceneHit};
+use crate::accel::{Ray, SceneHit, surface_epsilon};
 use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
@@ -59,8 +59,8 @@ pub const DEFAULT: ObjectSpec = ObjectSpec::new(
     ],
 )
 .extensions(&[
-    "KHR_RENDERER_AMBIENT_LIGHT",
-    "KHR_RENDERER_BACKGROUND_COLOR",
+    "ANARI_KHR_RENDERER_AMBIENT_LIGHT",
+    "ANARI_KHR_RENDERER_BACKGROUND_COLOR",
 ]);
 
 pub const FAST: ObjectSpec = ObjectSpec::new(
@@ -135,9 +135,6 @@ pub struct PrimaryHit {
     pub albedo: Vec3,
     pub normal: Vec3,
 }
-
-/// Offset for secondary rays, relative to the scene scale.
-const RAY_EPSILON: f32 = 1e-4;
 
 struct ShadingPoint {
     point: Vec3,
@@ -218,7 +215,7 @@ fn offset_ray(origin: Vec3, direction: Vec3, t_max: f32) -> Ray {
     Ray {
         origin,
         direction,
-        t_min: RAY_EPSILON * (1.0 + origin.abs().max_element()),
+        t_min: surface_epsilon(origin),
         t_max,
     }
 }
@@ -236,7 +233,8 @@ fn direct_light(scene: &SceneSnapshot, settings: &RendererSettings, sp: &Shading
         }
         if settings.shadows {
             let t_max = if incoming.distance.is_finite() {
-                incoming.distance * (1.0 - 1e-4)
+                let light_point = sp.point + incoming.to_light * incoming.distance;
+                incoming.distance - surface_epsilon(light_point)
             } else {
                 f32::INFINITY
             };

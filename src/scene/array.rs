@@ -104,6 +104,38 @@ impl ArrayStore {
         matches!(self.lock().storage, Storage::Managed(_))
     }
 
+    /// Called when the application releases a shared array that others still use: ANARI lets
+    /// the application free shared memory then, so the device keeps its own copy from here on.
+    /// Captured memory stays: it is the device's until the deleter runs.
+    pub fn detach_from_application(&self) {
+        let mut inner = self.lock();
+        let Storage::Application {
+            address,
+            deleter: None,
+            ..
+        } = inner.storage
+        else {
+            return;
+        };
+        let mut copy: Vec<u64> = Vec::new();
+        if copy.try_reserve_exact(self.byte_size.div_ceil(8)).is_err() {
+            // Nothing sensible remains: forget the application's memory instead of reading it.
+            inner.storage = Storage::Managed(Vec::new());
+            return;
+        }
+        copy.resize(self.byte_size.div_ceil(8), 0);
+        // SAFETY: the application's memory is still valid during anariRelease (it may free it
+        // only afterwards) and holds byte_size bytes; the copy has room for them.
+        unsafe {
+            std::ptr::copy_nonoverlapping(
+                address as *const u8,
+                copy.as_mut_ptr() as *mut u8,
+                self.byte_size,
+            )
+        };
+        inner.storage = Storage::Managed(copy);
+    }
+
     /// Pointer handed to the application by anariMapArray.
     pub fn data_pointer(&self) -> *mut c_void {
         let mut inner = self.lock();

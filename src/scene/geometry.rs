@@ -11,6 +11,7 @@ use crate::device::Device;
 use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::params::ParamSet;
+use crate::device::pool::with_build_pool;
 use crate::device::spec::{ATTRIBUTE_ELEMENT_TYPES, ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
 use crate::scene::attributes::{ATTRIBUTE_NAMES, Attribute, Interpolation, triangle_weights};
@@ -147,7 +148,7 @@ pub const TRIANGLE: ObjectSpec = ObjectSpec::new(
     TRIANGLE_PARAMS,
 )
 .shared(MESH_ATTRIBUTES)
-.extensions(&["KHR_GEOMETRY_TRIANGLE"]);
+.extensions(&["ANARI_KHR_GEOMETRY_TRIANGLE"]);
 pub const QUAD: ObjectSpec = ObjectSpec::new(
     ANARI_GEOMETRY,
     "quad",
@@ -155,7 +156,7 @@ pub const QUAD: ObjectSpec = ObjectSpec::new(
     QUAD_PARAMS,
 )
 .shared(MESH_ATTRIBUTES)
-.extensions(&["KHR_GEOMETRY_QUAD"]);
+.extensions(&["ANARI_KHR_GEOMETRY_QUAD"]);
 pub const SPHERE: ObjectSpec = ObjectSpec::new(
     ANARI_GEOMETRY,
     "sphere",
@@ -163,7 +164,7 @@ pub const SPHERE: ObjectSpec = ObjectSpec::new(
     SPHERE_PARAMS,
 )
 .shared(POINT_ATTRIBUTES)
-.extensions(&["KHR_GEOMETRY_SPHERE"]);
+.extensions(&["ANARI_KHR_GEOMETRY_SPHERE"]);
 pub const CYLINDER: ObjectSpec = ObjectSpec::new(
     ANARI_GEOMETRY,
     "cylinder",
@@ -509,7 +510,9 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
             .any(|a| a.per_vertex.is_some() || a.per_corner.is_some());
     Some(Geometry {
         shape,
-        bvh: Arc::new(GeometryBvh::build(prims)),
+        bvh: Arc::new(with_build_pool(device.requested_thread_count(), || {
+            GeometryBvh::build(prims)
+        })),
         primitive_ids: (!identity).then_some(primitive_ids),
         // Only kept when something is interpolated, to keep big meshes small.
         vertex_indices: if needs_vertices {

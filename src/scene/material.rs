@@ -58,7 +58,7 @@ pub const MATTE: ObjectSpec = ObjectSpec::new(
         ALPHA_CUTOFF,
     ],
 )
-.extensions(&["KHR_MATERIAL_MATTE"]);
+.extensions(&["ANARI_KHR_MATERIAL_MATTE"]);
 
 pub const PHYSICALLY_BASED: ObjectSpec = ObjectSpec::new(
     ANARI_MATERIAL,

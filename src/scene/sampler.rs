@@ -78,7 +78,7 @@ pub const IMAGE1D: ObjectSpec = ObjectSpec::new(
         OUT_OFFSET,
     ],
 )
-.extensions(&["KHR_SAMPLER_IMAGE1D"]);
+.extensions(&["ANARI_KHR_SAMPLER_IMAGE1D"]);
 
 pub const IMAGE2D: ObjectSpec = ObjectSpec::new(
     ANARI_SAMPLER,
@@ -110,7 +110,7 @@ pub const IMAGE2D: ObjectSpec = ObjectSpec::new(
         OUT_OFFSET,
     ],
 )
-.extensions(&["KHR_SAMPLER_IMAGE2D"]);
+.extensions(&["ANARI_KHR_SAMPLER_IMAGE2D"]);
 
 pub const TRANSFORM: ObjectSpec = ObjectSpec::new(
     ANARI_SAMPLER,
@@ -118,7 +118,7 @@ pub const TRANSFORM: ObjectSpec = ObjectSpec::new(
     "affine transform of a geometry attribute",
     &[IN_ATTRIBUTE, OUT_TRANSFORM, OUT_OFFSET],
 )
-.extensions(&["KHR_SAMPLER_TRANSFORM"]);
+.extensions(&["ANARI_KHR_SAMPLER_TRANSFORM"]);
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Wrap {

@@ -16,4 +16,4 @@ pub const SURFACE: ObjectSpec = ObjectSpec::new(
             .default(SpecValue::UInt(u32::MAX)),
     ],
 )
-.extensions(&["KHR_FRAME_CHANNEL_OBJECT_ID"]);
+.extensions(&["ANARI_KHR_FRAME_CHANNEL_OBJECT_ID"]);

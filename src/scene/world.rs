@@ -11,6 +11,7 @@ use crate::device::Device;
 use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::params::ParamSet;
+use crate::device::pool::with_build_pool;
 use crate::device::spec::{ObjectSpec, ParamSpec};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
 use crate::scene::attributes::ATTRIBUTE_NAMES;
@@ -192,7 +193,7 @@ pub fn snapshot(device: &Device, world: &Object) -> SceneSnapshot {
         })
         .collect();
     SceneSnapshot {
-        bvh: SceneBvh::build(descs),
+        bvh: with_build_pool(device.requested_thread_count(), || SceneBvh::build(descs)),
         instances,
         lights,
     }

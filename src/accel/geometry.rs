@@ -1,0 +1,629 @@
+//! Bottom-level BVH: one wide BVH over the primitives of one geometry.
+
+use crate::accel::packet::{
+    FRUSTUM_RAYS, FrustumPacket, LANES, RayPacket, traverse_frustum, traverse_packet,
+    triangle_packet,
+};
+use crate::accel::primitives::{
+    CylinderPart, PackedCylinder, PackedSphere, PackedTriangle, cylinder_hit, cylinder_surface,
+    sphere_surface, sphere_t, triangle_t, triangle_t_uv,
+};
+use crate::accel::wide_bvh::{TraversalRay, build_wide_bvh, prefetch, traverse};
+use crate::accel::{EMPTY_BOUNDS, GeometryPrims, PrimHit, Ray};
+use glam::{Vec2, Vec3, Vec3A};
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::node::CwBvhNode;
+use rayon::iter::{IndexedParallelIterator, IntoParallelRefIterator, ParallelIterator};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+static GEOMETRY_BUILDS: AtomicU64 = AtomicU64::new(0);
+
+#[cfg(test)]
+thread_local! {
+    /// Builds started on this thread, so tests running in parallel can count their own builds.
+    pub(crate) static BUILDS_ON_THIS_THREAD: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// Total number of [`GeometryBvh::build`] calls in this process.
+pub fn geometry_build_count() -> u64 {
+    GEOMETRY_BUILDS.load(Ordering::Relaxed)
+}
+
+/// Marks, in a quad geometry's primitive ids, the second triangle `(v0, v2, v3)` of a quad.
+const QUAD_SECOND_HALF: u32 = 1 << 31;
+
+/// Primitive data in BVH slot order.
+enum PrimitiveData {
+    Triangles(Vec<PackedTriangle>),
+    Quads(Vec<PackedTriangle>),
+    Spheres(Vec<PackedSphere>),
+    Cylinders {
+        cylinders: Vec<PackedCylinder>,
+        caps: bool,
+    },
+}
+
+/// A BVH over the primitives of one geometry, in object space.
+pub struct GeometryBvh {
+    nodes: Vec<CwBvhNode>,
+    primitives: PrimitiveData,
+    /// Per BVH slot, the index of the source primitive (quads: plus `QUAD_SECOND_HALF`).
+    source_ids: Vec<u32>,
+    bounds: (Vec3, Vec3),
+    primitive_count: usize,
+    skipped_primitive_count: usize,
+}
+
+impl std::fmt::Debug for GeometryBvh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("GeometryBvh")
+            .field("primitive_count", &self.primitive_count)
+            .field("skipped_primitive_count", &self.skipped_primitive_count)
+            .field("nodes", &self.nodes.len())
+            .field("bounds", &self.bounds)
+            .finish()
+    }
+}
+
+/// Usable primitives in input order with their source ids.
+struct Collected<P> {
+    primitives: Vec<P>,
+    source_ids: Vec<u32>,
+}
+
+impl<P> Collected<P> {
+    fn with_capacity(capacity: usize) -> Collected<P> {
+        Collected {
+            primitives: Vec::with_capacity(capacity),
+            source_ids: Vec::with_capacity(capacity),
+        }
+    }
+
+    fn push(&mut self, primitive: P, source_id: u32) {
+        self.primitives.push(primitive);
+        self.source_ids.push(source_id);
+    }
+}
+
+fn vertex(positions: &[Vec3], index: u32) -> Option<Vec3> {
+    positions.get(index as usize).copied()
+}
+
+fn triangle_from(positions: &[Vec3], corners: [u32; 3]) -> Option<PackedTriangle> {
+    PackedTriangle::new(
+        vertex(positions, corners[0])?,
+        vertex(positions, corners[1])?,
+        vertex(positions, corners[2])?,
+    )
+}
+
+/// Builds the BVH over the collected primitives and stores them in BVH slot order.
+fn order_for_bvh<P: Copy + Send + Sync>(
+    collected: Collected<P>,
+    bounds_of: impl Fn(&P) -> Aabb + Send + Sync,
+) -> (Vec<CwBvhNode>, Vec<P>, Vec<u32>, (Vec3, Vec3)) {
+    let boxes: Vec<Aabb> = collected.primitives.par_iter().map(bounds_of).collect();
+    let total = boxes
+        .par_iter()
+        .fold(
+            || EMPTY_BOUNDS,
+            |(min, max), aabb| (min.min(aabb.min.into()), max.max(aabb.max.into())),
+        )
+        .reduce(
+            || EMPTY_BOUNDS,
+            |(min_a, max_a), (min_b, max_b)| (min_a.min(min_b), max_a.max(max_b)),
+        );
+    let (nodes, order) = build_wide_bvh(&boxes);
+    let primitives = order
+        .par_iter()
+        .map(|&i| collected.primitives[i as usize])
+        .collect();
+    let source_ids = order
+        .par_iter()
+        .map(|&i| collected.source_ids[i as usize])
+        .collect();
+    (nodes, primitives, source_ids, total)
+}
+
+impl GeometryBvh {
+    /// Builds the BVH; invalid primitives are skipped (see the module documentation of
+    /// `accel`). Increments [`geometry_build_count`].
+    pub fn build(prims: GeometryPrims) -> GeometryBvh {
+        GEOMETRY_BUILDS.fetch_add(1, Ordering::Relaxed);
+        #[cfg(test)]
+        BUILDS_ON_THIS_THREAD.with(|count| count.set(count.get() + 1));
+
+        match prims {
+            GeometryPrims::Triangles { positions, indices } => {
+                let usable = u32::MAX as usize;
+                let (primitives, source_ids) = indices[..indices.len().min(usable)]
+                    .par_iter()
+                    .enumerate()
+                    .filter_map(|(id, corners)| {
+                        triangle_from(&positions, corners.to_array()).map(|t| (t, id as u32))
+                    })
+                    .unzip();
+                let collected = Collected {
+                    primitives,
+                    source_ids,
+                };
+                let input_count = indices.len();
+                let accepted = collected.primitives.len();
+                let (nodes, triangles, source_ids, bounds) =
+                    order_for_bvh(collected, PackedTriangle::bounds);
+                GeometryBvh {
+                    nodes,
+                    primitives: PrimitiveData::Triangles(triangles),
+                    source_ids,
+                    bounds,
+                    primitive_count: accepted,
+                    skipped_primitive_count: input_count - accepted,
+                }
+            }
+            GeometryPrims::Quads { positions, indices } => {
+                let mut collected = Collected::with_capacity(indices.len() * 2);
+                let mut accepted = 0;
+                for (id, quad) in indices.iter().enumerate().take(QUAD_SECOND_HALF as usize) {
+                    let first = triangle_from(&positions, [quad.x, quad.y, quad.z]);
+                    let second = triangle_from(&positions, [quad.x, quad.z, quad.w]);
+                    accepted += usize::from(first.is_some() || second.is_some());
+                    if let Some(triangle) = first {
+                        collected.push(triangle, id as u32);
+                    }
+                    if let Some(triangle) = second {
+                        collected.push(triangle, id as u32 | QUAD_SECOND_HALF);
+                    }
+                }
+                let (nodes, triangles, source_ids, bounds) =
+                    order_for_bvh(collected, PackedTriangle::bounds);
+                GeometryBvh {
+                    nodes,
+                    primitives: PrimitiveData::Quads(triangles),
+                    source_ids,
+                    bounds,
+                    primitive_count: accepted,
+                    skipped_primitive_count: indices.len() - accepted,
+                }
+            }
+            GeometryPrims::Spheres { centers, radii } => {
+                let mut collected = Collected::with_capacity(centers.len());
+                for (id, center) in centers.iter().enumerate().take(u32::MAX as usize) {
+                    let sphere = radii
+                        .get(id)
+                        .and_then(|&radius| PackedSphere::new(*center, radius));
+                    if let Some(sphere) = sphere {
+                        collected.push(sphere, id as u32);
+                    }
+                }
+                let accepted = collected.primitives.len();
+                let (nodes, spheres, source_ids, bounds) =
+                    order_for_bvh(collected, PackedSphere::bounds);
+                GeometryBvh {
+                    nodes,
+                    primitives: PrimitiveData::Spheres(spheres),
+                    source_ids,
+                    bounds,
+                    primitive_count: accepted,
+                    skipped_primitive_count: centers.len() - accepted,
+                }
+            }
+            GeometryPrims::Cylinders {
+                starts,
+                ends,
+                radii,
+                caps,
+            } => {
+                let mut collected = Collected::with_capacity(starts.len());
+                for (id, start) in starts.iter().enumerate().take(u32::MAX as usize) {
+                    let cylinder = match (ends.get(id), radii.get(id)) {
+                        (Some(&end), Some(&radius)) => PackedCylinder::new(*start, end, radius),
+                        _ => None,
+                    };
+                    if let Some(cylinder) = cylinder {
+                        collected.push(cylinder, id as u32);
+                    }
+                }
+                let accepted = collected.primitives.len();
+                let (nodes, cylinders, source_ids, bounds) =
+                    order_for_bvh(collected, PackedCylinder::bounds);
+                GeometryBvh {
+                    nodes,
+                    primitives: PrimitiveData::Cylinders { cylinders, caps },
+                    source_ids,
+                    bounds,
+                    primitive_count: accepted,
+                    skipped_primitive_count: starts.len() - accepted,
+                }
+            }
+        }
+    }
+
+    /// Closest hit with `t` in `[t_min, t_max]`.
+    pub fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
+        let mut ray = prepare(ray)?;
+        let (slot, bary) = self.closest_slot(&mut ray)?;
+        Some(self.hit_with_barycentrics(slot, bary, &ray))
+    }
+
+    /// Whether anything is hit with `t` in `[t_min, t_max]`.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        prepare(ray).is_some_and(|mut ray| self.any_hit(&mut ray))
+    }
+
+    /// Closest hits of many rays: `hits[i]` receives what `intersect(&rays[i])` would return
+    /// (the same `t`; only among primitives hit at exactly the same `t` the reported one may
+    /// differ). Ray order and packet forming are as for [`crate::accel::SceneBvh::intersect_packet`].
+    /// Extra entries of the longer slice are ignored.
+    pub fn intersect_packet(&self, rays: &[Ray], hits: &mut [Option<PrimHit>]) {
+        let mut frustum = FrustumPacket::empty();
+        for (rays, hits) in rays.chunks(FRUSTUM_RAYS).zip(hits.chunks_mut(FRUSTUM_RAYS)) {
+            if frustum.fill_from_rays(rays) {
+                let active = std::array::from_fn(|group| frustum.groups[group].lanes);
+                let mut closest = [None; FRUSTUM_RAYS];
+                self.closest_slots_frustum(&mut frustum, &active, &mut closest);
+                for (index, hit) in hits.iter_mut().enumerate() {
+                    let group = &frustum.groups[index / LANES];
+                    *hit = closest[index].map(|slot| self.packet_hit(slot, group, index % LANES));
+                }
+                continue;
+            }
+            for (rays, hits) in rays.chunks(LANES).zip(hits.chunks_mut(LANES)) {
+                let prepared = std::array::from_fn(|lane| rays.get(lane).and_then(prepare));
+                let Some(mut packet) = RayPacket::new(&prepared) else {
+                    for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+                        *hit = self.intersect(ray);
+                    }
+                    continue;
+                };
+                let mut closest = [None; LANES];
+                let lanes = packet.lanes;
+                self.closest_slots_packet(&mut packet, lanes, &mut closest);
+                for (lane, hit) in hits.iter_mut().enumerate() {
+                    *hit = closest[lane].map(|slot| self.packet_hit(slot, &packet, lane));
+                }
+            }
+        }
+    }
+
+    /// Object-space box of all usable primitives; [`EMPTY_BOUNDS`] when there are none.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.bounds
+    }
+
+    /// Number of primitives that can be hit (for quads: quads with at least one usable half).
+    pub fn primitive_count(&self) -> usize {
+        self.primitive_count
+    }
+
+    /// Number of input primitives left out as invalid.
+    pub fn skipped_primitive_count(&self) -> usize {
+        self.skipped_primitive_count
+    }
+
+    /// Heap bytes owned: BVH nodes, packed primitives and primitive ids.
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of;
+        let primitive_bytes = match &self.primitives {
+            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
+                triangles.capacity() * size_of::<PackedTriangle>()
+            }
+            PrimitiveData::Spheres(spheres) => spheres.capacity() * size_of::<PackedSphere>(),
+            PrimitiveData::Cylinders { cylinders, .. } => {
+                cylinders.capacity() * size_of::<PackedCylinder>()
+            }
+        };
+        self.nodes.capacity() * size_of::<CwBvhNode>()
+            + self.source_ids.capacity() * size_of::<u32>()
+            + primitive_bytes
+    }
+
+    pub(crate) fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Closest hit; shrinks `ray.t_max` to it and returns its BVH slot with, for triangles
+    /// and quads, the barycentrics `(b1, b2)` of the hit (zero for other kinds).
+    #[inline]
+    pub(crate) fn closest_slot(&self, ray: &mut TraversalRay) -> Option<(u32, Vec2)> {
+        let mut closest = None;
+        match &self.primitives {
+            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
+                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
+                    let hit = triangle_t_uv(&triangles[slot as usize], ray);
+                    if let Some((t, bary)) = hit {
+                        ray.t_max = t;
+                        closest = Some((slot, bary));
+                    }
+                    hit.is_some()
+                });
+                return closest;
+            }
+            PrimitiveData::Spheres(spheres) => {
+                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
+                    let hit = sphere_t(&spheres[slot as usize], ray);
+                    if let Some(t) = hit {
+                        ray.t_max = t;
+                        closest = Some((slot, Vec2::ZERO));
+                    }
+                    hit.is_some()
+                });
+            }
+            PrimitiveData::Cylinders { cylinders, caps } => {
+                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
+                    let hit = cylinder_hit(&cylinders[slot as usize], *caps, ray);
+                    if let Some((t, _)) = hit {
+                        ray.t_max = t;
+                        closest = Some((slot, Vec2::ZERO));
+                    }
+                    hit.is_some()
+                });
+            }
+        }
+        closest
+    }
+
+    /// Frustum version of [`Self::closest_slot`] for the `active` lanes of every group;
+    /// `closest[4 * group + lane]` receives the slots.
+    #[inline]
+    pub(crate) fn closest_slots_frustum(
+        &self,
+        frustum: &mut FrustumPacket,
+        active: &[u32; FRUSTUM_RAYS / LANES],
+        closest: &mut [Option<u32>; FRUSTUM_RAYS],
+    ) {
+        let prefetch_primitive = |slot: u32| self.prefetch_primitive(slot);
+        traverse_frustum(
+            &self.nodes,
+            frustum,
+            active,
+            prefetch_primitive,
+            |first, count, lanes, frustum| {
+                for (group_index, lanes) in lanes.iter().enumerate() {
+                    if *lanes == 0 {
+                        continue;
+                    }
+                    let group = &mut frustum.groups[group_index];
+                    let mut found = [None; LANES];
+                    self.test_leaf_packet(first, count, group, *lanes, &mut found);
+                    for (lane, slot) in found.iter().enumerate() {
+                        if slot.is_some() {
+                            closest[group_index * LANES + lane] = *slot;
+                        }
+                    }
+                }
+            },
+        );
+    }
+
+    /// Packet version of [`Self::closest_slot`] for the packet's `lanes`: lanes that hit get
+    /// their `t_max` shrunk and their slot written to `closest`.
+    #[inline]
+    pub(crate) fn closest_slots_packet(
+        &self,
+        packet: &mut RayPacket,
+        lanes: u32,
+        closest: &mut [Option<u32>; LANES],
+    ) {
+        traverse_packet(&self.nodes, packet, lanes, |first, count, lanes, packet| {
+            self.test_leaf_packet(first, count, packet, lanes, closest);
+        });
+    }
+
+    #[inline(always)]
+    fn prefetch_primitive(&self, slot: u32) {
+        let slot = slot as usize;
+        match &self.primitives {
+            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
+                if let Some(triangle) = triangles.get(slot) {
+                    prefetch(triangle);
+                }
+            }
+            PrimitiveData::Spheres(spheres) => {
+                if let Some(sphere) = spheres.get(slot) {
+                    prefetch(sphere);
+                }
+            }
+            PrimitiveData::Cylinders { cylinders, .. } => {
+                if let Some(cylinder) = cylinders.get(slot) {
+                    prefetch(cylinder);
+                }
+            }
+        }
+    }
+
+    /// Tests the primitive slots `first..first + count` against the packet's `lanes`; lanes
+    /// that hit get their `t_max` shrunk and their slot written to `closest`. Spheres and
+    /// cylinders are tested lane by lane with the single-ray routines.
+    #[inline(always)]
+    fn test_leaf_packet(
+        &self,
+        first: u32,
+        count: u32,
+        packet: &mut RayPacket,
+        lanes: u32,
+        closest: &mut [Option<u32>; LANES],
+    ) {
+        let per_lane = |packet: &mut RayPacket,
+                        closest: &mut [Option<u32>; LANES],
+                        slot: u32,
+                        test: &dyn Fn(&TraversalRay) -> Option<f32>| {
+            let mut remaining = lanes;
+            while remaining != 0 {
+                let lane = remaining.trailing_zeros() as usize;
+                remaining &= remaining - 1;
+                if let Some(t) = test(&packet.ray(lane)) {
+                    packet.t_max[lane] = t;
+                    closest[lane] = Some(slot);
+                }
+            }
+        };
+        for slot in first..first + count {
+            match &self.primitives {
+                PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
+                    let mut hits = triangle_packet(&triangles[slot as usize], packet, lanes);
+                    while hits != 0 {
+                        closest[hits.trailing_zeros() as usize] = Some(slot);
+                        hits &= hits - 1;
+                    }
+                }
+                PrimitiveData::Spheres(spheres) => {
+                    let sphere = &spheres[slot as usize];
+                    per_lane(packet, closest, slot, &|ray| sphere_t(sphere, ray));
+                }
+                PrimitiveData::Cylinders { cylinders, caps } => {
+                    let cylinder = &cylinders[slot as usize];
+                    per_lane(packet, closest, slot, &|ray| {
+                        cylinder_hit(cylinder, *caps, ray).map(|hit| hit.0)
+                    });
+                }
+            }
+        }
+    }
+
+    /// Whether any primitive is hit in the ray's interval.
+    #[inline]
+    pub(crate) fn any_hit(&self, ray: &mut TraversalRay) -> bool {
+        match &self.primitives {
+            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
+                traverse::<true, _>(&self.nodes, ray, |slot, ray| {
+                    triangle_t(&triangles[slot as usize], ray).is_some()
+                })
+            }
+            PrimitiveData::Spheres(spheres) => {
+                traverse::<true, _>(&self.nodes, ray, |slot, ray| {
+                    sphere_t(&spheres[slot as usize], ray).is_some()
+                })
+            }
+            PrimitiveData::Cylinders { cylinders, caps } => {
+                traverse::<true, _>(&self.nodes, ray, |slot, ray| {
+                    cylinder_hit(&cylinders[slot as usize], *caps, ray).is_some()
+                })
+            }
+        }
+    }
+
+    /// Full hit record for the primitive in `slot`, found for `lane` of a packet.
+    pub(crate) fn packet_hit(&self, slot: u32, packet: &RayPacket, lane: usize) -> PrimHit {
+        let uv = Vec2::new(packet.hit_uv[0][lane], packet.hit_uv[1][lane]);
+        self.triangle_hit_from_uv(slot, packet.t_max[lane], uv)
+            .unwrap_or_else(|| self.hit_details(slot, &packet.ray(lane)))
+    }
+
+    /// Full hit record for `slot` found by [`Self::closest_slot`] with `ray` (whose `t_max`
+    /// is now the hit) and the barycentrics it returned.
+    pub(crate) fn hit_with_barycentrics(
+        &self,
+        slot: u32,
+        bary: Vec2,
+        ray: &TraversalRay,
+    ) -> PrimHit {
+        self.triangle_hit_from_uv(slot, ray.t_max, bary)
+            .unwrap_or_else(|| self.hit_details(slot, ray))
+    }
+
+    /// The hit record of a triangle or quad slot from the `t` and barycentrics its packet test
+    /// produced (bit-identical to what [`Self::hit_details`] recomputes); `None` for spheres
+    /// and cylinders.
+    pub(crate) fn triangle_hit_from_uv(&self, slot: u32, t: f32, bary: Vec2) -> Option<PrimHit> {
+        let source_id = self.source_ids[slot as usize];
+        match &self.primitives {
+            PrimitiveData::Triangles(triangles) => Some(PrimHit {
+                t,
+                primitive: source_id,
+                uv: bary,
+                normal: triangles[slot as usize].normal(),
+            }),
+            PrimitiveData::Quads(triangles) => Some(PrimHit {
+                t,
+                primitive: source_id & !QUAD_SECOND_HALF,
+                uv: quad_coordinates(bary, source_id),
+                normal: triangles[slot as usize].normal(),
+            }),
+            PrimitiveData::Spheres(_) | PrimitiveData::Cylinders { .. } => None,
+        }
+    }
+
+    /// Full hit record for the primitive in `slot`, found by [`Self::closest_slot`] with this
+    /// `ray` (whose `t_max` now equals the hit). The primitive test is repeated: it is
+    /// deterministic, so it finds the same `t`.
+    pub(crate) fn hit_details(&self, slot: u32, ray: &TraversalRay) -> PrimHit {
+        let source_id = self.source_ids[slot as usize];
+        let slot = slot as usize;
+        let miss = || PrimHit {
+            t: ray.t_max,
+            primitive: source_id & !QUAD_SECOND_HALF,
+            uv: Vec2::ZERO,
+            normal: Vec3::Z,
+        };
+        match &self.primitives {
+            PrimitiveData::Triangles(triangles) => {
+                let triangle = &triangles[slot];
+                let Some((t, uv)) = triangle_t_uv(triangle, ray) else {
+                    return miss();
+                };
+                PrimHit {
+                    t,
+                    primitive: source_id,
+                    uv,
+                    normal: triangle.normal(),
+                }
+            }
+            PrimitiveData::Quads(triangles) => {
+                let triangle = &triangles[slot];
+                let Some((t, bary)) = triangle_t_uv(triangle, ray) else {
+                    return miss();
+                };
+                PrimHit {
+                    t,
+                    primitive: source_id & !QUAD_SECOND_HALF,
+                    uv: quad_coordinates(bary, source_id),
+                    normal: triangle.normal(),
+                }
+            }
+            PrimitiveData::Spheres(spheres) => {
+                let sphere = &spheres[slot];
+                let Some(t) = sphere_t(sphere, ray) else {
+                    return miss();
+                };
+                let (normal, uv) = sphere_surface(sphere, ray, t);
+                PrimHit {
+                    t,
+                    primitive: source_id,
+                    uv,
+                    normal,
+                }
+            }
+            PrimitiveData::Cylinders { cylinders, caps } => {
+                let cylinder = &cylinders[slot];
+                let (t, part) =
+                    cylinder_hit(cylinder, *caps, ray).unwrap_or((ray.t_max, CylinderPart::Body));
+                let (normal, uv) = cylinder_surface(cylinder, ray, t, part);
+                PrimHit {
+                    t,
+                    primitive: source_id,
+                    uv,
+                    normal,
+                }
+            }
+        }
+    }
+}
+
+/// Maps barycentrics of one half of a quad onto the quad's unit square.
+fn quad_coordinates(bary: Vec2, source_id: u32) -> Vec2 {
+    let uv = if source_id & QUAD_SECOND_HALF == 0 {
+        Vec2::new(bary.x + bary.y, bary.y)
+    } else {
+        Vec2::new(bary.x, bary.x + bary.y)
+    };
+    uv.clamp(Vec2::ZERO, Vec2::ONE)
+}
+
+pub(crate) fn prepare(ray: &Ray) -> Option<TraversalRay> {
+    TraversalRay::new(
+        Vec3A::from(ray.origin),
+        Vec3A::from(ray.direction),
+        ray.t_min,
+        ray.t_max,
+    )
+}

@@ -1,0 +1,748 @@
+//! Ray packets for coherent primary rays.
+//!
+//! * [`RayPacket`]: four rays (a 2x2 pixel block) in SIMD lanes. They walk the wide BVH
+//!   together: each node is fetched and decoded once and its eight child boxes are tested
+//!   against all four rays, each child remembering which rays reach it.
+//! * [`FrustumPacket`]: up to sixteen such groups (an 8x8 tile) from one eye point. Inner nodes
+//!   are culled once for the whole tile with interval arithmetic over the rays' inverse
+//!   directions; only leaf boxes and primitives are tested per group.
+//!
+//! Triangles are tested against four rays with the same watertight arithmetic as the
+//! single-ray path, lane by lane in the same operation order, so every ray gets a
+//! bit-identical `t`. Rays that do not fit a packet (other origin, octant or dominant axis)
+//! are traced ray by ray by the callers.
+
+use crate::accel::geometry::prepare as prepare_one;
+use crate::accel::primitives::{PackedTriangle, triangle_t_uv};
+use crate::accel::wide_bvh::{
+    GroupStack, MAX_INV_DIRECTION, MAX_QUANTIZED, NodeGroup, SLAB_ERROR, TraversalRay,
+    entry_exit_planes, prefetch, quantization_step, unpack_planes,
+};
+use crate::accel::{MAX_COORDINATE, Ray};
+use glam::{BVec4A, Vec3A, Vec4};
+use obvhs::cwbvh::node::CwBvhNode;
+
+/// Number of rays in a packet.
+pub(crate) const LANES: usize = 4;
+
+/// Four rays in structure-of-arrays form (lane `i` = ray `i`).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RayPacket {
+    origin: [Vec4; 3],
+    direction: [Vec4; 3],
+    inv_direction: [Vec4; 3],
+    t_min: Vec4,
+    /// Per-lane closest hit so far.
+    pub t_max: Vec4,
+    /// Barycentrics `(b1, b2)` of the triangle hit at `t_max` (meaningless for other
+    /// primitive kinds, which recompute their details).
+    pub hit_uv: [Vec4; 2],
+    octant_inv: u32,
+    shear_axes: [usize; 3],
+    shear: [Vec4; 3],
+    permuted_origin: [Vec4; 3],
+    /// Lanes holding a valid ray.
+    pub lanes: u32,
+}
+
+impl RayPacket {
+    /// Packs up to four prepared rays (`None` lanes stay inactive). Returns `None` if the
+    /// active rays disagree on direction octant or dominant axis.
+    pub fn new(rays: &[Option<TraversalRay>; LANES]) -> Option<RayPacket> {
+        let first = rays.iter().flatten().next()?;
+        let consistent = rays
+            .iter()
+            .flatten()
+            .all(|ray| ray.octant_inv == first.octant_inv && ray.shear_axes == first.shear_axes);
+        consistent.then(|| RayPacket::pack(rays, first))
+    }
+
+    /// Packs the rays without checking that they agree; missing lanes copy `filler`'s
+    /// geometry with an empty interval, so they never hit.
+    fn pack(rays: &[Option<TraversalRay>; LANES], filler: &TraversalRay) -> RayPacket {
+        let mut packet = RayPacket {
+            origin: [Vec4::ZERO; 3],
+            direction: [Vec4::ZERO; 3],
+            inv_direction: [Vec4::ZERO; 3],
+            t_min: Vec4::INFINITY,
+            t_max: Vec4::NEG_INFINITY,
+            hit_uv: [Vec4::ZERO; 2],
+            octant_inv: filler.octant_inv,
+            shear_axes: filler.shear_axes,
+            shear: [Vec4::ZERO; 3],
+            permuted_origin: [Vec4::ZERO; 3],
+            lanes: 0,
+        };
+        for (lane, ray) in rays.iter().enumerate() {
+            packet.set_lane(lane, ray.as_ref().unwrap_or(filler));
+        }
+        packet.reset();
+        for (lane, ray) in rays.iter().enumerate() {
+            if let Some(ray) = ray {
+                packet.set_lane(lane, ray);
+            }
+        }
+        packet
+    }
+
+    /// Prepares up to four rays at once; lane by lane the same arithmetic, and so the same
+    /// values, as [`TraversalRay::new`]. Invalid rays leave their lane inactive. `None` if the
+    /// valid rays disagree on octant or dominant axis, or none is valid.
+    pub fn prepare(rays: &[Ray]) -> Option<RayPacket> {
+        let mut origin = [Vec4::ZERO; 3];
+        let mut direction = [Vec4::X; 3];
+        let mut t_min = Vec4::INFINITY;
+        let mut t_max = Vec4::NEG_INFINITY;
+        let mut present = 0;
+        for (lane, ray) in rays.iter().take(LANES).enumerate() {
+            present |= 1 << lane;
+            for axis in 0..3 {
+                origin[axis][lane] = ray.origin[axis];
+                direction[axis][lane] = ray.direction[axis];
+            }
+            t_min[lane] = ray.t_min;
+            t_max[lane] = ray.t_max;
+        }
+        let finite =
+            |v: &[Vec4; 3]| v[0].is_finite_mask() & v[1].is_finite_mask() & v[2].is_finite_mask();
+        let abs_origin = origin.map(Vec4::abs);
+        let abs_direction = direction.map(Vec4::abs);
+        let max_coordinate = Vec4::splat(MAX_COORDINATE);
+        let tiny = Vec4::splat(1.0 / MAX_INV_DIRECTION);
+        let longest = abs_direction[0].max(abs_direction[1]).max(abs_direction[2]);
+        let valid = t_min.cmple(t_max)
+            & finite(&origin)
+            & abs_origin[0]
+                .max(abs_origin[1])
+                .max(abs_origin[2])
+                .cmple(max_coordinate)
+            & finite(&direction)
+            & longest.cmpge(tiny);
+        let lanes = valid.bitmask() & present;
+        if lanes == 0 {
+            return None;
+        }
+        let negative = direction.map(|d| d.cmplt(Vec4::ZERO));
+        let inv_direction = [0, 1, 2].map(|axis| {
+            let clamped = Vec4::select(
+                negative[axis],
+                Vec4::splat(-MAX_INV_DIRECTION),
+                Vec4::splat(MAX_INV_DIRECTION),
+            );
+            Vec4::select(
+                abs_direction[axis].cmplt(tiny),
+                clamped,
+                Vec4::ONE / direction[axis],
+            )
+        });
+        // Octant and dominant axis must agree over the valid lanes.
+        let negative_bits = negative.map(|mask| mask.bitmask() & lanes);
+        if negative_bits
+            .iter()
+            .any(|bits| *bits != 0 && *bits != lanes)
+        {
+            return None;
+        }
+        let octant_inv = (if negative_bits[0] != 0 { 0 } else { 4 })
+            | (if negative_bits[1] != 0 { 0 } else { 2 })
+            | (if negative_bits[2] != 0 { 0 } else { 1 });
+        let [ax, ay, az] = abs_direction;
+        let x_dominant = ax.cmpge(ay) & ax.cmpge(az);
+        let y_dominant = !x_dominant & ay.cmpge(az);
+        let kz = if x_dominant.bitmask() & lanes == lanes {
+            0
+        } else if y_dominant.bitmask() & lanes == lanes {
+            1
+        } else if (x_dominant | y_dominant).bitmask() & lanes == 0 {
+            2
+        } else {
+            return None;
+        };
+        let kx = (kz + 1) % 3;
+        let ky = (kx + 1) % 3;
+        let inv_dominant = inv_direction[kz];
+        let active = BVec4A::new(
+            lanes & 1 != 0,
+            lanes & 2 != 0,
+            lanes & 4 != 0,
+            lanes & 8 != 0,
+        );
+        Some(RayPacket {
+            origin,
+            direction,
+            inv_direction,
+            t_min: Vec4::select(active, t_min, Vec4::INFINITY),
+            t_max: Vec4::select(active, t_max, Vec4::NEG_INFINITY),
+            hit_uv: [Vec4::ZERO; 2],
+            octant_inv,
+            shear_axes: [kx, ky, kz],
+            shear: [
+                direction[kx] * inv_dominant,
+                direction[ky] * inv_dominant,
+                inv_dominant,
+            ],
+            permuted_origin: [origin[kx], origin[ky], origin[kz]],
+            lanes,
+        })
+    }
+
+    /// Records a hit found for `lane` outside the packet tests.
+    pub fn record_hit(&mut self, lane: usize, t: f32, bary: glam::Vec2) {
+        self.t_max[lane] = t;
+        self.hit_uv[0][lane] = bary.x;
+        self.hit_uv[1][lane] = bary.y;
+    }
+
+    /// Takes over the hit of `from`'s lane `from_lane` (same ray in another space).
+    pub fn copy_hit(&mut self, lane: usize, from: &RayPacket, from_lane: usize) {
+        self.t_max[lane] = from.t_max[from_lane];
+        self.hit_uv[0][lane] = from.hit_uv[0][from_lane];
+        self.hit_uv[1][lane] = from.hit_uv[1][from_lane];
+    }
+
+    /// Deactivates every lane (their stale ray data stays finite and is never used).
+    fn reset(&mut self) {
+        self.lanes = 0;
+        self.t_min = Vec4::INFINITY;
+        self.t_max = Vec4::NEG_INFINITY;
+    }
+
+    /// Puts `ray` into `lane`; the packet takes its octant and dominant axis.
+    fn set_lane(&mut self, lane: usize, ray: &TraversalRay) {
+        self.lanes |= 1 << lane;
+        self.octant_inv = ray.octant_inv;
+        self.shear_axes = ray.shear_axes;
+        self.t_min[lane] = ray.t_min;
+        self.t_max[lane] = ray.t_max;
+        for axis in 0..3 {
+            self.origin[axis][lane] = ray.origin[axis];
+            self.direction[axis][lane] = ray.direction[axis];
+            self.inv_direction[axis][lane] = ray.inv_direction[axis];
+            self.shear[axis][lane] = ray.shear[axis];
+            self.permuted_origin[axis][lane] = ray.permuted_origin[axis];
+        }
+    }
+
+    /// Lane `lane` as a single ray, with its current `t_max`.
+    #[inline(always)]
+    pub fn ray(&self, lane: usize) -> TraversalRay {
+        let lane_of =
+            |values: &[Vec4; 3]| Vec3A::new(values[0][lane], values[1][lane], values[2][lane]);
+        TraversalRay {
+            origin: lane_of(&self.origin),
+            direction: lane_of(&self.direction),
+            inv_direction: lane_of(&self.inv_direction),
+            t_min: self.t_min[lane],
+            t_max: self.t_max[lane],
+            octant_inv: self.octant_inv,
+            shear_axes: self.shear_axes,
+            shear: lane_of(&self.shear).into(),
+            permuted_origin: lane_of(&self.permuted_origin).into(),
+        }
+    }
+}
+
+/// Per child slot, a 4-bit mask of the packet lanes whose `[t_min, t_max]` overlaps the child
+/// box (child `c` in bits `4c..4c+4`), restricted to `lanes`. Empty slots give 0.
+#[inline(always)]
+fn child_lane_masks(node: &CwBvhNode, packet: &RayPacket, lanes: u32, children: u32) -> u32 {
+    // Slab parameters per axis and lane, as `slab_parameters` computes them for single rays.
+    let node_step = quantization_step(node);
+    let mut step = [Vec4::ZERO; 3];
+    let mut entry_offset = [Vec4::ZERO; 3];
+    let mut exit_offset = [Vec4::ZERO; 3];
+    for axis in 0..3 {
+        step[axis] = Vec4::splat(node_step[axis]) * packet.inv_direction[axis];
+        let offset = (Vec4::splat(node.p[axis]) - packet.origin[axis]) * packet.inv_direction[axis];
+        let error = (offset.abs() + step[axis].abs() * MAX_QUANTIZED) * SLAB_ERROR;
+        entry_offset[axis] = offset - error;
+        exit_offset[axis] = offset + error;
+    }
+    let planes = entry_exit_planes(node, packet.octant_inv);
+    let entry = [0, 1, 2].map(|axis| unpack_planes(planes[axis].0));
+    let exit = [0, 1, 2].map(|axis| unpack_planes(planes[axis].1));
+    let mut masks = 0;
+    let mut present = children & non_empty_children(node);
+    while present != 0 {
+        let child = present.trailing_zeros() as usize;
+        present &= present - 1;
+        let mut near = packet.t_min;
+        let mut far = packet.t_max;
+        for axis in 0..3 {
+            let q_entry = Vec4::splat(entry[axis][child / 4][child % 4]);
+            let q_exit = Vec4::splat(exit[axis][child / 4][child % 4]);
+            near = near.max(q_entry * step[axis] + entry_offset[axis]);
+            far = far.min(q_exit * step[axis] + exit_offset[axis]);
+        }
+        let hit = near.cmple(far).bitmask() & lanes;
+        masks |= hit << (4 * child);
+    }
+    masks
+}
+
+/// Bit `c` set for every occupied child slot `c`.
+#[inline(always)]
+fn non_empty_children(node: &CwBvhNode) -> u32 {
+    let mut mask = 0;
+    for (slot, meta) in node.child_meta.iter().enumerate() {
+        mask |= u32::from(*meta != 0) << slot;
+    }
+    mask
+}
+
+/// Groups of a node's children still to visit, with the lanes each child holds.
+#[derive(Clone, Copy, Default)]
+pub(crate) struct PacketGroup {
+    group: NodeGroup,
+    /// 4 bits per child slot.
+    child_lanes: u32,
+}
+
+/// Walks the BVH with the packet's `lanes`. `test_leaf(first_slot, count, lanes, packet)` is
+/// called for every leaf some lane reaches, with the lanes that reach it; it tests the leaf's
+/// primitive slots `first_slot..first_slot + count` and shrinks `packet.t_max` of lanes that hit.
+#[inline(always)]
+pub(crate) fn traverse_packet<F>(
+    nodes: &[CwBvhNode],
+    packet: &mut RayPacket,
+    lanes: u32,
+    mut test_leaf: F,
+) where
+    F: FnMut(u32, u32, u32, &mut RayPacket),
+{
+    let lanes = lanes & packet.lanes;
+    if nodes.is_empty() || lanes == 0 {
+        return;
+    }
+    let octant_inv = packet.octant_inv;
+    let mut stack: GroupStack<PacketGroup> = GroupStack::new();
+    let mut current = PacketGroup {
+        group: NodeGroup {
+            first_child: 0,
+            bits: 1 << 31,
+        },
+        child_lanes: lanes << (4 * (7 ^ octant_inv)),
+    };
+    loop {
+        if current.group.bits & 0xff00_0000 == 0 {
+            match stack.pop() {
+                Some(next) => current = next,
+                None => break,
+            }
+        }
+        let bit = 31 - current.group.bits.leading_zeros();
+        current.group.bits &= !(1 << bit);
+        let slot = (bit - 24) ^ octant_inv;
+        let inner_before_slot = current.group.bits & 0xff & ((1 << slot) - 1);
+        let node_index = current.group.first_child + inner_before_slot.count_ones();
+        let lanes = (current.child_lanes >> (4 * slot)) & 0xf;
+        if current.group.bits & 0xff00_0000 != 0 {
+            stack.push(current);
+        }
+        let node = &nodes[node_index as usize];
+        let masks = child_lane_masks(node, packet, lanes, 0xff);
+
+        let mut inner = 0;
+        let mut child_lanes = 0;
+        let mut hit_children = masks;
+        while hit_children != 0 {
+            let child = hit_children.trailing_zeros() / 4;
+            let child_mask = (masks >> (4 * child)) & 0xf;
+            hit_children &= !(0xf << (4 * child));
+            if node.imask & (1 << child) != 0 {
+                inner |= 1 << (24 + (child ^ octant_inv));
+                child_lanes |= child_mask << (4 * child);
+            } else {
+                let meta = node.child_meta[child as usize] as u32;
+                let first = node.primitive_base_idx + (meta & 31);
+                let count = (meta >> 5).count_ones();
+                test_leaf(first, count, child_mask, packet);
+            }
+        }
+        current = PacketGroup {
+            group: NodeGroup {
+                first_child: node.child_base_idx,
+                bits: inner | node.imask as u32,
+            },
+            child_lanes,
+        };
+    }
+}
+
+/// Watertight test of one triangle against the `lanes` of a packet; lanes that hit get their
+/// `t_max` shrunk and their bit set in the returned mask.
+#[inline(always)]
+pub(crate) fn triangle_packet(
+    triangle: &PackedTriangle,
+    packet: &mut RayPacket,
+    lanes: u32,
+) -> u32 {
+    let [kx, ky, kz] = packet.shear_axes;
+    let [shear_x, shear_y, shear_z] = packet.shear;
+    let [origin_x, origin_y, origin_z] = packet.permuted_origin;
+    let vertex = |i: usize| {
+        let z = Vec4::splat(triangle.rows[kz][i]) - origin_z;
+        let x = (Vec4::splat(triangle.rows[kx][i]) - origin_x) - shear_x * z;
+        let y = (Vec4::splat(triangle.rows[ky][i]) - origin_y) - shear_y * z;
+        (x, y, z)
+    };
+    let (x0, y0, z0) = vertex(0);
+    let (x1, y1, z1) = vertex(1);
+    let (x2, y2, z2) = vertex(2);
+    // Same expressions and order as the single-ray test, lane by lane.
+    let u = x2 * y1 - y2 * x1;
+    let v = x0 * y2 - y0 * x2;
+    let w = x1 * y0 - y1 * x0;
+    let zero = Vec4::ZERO;
+    let on_edge = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & lanes;
+    let negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
+    let positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
+    let inside = !(negative & positive);
+    let determinant = u + v + w;
+    let scaled_t = u * (z0 * shear_z) + v * (z1 * shear_z) + w * (z2 * shear_z);
+    let t = scaled_t / determinant;
+    let accepted: BVec4A =
+        inside & determinant.cmpne(zero) & t.cmpge(packet.t_min) & t.cmple(packet.t_max);
+    let mut hits = accepted.bitmask() & lanes & !on_edge;
+    if hits != 0 {
+        let hit = BVec4A::new(hits & 1 != 0, hits & 2 != 0, hits & 4 != 0, hits & 8 != 0);
+        packet.t_max = Vec4::select(hit, t, packet.t_max);
+        // Barycentrics exactly as the single-ray test computes them.
+        let inv = Vec4::ONE / determinant;
+        packet.hit_uv[0] = Vec4::select(hit, v * inv, packet.hit_uv[0]);
+        packet.hit_uv[1] = Vec4::select(hit, w * inv, packet.hit_uv[1]);
+    }
+    // Rays through an edge or vertex take the single-ray path with its f64 edge functions.
+    let mut remaining = on_edge;
+    while remaining != 0 {
+        let lane = remaining.trailing_zeros() as usize;
+        remaining &= remaining - 1;
+        if let Some((t, uv)) = triangle_t_uv(triangle, &packet.ray(lane)) {
+            packet.t_max[lane] = t;
+            packet.hit_uv[0][lane] = uv.x;
+            packet.hit_uv[1][lane] = uv.y;
+            hits |= 1 << lane;
+        }
+    }
+    hits
+}
+
+/// Most rays in a frustum packet (an 8x8 block of primary rays).
+pub(crate) const FRUSTUM_RAYS: usize = 64;
+const FRUSTUM_GROUPS: usize = FRUSTUM_RAYS / LANES;
+
+/// Up to 64 rays from one origin sharing a direction octant, as groups of four. Upper BVH levels are culled once for the whole packet with interval arithmetic over
+/// the rays' inverse directions (a box no ray can reach is skipped for all of them); leaf
+/// boxes and primitives are then tested per group of four.
+pub(crate) struct FrustumPacket {
+    pub groups: [RayPacket; FRUSTUM_GROUPS],
+    pub group_count: usize,
+    origin: Vec3A,
+    inv_low: Vec3A,
+    inv_high: Vec3A,
+    t_min_low: f32,
+    octant_inv: u32,
+}
+
+impl FrustumPacket {
+    /// A packet without rays, to be filled by [`Self::fill`].
+    pub fn empty() -> FrustumPacket {
+        let blank = TraversalRay::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0)
+            .map(|ray| RayPacket::pack(&[None; LANES], &ray));
+        FrustumPacket {
+            // The blank ray is valid, so `pack` always runs; the fallback is never used.
+            groups: [blank.unwrap_or(RayPacket {
+                origin: [Vec4::ZERO; 3],
+                direction: [Vec4::ZERO; 3],
+                inv_direction: [Vec4::ZERO; 3],
+                t_min: Vec4::INFINITY,
+                t_max: Vec4::NEG_INFINITY,
+                hit_uv: [Vec4::ZERO; 2],
+                octant_inv: 0,
+                shear_axes: [0, 1, 2],
+                shear: [Vec4::ZERO; 3],
+                permuted_origin: [Vec4::ZERO; 3],
+                lanes: 0,
+            }); FRUSTUM_GROUPS],
+            group_count: 0,
+            origin: Vec3A::ZERO,
+            inv_low: Vec3A::ZERO,
+            inv_high: Vec3A::ZERO,
+            t_min_low: 0.0,
+            octant_inv: 0,
+        }
+    }
+
+    /// Refills the packet with up to 64 world rays (same conditions as [`Self::fill`]),
+    /// preparing four at a time.
+    pub fn fill_from_rays(&mut self, rays: &[Ray]) -> bool {
+        if rays.is_empty() || rays.len() > FRUSTUM_RAYS {
+            return false;
+        }
+        let mut first: Option<(Vec3A, u32)> = None;
+        let mut inv_low = Vec4::INFINITY;
+        let mut inv_high = Vec4::NEG_INFINITY;
+        let mut inv_low_axes = [Vec4::INFINITY; 3];
+        let mut inv_high_axes = [Vec4::NEG_INFINITY; 3];
+        let mut t_min_low = Vec4::INFINITY;
+        self.group_count = rays.len().div_ceil(LANES);
+        for (group, chunk) in self.groups[..self.group_count]
+            .iter_mut()
+            .zip(rays.chunks(LANES))
+        {
+            let Some(packet) = RayPacket::prepare(chunk) else {
+                // Either no valid ray in this group, or a group that cannot be a packet.
+                let any_valid = chunk.iter().any(|ray| prepare_one(ray).is_some());
+                if any_valid {
+                    return false;
+                }
+                group.reset();
+                continue;
+            };
+            let lane = packet.lanes.trailing_zeros() as usize;
+            let origin = Vec3A::new(
+                packet.origin[0][lane],
+                packet.origin[1][lane],
+                packet.origin[2][lane],
+            );
+            let (shared_origin, octant) = *first.get_or_insert((origin, packet.octant_inv));
+            let active = BVec4A::new(
+                packet.lanes & 1 != 0,
+                packet.lanes & 2 != 0,
+                packet.lanes & 4 != 0,
+                packet.lanes & 8 != 0,
+            );
+            let same_origin = (0..3).all(|axis| {
+                (packet.origin[axis].cmpeq(Vec4::splat(shared_origin[axis])) | !active).all()
+            });
+            if !same_origin || packet.octant_inv != octant {
+                return false;
+            }
+            for axis in 0..3 {
+                inv_low_axes[axis] = Vec4::select(
+                    active,
+                    inv_low_axes[axis].min(packet.inv_direction[axis]),
+                    inv_low_axes[axis],
+                );
+                inv_high_axes[axis] = Vec4::select(
+                    active,
+                    inv_high_axes[axis].max(packet.inv_direction[axis]),
+                    inv_high_axes[axis],
+                );
+            }
+            t_min_low = t_min_low.min(packet.t_min);
+            *group = packet;
+        }
+        let Some((origin, octant_inv)) = first else {
+            return false;
+        };
+        inv_low = inv_low.min(Vec4::new(
+            inv_low_axes[0].min_element(),
+            inv_low_axes[1].min_element(),
+            inv_low_axes[2].min_element(),
+            f32::INFINITY,
+        ));
+        inv_high = inv_high.max(Vec4::new(
+            inv_high_axes[0].max_element(),
+            inv_high_axes[1].max_element(),
+            inv_high_axes[2].max_element(),
+            f32::NEG_INFINITY,
+        ));
+        self.origin = origin;
+        self.inv_low = inv_low.truncate().into();
+        self.inv_high = inv_high.truncate().into();
+        self.t_min_low = t_min_low.min_element();
+        self.octant_inv = octant_inv;
+        true
+    }
+
+    /// Refills the packet with `count` (at most 64) rays, ray `i` given by `ray_at(i)`
+    /// (`None` for rays that cannot be traced). Returns false, leaving the packet unusable,
+    /// unless at least one ray is valid, all valid rays share origin and octant, and each group
+    /// of four shares its dominant axis.
+    pub fn fill(
+        &mut self,
+        count: usize,
+        mut ray_at: impl FnMut(usize) -> Option<TraversalRay>,
+    ) -> bool {
+        if count > FRUSTUM_RAYS {
+            return false;
+        }
+        let mut first: Option<(Vec3A, u32)> = None;
+        let mut inv_low = Vec3A::INFINITY;
+        let mut inv_high = Vec3A::NEG_INFINITY;
+        let mut t_min_low = f32::INFINITY;
+        self.group_count = count.div_ceil(LANES);
+        for (group_index, group) in self.groups[..self.group_count].iter_mut().enumerate() {
+            group.reset();
+            let mut group_axes = None;
+            for lane in 0..LANES {
+                let index = group_index * LANES + lane;
+                let Some(ray) = (index < count).then(|| ray_at(index)).flatten() else {
+                    continue;
+                };
+                match first {
+                    None => first = Some((ray.origin, ray.octant_inv)),
+                    Some((origin, octant)) => {
+                        if ray.origin != origin || ray.octant_inv != octant {
+                            return false;
+                        }
+                    }
+                }
+                match group_axes {
+                    None => group_axes = Some(ray.shear_axes),
+                    Some(axes) if axes != ray.shear_axes => return false,
+                    Some(_) => {}
+                }
+                group.set_lane(lane, &ray);
+                inv_low = inv_low.min(ray.inv_direction);
+                inv_high = inv_high.max(ray.inv_direction);
+                t_min_low = t_min_low.min(ray.t_min);
+            }
+        }
+        let Some((origin, octant_inv)) = first else {
+            return false;
+        };
+        self.origin = origin;
+        self.inv_low = inv_low;
+        self.inv_high = inv_high;
+        self.t_min_low = t_min_low;
+        self.octant_inv = octant_inv;
+        true
+    }
+
+    /// Largest `t_max` of any active lane.
+    #[inline(always)]
+    fn t_max_high(&self, active: &[u32; FRUSTUM_GROUPS]) -> f32 {
+        let mut high = Vec4::NEG_INFINITY;
+        for (group, lanes) in self.groups[..self.group_count].iter().zip(active) {
+            if *lanes != 0 {
+                high = high.max(group.t_max);
+            }
+        }
+        high.max_element()
+    }
+}
+
+/// Children of a node that some ray of the packet may reach within `[t_min_low, t_max_high]`.
+/// Conservative: every slab distance of every ray lies between the distances computed with
+/// the smallest and largest inverse direction component.
+#[inline(always)]
+fn frustum_child_hits(node: &CwBvhNode, frustum: &FrustumPacket, t_max_high: f32) -> u32 {
+    let step = quantization_step(node);
+    let planes = entry_exit_planes(node, frustum.octant_inv);
+    let mut near = [Vec4::splat(frustum.t_min_low); 2];
+    let mut far = [Vec4::splat(t_max_high); 2];
+    for (axis, (entry, exit)) in planes.iter().enumerate() {
+        let step_low = step[axis] * frustum.inv_low[axis];
+        let step_high = step[axis] * frustum.inv_high[axis];
+        let to_node = node.p[axis] - frustum.origin[axis];
+        let offset_low = to_node * frustum.inv_low[axis];
+        let offset_high = to_node * frustum.inv_high[axis];
+        let error = SLAB_ERROR
+            * (offset_low.abs().max(offset_high.abs())
+                + MAX_QUANTIZED * step_low.abs().max(step_high.abs()));
+        let (step_low, step_high) = (Vec4::splat(step_low), Vec4::splat(step_high));
+        let (offset_low, offset_high) = (Vec4::splat(offset_low), Vec4::splat(offset_high));
+        let error = Vec4::splat(error);
+        let entry = unpack_planes(entry);
+        let exit = unpack_planes(exit);
+        for half in 0..2 {
+            let entry_low = entry[half] * step_low + offset_low;
+            let entry_high = entry[half] * step_high + offset_high;
+            near[half] = near[half].max(entry_low.min(entry_high) - error);
+            let exit_low = exit[half] * step_low + offset_low;
+            let exit_high = exit[half] * step_high + offset_high;
+            far[half] = far[half].min(exit_low.max(exit_high) + error);
+        }
+    }
+    near[0].cmple(far[0]).bitmask() | (near[1].cmple(far[1]).bitmask() << 4)
+}
+
+/// Walks the BVH with a frustum packet. `active[g]` are the lanes of group `g` taking part.
+/// For every leaf some ray reaches, `test_leaf(first_slot, count, lanes, frustum)` is called
+/// with, per group, the lanes whose own box test reaches the leaf; it must shrink the `t_max`
+/// of lanes that hit.
+#[inline(always)]
+pub(crate) fn traverse_frustum<F, P>(
+    nodes: &[CwBvhNode],
+    frustum: &mut FrustumPacket,
+    active: &[u32; FRUSTUM_GROUPS],
+    prefetch_primitive: P,
+    mut test_leaf: F,
+) where
+    F: FnMut(u32, u32, &[u32; FRUSTUM_GROUPS], &mut FrustumPacket),
+    P: Fn(u32),
+{
+    if nodes.is_empty() || active.iter().all(|lanes| *lanes == 0) {
+        return;
+    }
+    let octant_inv = frustum.octant_inv;
+    let mut stack: GroupStack<NodeGroup> = GroupStack::new();
+    let mut current = NodeGroup {
+        first_child: 0,
+        bits: 1 << 31,
+    };
+    let mut t_max_high = frustum.t_max_high(active);
+    loop {
+        if current.bits & 0xff00_0000 == 0 {
+            match stack.pop() {
+                Some(next) => current = next,
+                None => break,
+            }
+        }
+        let bit = 31 - current.bits.leading_zeros();
+        current.bits &= !(1 << bit);
+        let slot = (bit - 24) ^ octant_inv;
+        let inner_before_slot = current.bits & 0xff & ((1 << slot) - 1);
+        let node = &nodes[(current.first_child + inner_before_slot.count_ones()) as usize];
+        if current.bits & 0xff00_0000 != 0 {
+            stack.push(current);
+        }
+        let hits = frustum_child_hits(node, frustum, t_max_high);
+        let leaves = hits & !(node.imask as u32) & non_empty_children(node);
+        // Start loading inner children and leaf primitives while the leaf boxes are tested.
+        if hits & node.imask as u32 != 0 {
+            prefetch(&nodes[node.child_base_idx as usize]);
+        }
+        let mut remaining = leaves;
+        while remaining != 0 {
+            let child = remaining.trailing_zeros();
+            remaining &= remaining - 1;
+            let meta = node.child_meta[child as usize] as u32;
+            prefetch_primitive(node.primitive_base_idx + (meta & 31));
+        }
+        if leaves != 0 {
+            let mut masks = [0u32; FRUSTUM_GROUPS];
+            for group in 0..frustum.group_count {
+                if active[group] != 0 {
+                    masks[group] =
+                        child_lane_masks(node, &frustum.groups[group], active[group], leaves);
+                }
+            }
+            let mut remaining = leaves;
+            while remaining != 0 {
+                let child = remaining.trailing_zeros();
+                remaining &= remaining - 1;
+                let lanes = masks.map(|mask| (mask >> (4 * child)) & 0xf);
+                if lanes.iter().any(|lanes| *lanes != 0) {
+                    let meta = node.child_meta[child as usize] as u32;
+                    let first = node.primitive_base_idx + (meta & 31);
+                    test_leaf(first, (meta >> 5).count_ones(), &lanes, frustum);
+                }
+            }
+            t_max_high = frustum.t_max_high(active);
+        }
+        let mut inner = 0;
+        let mut remaining = hits & node.imask as u32;
+        while remaining != 0 {
+            let child = remaining.trailing_zeros();
+            remaining &= remaining - 1;
+            inner |= 1 << (24 + (child ^ octant_inv));
+        }
+        current = NodeGroup {
+            first_child: node.child_base_idx,
+            bits: inner | node.imask as u32,
+        };
+    }
+}

@@ -1,0 +1,393 @@
+//! Packed primitive layouts and their ray intersection tests.
+//!
+//! * Triangles use the watertight test of Woop, Benthin and Wald (JCGT 2013): vertices are moved
+//!   into a sheared ray space where the ray runs along +z and the three edge functions decide
+//!   the hit. Rays through a shared edge or vertex hit at least one of the triangles; edge
+//!   functions that come out exactly zero are redone in f64.
+//! * Spheres and cylinders solve their quadratics in f64 with the cancellation-free root pair
+//!   `q = b + sign(b) sqrt(disc)`, `t0 = c / q`, `t1 = q / a`, and compute the discriminant from
+//!   the distance between the line and the centre (or axis), so that far-away, large and tiny
+//!   primitives and rays starting on the surface stay accurate.
+//!
+//! Every test accepts `t` only in `[ray.t_min, ray.t_max]` after rounding to f32.
+
+use crate::accel::MAX_COORDINATE;
+use crate::accel::wide_bvh::TraversalRay;
+use glam::{DVec3, Vec2, Vec3, Vec3A, Vec4, Vec4Swizzles};
+use obvhs::aabb::Aabb;
+
+#[inline]
+fn is_usable_point(point: Vec3) -> bool {
+    point.is_finite() && point.abs().max_element() <= MAX_COORDINATE
+}
+
+#[inline]
+fn is_usable_box(aabb: &Aabb) -> bool {
+    aabb.min.is_finite()
+        && aabb.max.is_finite()
+        && aabb.min.abs().max_element() <= MAX_COORDINATE
+        && aabb.max.abs().max_element() <= MAX_COORDINATE
+}
+
+/// A triangle stored per axis: `rows[axis] = (v0[axis], v1[axis], v2[axis], 0)`, so that the
+/// three vertices are sheared with a few four-wide operations.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PackedTriangle {
+    pub rows: [Vec4; 3],
+}
+
+impl PackedTriangle {
+    /// `None` for non-finite, out-of-range or zero-area triangles.
+    pub fn new(v0: Vec3, v1: Vec3, v2: Vec3) -> Option<PackedTriangle> {
+        if !(is_usable_point(v0) && is_usable_point(v1) && is_usable_point(v2)) {
+            return None;
+        }
+        // A positive finite squared length is exactly what `normal()` needs to normalize.
+        let area_squared = (v1 - v0).cross(v2 - v0).length_squared();
+        if !(area_squared.is_finite() && area_squared > 0.0) {
+            return None;
+        }
+        Some(PackedTriangle {
+            rows: [
+                Vec4::new(v0.x, v1.x, v2.x, 0.0),
+                Vec4::new(v0.y, v1.y, v2.y, 0.0),
+                Vec4::new(v0.z, v1.z, v2.z, 0.0),
+            ],
+        })
+    }
+
+    pub fn vertices(&self) -> [Vec3; 3] {
+        let [x, y, z] = self.rows;
+        [
+            Vec3::new(x.x, y.x, z.x),
+            Vec3::new(x.y, y.y, z.y),
+            Vec3::new(x.z, y.z, z.z),
+        ]
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        let [v0, v1, v2] = self.vertices();
+        Aabb::new(v0.min(v1).min(v2).into(), v0.max(v1).max(v2).into())
+    }
+
+    /// Unit normal `(v1 - v0) x (v2 - v0)`; non-zero for every constructed triangle.
+    pub fn normal(&self) -> Vec3 {
+        let [v0, v1, v2] = self.vertices();
+        (v1 - v0).cross(v2 - v0).normalize_or_zero()
+    }
+}
+
+/// Edge functions recomputed in f64 for the rare rays that pass exactly through an edge.
+#[cold]
+fn edge_functions_f64(x: Vec4, y: Vec4) -> Vec4 {
+    let x = x.as_dvec4();
+    let y = y.as_dvec4();
+    Vec4::new(
+        (x.z * y.y - y.z * x.y) as f32,
+        (x.x * y.z - y.x * x.z) as f32,
+        (x.y * y.x - y.y * x.x) as f32,
+        0.0,
+    )
+}
+
+/// Watertight ray/triangle test. On a hit returns `(t, b1, b2)` where `b1`, `b2` are the
+/// barycentric weights of `v1` and `v2`; the weights are only computed when `WITH_UV`.
+#[inline(always)]
+fn triangle_hit<const WITH_UV: bool>(
+    triangle: &PackedTriangle,
+    ray: &TraversalRay,
+) -> Option<(f32, f32, f32)> {
+    let [kx, ky, kz] = ray.shear_axes;
+    let origin = ray.permuted_origin;
+    let z = triangle.rows[kz] - Vec4::splat(origin.z);
+    let x = (triangle.rows[kx] - Vec4::splat(origin.x)) - Vec4::splat(ray.shear.x) * z;
+    let y = (triangle.rows[ky] - Vec4::splat(origin.y)) - Vec4::splat(ray.shear.y) * z;
+    // Lanes: U (weight of v0), V (v1), W (v2); lane 3 is unused.
+    let mut weights = x.zxyw() * y.yzxw() - y.zxyw() * x.yzxw();
+    if weights.cmpeq(Vec4::ZERO).bitmask() & 0b111 != 0 {
+        weights = edge_functions_f64(x, y);
+    }
+    let negative = weights.cmplt(Vec4::ZERO).bitmask() & 0b111;
+    let positive = weights.cmpgt(Vec4::ZERO).bitmask() & 0b111;
+    if negative != 0 && positive != 0 {
+        return None;
+    }
+    let determinant = weights.x + weights.y + weights.z;
+    if determinant == 0.0 {
+        return None;
+    }
+    let z = z * ray.shear.z;
+    let scaled_t = weights.x * z.x + weights.y * z.y + weights.z * z.z;
+    let t = scaled_t / determinant;
+    if !(t >= ray.t_min && t <= ray.t_max) {
+        return None;
+    }
+    if WITH_UV {
+        let inv = 1.0 / determinant;
+        Some((t, weights.y * inv, weights.z * inv))
+    } else {
+        Some((t, 0.0, 0.0))
+    }
+}
+
+/// Hit distance of a triangle, `None` on a miss.
+#[inline(always)]
+pub(crate) fn triangle_t(triangle: &PackedTriangle, ray: &TraversalRay) -> Option<f32> {
+    triangle_hit::<false>(triangle, ray).map(|hit| hit.0)
+}
+
+/// `(t, b1, b2)` of a triangle hit.
+pub(crate) fn triangle_t_uv(triangle: &PackedTriangle, ray: &TraversalRay) -> Option<(f32, Vec2)> {
+    triangle_hit::<true>(triangle, ray).map(|(t, b1, b2)| (t, Vec2::new(b1, b2)))
+}
+
+/// Accepts a root if, rounded to f32, it lies inside the ray interval.
+#[inline(always)]
+fn in_interval(t: f64, ray: &TraversalRay) -> Option<f32> {
+    let t = t as f32;
+    (t >= ray.t_min && t <= ray.t_max).then_some(t)
+}
+
+/// Roots of `a t^2 - 2 b t + c = 0` given `disc = b^2 - a c >= 0`, in ascending order, without
+/// cancellation between `b` and the square root.
+#[inline(always)]
+fn quadratic_roots(a: f64, b: f64, c: f64, disc: f64) -> [f64; 2] {
+    let q = b + disc.sqrt().copysign(b);
+    if q == 0.0 {
+        // b == 0 and disc == 0: a double root at b / a.
+        return [b / a; 2];
+    }
+    let (t0, t1) = (c / q, q / a);
+    if t0 <= t1 { [t0, t1] } else { [t1, t0] }
+}
+
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PackedSphere {
+    pub center: Vec3,
+    pub radius: f32,
+}
+
+impl PackedSphere {
+    pub fn new(center: Vec3, radius: f32) -> Option<PackedSphere> {
+        let sphere = PackedSphere { center, radius };
+        (radius.is_finite() && radius > 0.0 && is_usable_box(&sphere.bounds())).then_some(sphere)
+    }
+
+    /// Box padded by a few ulps so that rounding never shaves off a rim hit.
+    pub fn bounds(&self) -> Aabb {
+        let pad = self.radius + (self.radius + self.center.abs().max_element()) * 1.0e-6;
+        Aabb::new(
+            (self.center - Vec3::splat(pad)).into(),
+            (self.center + Vec3::splat(pad)).into(),
+        )
+    }
+}
+
+#[inline(always)]
+pub(crate) fn sphere_t(sphere: &PackedSphere, ray: &TraversalRay) -> Option<f32> {
+    if line_clearly_misses_sphere(sphere, ray) {
+        return None;
+    }
+    let origin = ray.origin.as_dvec3() - sphere.center.as_dvec3();
+    let direction = ray.direction.as_dvec3();
+    let radius = sphere.radius as f64;
+    let a = direction.length_squared();
+    let b = -origin.dot(direction);
+    // Distance from the centre to the line, measured directly instead of through b^2 - a c.
+    let closest = origin + direction * (b / a);
+    let disc = a * (radius * radius - closest.length_squared());
+    // Also rejects NaN.
+    if disc.is_nan() || disc < 0.0 {
+        return None;
+    }
+    let c = origin.length_squared() - radius * radius;
+    let [near, far] = quadratic_roots(a, b, c, disc);
+    in_interval(near, ray).or_else(|| in_interval(far, ray))
+}
+
+/// Cheap f32 rejection for the common miss: the ray's line passes the centre farther than the
+/// radius by more than a margin covering f32 rounding (the perpendicular distance is off by
+/// at most a few ulps of `|origin - centre|`; the margin is ten times that).
+#[inline(always)]
+pub(crate) fn line_clearly_misses_sphere(sphere: &PackedSphere, ray: &TraversalRay) -> bool {
+    let offset = ray.origin - Vec3A::from(sphere.center);
+    let direction = ray.direction;
+    let along = offset.dot(direction) / direction.length_squared();
+    let distance_squared = (offset - direction * along).length_squared();
+    let margin = 1.0e-5 * offset.length_squared();
+    distance_squared > sphere.radius * sphere.radius + margin
+}
+
+/// Outward unit normal and `(longitude, colatitude)` parameters at the hit `t`.
+pub(crate) fn sphere_surface(sphere: &PackedSphere, ray: &TraversalRay, t: f32) -> (Vec3, Vec2) {
+    let offset =
+        ray.origin.as_dvec3() - sphere.center.as_dvec3() + ray.direction.as_dvec3() * t as f64;
+    let normal = unit_or_axis(offset);
+    let longitude = normal.y.atan2(normal.x) / std::f32::consts::TAU;
+    let longitude = if longitude < 0.0 {
+        longitude + 1.0
+    } else {
+        longitude
+    };
+    let colatitude = normal.z.clamp(-1.0, 1.0).acos() / std::f32::consts::PI;
+    (normal, Vec2::new(longitude.min(0.999_999_94), colatitude))
+}
+
+/// Normalizes in f64, then once more in f32 so the result is unit length in f32.
+fn unit_or_axis(v: DVec3) -> Vec3 {
+    let unit = v.normalize_or_zero().as_vec3().normalize_or_zero();
+    if unit == Vec3::ZERO { Vec3::Z } else { unit }
+}
+
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PackedCylinder {
+    pub start: Vec3,
+    pub end: Vec3,
+    pub radius: f32,
+}
+
+/// Which surface of a cylinder was hit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum CylinderPart {
+    Body,
+    StartCap,
+    EndCap,
+}
+
+impl PackedCylinder {
+    pub fn new(start: Vec3, end: Vec3, radius: f32) -> Option<PackedCylinder> {
+        let cylinder = PackedCylinder { start, end, radius };
+        let usable = radius.is_finite()
+            && radius > 0.0
+            && is_usable_point(start)
+            && is_usable_point(end)
+            && start != end
+            && is_usable_box(&cylinder.bounds());
+        usable.then_some(cylinder)
+    }
+
+    /// Tight box of the two end disks, padded by a few ulps.
+    pub fn bounds(&self) -> Aabb {
+        let axis = (self.end.as_dvec3() - self.start.as_dvec3()).normalize_or_zero();
+        let radius = self.radius as f64;
+        let disk_extent = (DVec3::ONE - axis * axis)
+            .max(DVec3::ZERO)
+            .to_array()
+            .map(f64::sqrt);
+        let disk_extent = DVec3::from_array(disk_extent) * radius;
+        let magnitude = self.start.abs().max(self.end.abs()).max_element() as f64;
+        let pad = disk_extent + DVec3::splat((radius + magnitude) * 1.0e-6);
+        let min = self.start.min(self.end).as_dvec3() - pad;
+        let max = self.start.max(self.end).as_dvec3() + pad;
+        Aabb::new(min.as_vec3().into(), max.as_vec3().into())
+    }
+}
+
+/// Ray in a cylinder's frame: axial coordinates and the components perpendicular to the axis.
+struct CylinderFrame {
+    axis: DVec3,
+    length: f64,
+    origin_axial: f64,
+    direction_axial: f64,
+    origin_perp: DVec3,
+    direction_perp: DVec3,
+}
+
+#[inline(always)]
+fn cylinder_frame(cylinder: &PackedCylinder, ray: &TraversalRay) -> CylinderFrame {
+    let start = cylinder.start.as_dvec3();
+    let axis_vector = cylinder.end.as_dvec3() - start;
+    let length = axis_vector.length();
+    let axis = axis_vector / length;
+    let origin = ray.origin.as_dvec3() - start;
+    let direction = ray.direction.as_dvec3();
+    let origin_axial = origin.dot(axis);
+    let direction_axial = direction.dot(axis);
+    CylinderFrame {
+        axis,
+        length,
+        origin_axial,
+        direction_axial,
+        origin_perp: origin - axis * origin_axial,
+        direction_perp: direction - axis * direction_axial,
+    }
+}
+
+/// Closest hit of a cylinder (open tube, or closed with `caps`). Ties keep the body.
+#[inline(always)]
+pub(crate) fn cylinder_hit(
+    cylinder: &PackedCylinder,
+    caps: bool,
+    ray: &TraversalRay,
+) -> Option<(f32, CylinderPart)> {
+    let frame = cylinder_frame(cylinder, ray);
+    let radius = cylinder.radius as f64;
+    let radius_squared = radius * radius;
+    let mut best: Option<(f32, CylinderPart)> = None;
+    let mut consider = |t: f64, part: CylinderPart| {
+        if let Some(t) = in_interval(t, ray)
+            && best.is_none_or(|(best_t, _)| t < best_t)
+        {
+            best = Some((t, part));
+        }
+    };
+
+    let a = frame.direction_perp.length_squared();
+    if a > 0.0 {
+        let b = -frame.origin_perp.dot(frame.direction_perp);
+        let closest = frame.origin_perp + frame.direction_perp * (b / a);
+        let disc = a * (radius_squared - closest.length_squared());
+        if disc >= 0.0 {
+            let c = frame.origin_perp.length_squared() - radius_squared;
+            for t in quadratic_roots(a, b, c, disc) {
+                let axial = frame.origin_axial + t * frame.direction_axial;
+                if (0.0..=frame.length).contains(&axial) {
+                    consider(t, CylinderPart::Body);
+                }
+            }
+        }
+    }
+    if caps && frame.direction_axial != 0.0 {
+        for (plane, part) in [
+            (0.0, CylinderPart::StartCap),
+            (frame.length, CylinderPart::EndCap),
+        ] {
+            let t = (plane - frame.origin_axial) / frame.direction_axial;
+            let radial = frame.origin_perp + frame.direction_perp * t;
+            if radial.length_squared() <= radius_squared {
+                consider(t, part);
+            }
+        }
+    }
+    best
+}
+
+/// Unit normal and parameters of a cylinder hit (see `PrimHit::uv`).
+pub(crate) fn cylinder_surface(
+    cylinder: &PackedCylinder,
+    ray: &TraversalRay,
+    t: f32,
+    part: CylinderPart,
+) -> (Vec3, Vec2) {
+    let frame = cylinder_frame(cylinder, ray);
+    let t = t as f64;
+    let radial = frame.origin_perp + frame.direction_perp * t;
+    match part {
+        CylinderPart::Body => {
+            let axial = (frame.origin_axial + t * frame.direction_axial) / frame.length;
+            (
+                unit_or_axis(radial),
+                Vec2::new(axial.clamp(0.0, 1.0) as f32, 0.0),
+            )
+        }
+        CylinderPart::StartCap | CylinderPart::EndCap => {
+            let (sign, u) = if part == CylinderPart::StartCap {
+                (-1.0, 0.0)
+            } else {
+                (1.0, 1.0)
+            };
+            let v = (radial.length() / cylinder.radius as f64).min(1.0) as f32;
+            (unit_or_axis(frame.axis * sign), Vec2::new(u, v))
+        }
+    }
+}

@@ -1,0 +1,432 @@
+//! Top-level BVH over instanced geometries.
+//!
+//! Every (instance, geometry) pair becomes one top-level primitive bounded by the geometry's box
+//! transformed to world space, so an instance with several geometries is culled per geometry.
+//! Rays enter object space as `inverse(transform) * origin` and `inverse(linear) * direction`
+//! without renormalizing, which keeps the ray parameter `t` identical in both spaces.
+
+use crate::accel::geometry::{GeometryBvh, prepare};
+use crate::accel::packet::{
+    FRUSTUM_RAYS, FrustumPacket, LANES, RayPacket, traverse_frustum, traverse_packet,
+};
+use crate::accel::wide_bvh::{TraversalRay, build_wide_bvh, traverse};
+use crate::accel::{EMPTY_BOUNDS, InstanceDesc, PrimHit, Ray, SceneHit, bounds_are_empty};
+use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A};
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::node::CwBvhNode;
+use std::sync::Arc;
+
+/// One geometry of one instance.
+struct Placement {
+    geometry: Arc<GeometryBvh>,
+    instance: u32,
+    geometry_index: u32,
+    /// `None` for the identity transform (rays are used as they are).
+    world_to_object: Option<Affine3A>,
+    /// Inverse transpose of the linear part: maps object normals to world normals.
+    normal_to_world: Mat3A,
+}
+
+impl Placement {
+    /// The world ray in this geometry's object space; `None` if it degenerates there.
+    #[inline(always)]
+    fn object_ray(&self, world: &TraversalRay) -> Option<TraversalRay> {
+        match &self.world_to_object {
+            None => Some(*world),
+            Some(inverse) => TraversalRay::new(
+                inverse.transform_point3a(world.origin),
+                inverse.transform_vector3a(world.direction),
+                world.t_min,
+                world.t_max,
+            ),
+        }
+    }
+}
+
+/// A BVH over instance placements; cheap to rebuild, never rebuilds geometry BVHs.
+pub struct SceneBvh {
+    nodes: Vec<CwBvhNode>,
+    /// In top-level BVH slot order.
+    placements: Vec<Placement>,
+    bounds: (Vec3, Vec3),
+}
+
+impl std::fmt::Debug for SceneBvh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SceneBvh")
+            .field("placements", &self.placements.len())
+            .field("bounds", &self.bounds)
+            .finish()
+    }
+}
+
+/// World box of an object-space box under `transform` (through its eight corners).
+fn transform_box(transform: &Affine3A, (min, max): (Vec3, Vec3)) -> (Vec3, Vec3) {
+    let mut world = EMPTY_BOUNDS;
+    for corner in 0..8 {
+        let point = Vec3::new(
+            if corner & 1 == 0 { min.x } else { max.x },
+            if corner & 2 == 0 { min.y } else { max.y },
+            if corner & 4 == 0 { min.z } else { max.z },
+        );
+        let point = transform.transform_point3(point);
+        world = (world.0.min(point), world.1.max(point));
+    }
+    world
+}
+
+/// Whether a transform can be used: finite with a finite, non-singular inverse.
+fn usable_inverse(transform: &Affine3A) -> Option<Affine3A> {
+    let determinant = transform.matrix3.determinant();
+    if !transform.is_finite() || !determinant.is_finite() || determinant == 0.0 {
+        return None;
+    }
+    let inverse = transform.inverse();
+    inverse.is_finite().then_some(inverse)
+}
+
+impl SceneBvh {
+    /// Builds the top level. Instances with unusable transforms and empty geometries are left
+    /// out; `SceneHit::instance`/`geometry` still index the given vectors.
+    pub fn build(instances: Vec<InstanceDesc>) -> SceneBvh {
+        let mut placements = Vec::new();
+        let mut boxes = Vec::new();
+        let mut bounds = EMPTY_BOUNDS;
+        for (instance_index, instance) in instances.into_iter().enumerate() {
+            let Some(inverse) = usable_inverse(&instance.transform) else {
+                continue;
+            };
+            let identity = instance.transform == Affine3A::IDENTITY;
+            let normal_to_world = instance.transform.matrix3.inverse().transpose();
+            for (geometry_index, geometry) in instance.geometries.into_iter().enumerate() {
+                if geometry.is_empty() || bounds_are_empty(geometry.bounds()) {
+                    continue;
+                }
+                let world = transform_box(&instance.transform, geometry.bounds());
+                if !world.0.is_finite() || !world.1.is_finite() {
+                    continue;
+                }
+                bounds = (bounds.0.min(world.0), bounds.1.max(world.1));
+                boxes.push(Aabb::new(world.0.into(), world.1.into()));
+                placements.push(Placement {
+                    geometry,
+                    instance: instance_index as u32,
+                    geometry_index: geometry_index as u32,
+                    world_to_object: (!identity).then_some(inverse),
+                    normal_to_world,
+                });
+            }
+        }
+        let (nodes, order) = build_wide_bvh(&boxes);
+        let mut slots: Vec<Option<Placement>> = placements.into_iter().map(Some).collect();
+        let placements = order
+            .iter()
+            .filter_map(|&i| slots[i as usize].take())
+            .collect();
+        SceneBvh {
+            nodes,
+            placements,
+            bounds,
+        }
+    }
+
+    /// Closest hit with world `t` in `[t_min, t_max]`.
+    pub fn intersect(&self, ray: &Ray) -> Option<SceneHit> {
+        let mut world = prepare(ray)?;
+        // (placement slot, primitive slot, barycentrics)
+        let mut closest: Option<(u32, u32, Vec2)> = None;
+        if let [placement] = self.placements.as_slice() {
+            // A single placement needs no top level: its box test culls no more than the
+            // geometry's own root node does.
+            let mut object = placement.object_ray(&world)?;
+            let (primitive_slot, bary) = placement.geometry.closest_slot(&mut object)?;
+            world.t_max = object.t_max;
+            closest = Some((0, primitive_slot, bary));
+        }
+        traverse::<false, _>(self.top_level_nodes(), &mut world, |slot, world| {
+            let placement = &self.placements[slot as usize];
+            let Some(mut object) = placement.object_ray(world) else {
+                return false;
+            };
+            let Some((primitive_slot, bary)) = placement.geometry.closest_slot(&mut object) else {
+                return false;
+            };
+            world.t_max = object.t_max;
+            closest = Some((slot, primitive_slot, bary));
+            true
+        });
+        let (slot, primitive_slot, bary) = closest?;
+        let placement = &self.placements[slot as usize];
+        let object = placement.object_ray(&world)?;
+        let hit = placement
+            .geometry
+            .hit_with_barycentrics(primitive_slot, bary, &object);
+        Some(self.scene_hit(placement, hit))
+    }
+
+    /// Closest hits of many rays: `hits[i]` receives what `intersect(&rays[i])` would return
+    /// (the same `t`; only among surfaces hit at exactly the same `t` the reported one may
+    /// differ). Meant for primary rays: every 64 consecutive rays should be one 8x8 pixel tile
+    /// from one eye point, ordered as sixteen 2x2 blocks of four consecutive rays. Such a
+    /// chunk is traced as a frustum packet when its rays share origin and direction octant,
+    /// otherwise as 2x2 packets, otherwise ray by ray; any order is correct, only slower.
+    /// Extra entries of the longer slice are ignored.
+    pub fn intersect_packet(&self, rays: &[Ray], hits: &mut [Option<SceneHit>]) {
+        let mut frustum = FrustumPacket::empty();
+        for (rays, hits) in rays.chunks(FRUSTUM_RAYS).zip(hits.chunks_mut(FRUSTUM_RAYS)) {
+            if frustum.fill_from_rays(rays) {
+                let closest = self.closest_frustum(&mut frustum);
+                for (index, hit) in hits.iter_mut().enumerate() {
+                    let group = &frustum.groups[index / LANES];
+                    *hit = closest[index]
+                        .and_then(|found| self.packet_hit(found, group, index % LANES));
+                }
+                continue;
+            }
+            for (rays, hits) in rays.chunks(LANES).zip(hits.chunks_mut(LANES)) {
+                let prepared = std::array::from_fn(|lane| rays.get(lane).and_then(prepare));
+                let Some(mut packet) = RayPacket::new(&prepared) else {
+                    for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+                        *hit = self.intersect(ray);
+                    }
+                    continue;
+                };
+                let closest = self.closest_packet(&mut packet);
+                for (lane, hit) in hits.iter_mut().enumerate() {
+                    *hit = closest[lane].and_then(|found| self.packet_hit(found, &packet, lane));
+                }
+            }
+        }
+    }
+
+    /// The full hit of a (placement slot, primitive slot) found for `lane` of a packet (its
+    /// `t_max` is the hit; triangle barycentrics come from the packet test).
+    fn packet_hit(
+        &self,
+        (slot, primitive_slot): (u32, u32),
+        packet: &RayPacket,
+        lane: usize,
+    ) -> Option<SceneHit> {
+        let placement = &self.placements[slot as usize];
+        let uv = Vec2::new(packet.hit_uv[0][lane], packet.hit_uv[1][lane]);
+        let hit =
+            match placement
+                .geometry
+                .triangle_hit_from_uv(primitive_slot, packet.t_max[lane], uv)
+            {
+                Some(hit) => hit,
+                None => {
+                    let object = placement.object_ray(&packet.ray(lane))?;
+                    placement.geometry.hit_details(primitive_slot, &object)
+                }
+            };
+        Some(self.scene_hit(placement, hit))
+    }
+
+    /// Per ray of a frustum packet, the closest (placement slot, primitive slot).
+    fn closest_frustum(&self, frustum: &mut FrustumPacket) -> [Option<(u32, u32)>; FRUSTUM_RAYS] {
+        let mut closest = [None; FRUSTUM_RAYS];
+        let active = std::array::from_fn(|group| frustum.groups[group].lanes);
+        let mut visit =
+            |slot: u32, lanes: &[u32; FRUSTUM_RAYS / LANES], frustum: &mut FrustumPacket| {
+                let placement = &self.placements[slot as usize];
+                let mut found = [None; FRUSTUM_RAYS];
+                if placement.world_to_object.is_none() {
+                    placement
+                        .geometry
+                        .closest_slots_frustum(frustum, lanes, &mut found);
+                } else {
+                    Self::closest_in_placement_frustum(placement, frustum, lanes, &mut found);
+                }
+                for (index, primitive_slot) in found.iter().enumerate() {
+                    if let Some(primitive_slot) = primitive_slot {
+                        closest[index] = Some((slot, *primitive_slot));
+                    }
+                }
+            };
+        if self.placements.len() == 1 {
+            // As in `intersect`: a single placement is visited without a top level.
+            visit(0, &active, frustum);
+        } else {
+            let no_prefetch = |_| {};
+            traverse_frustum(
+                &self.nodes,
+                frustum,
+                &active,
+                no_prefetch,
+                |first, count, lanes, frustum| {
+                    for slot in first..first + count {
+                        visit(slot, lanes, frustum);
+                    }
+                },
+            );
+        }
+        closest
+    }
+
+    /// Frustum packet version of [`Self::closest_in_placement`]: the rays keep one origin in
+    /// object space, so they stay a frustum packet unless the transform splits their octant.
+    fn closest_in_placement_frustum(
+        placement: &Placement,
+        frustum: &mut FrustumPacket,
+        lanes: &[u32; FRUSTUM_RAYS / LANES],
+        found: &mut [Option<u32>; FRUSTUM_RAYS],
+    ) {
+        let object_ray = |frustum: &FrustumPacket, index: usize| {
+            let (group, lane) = (index / LANES, index % LANES);
+            if lanes[group] & (1 << lane) == 0 {
+                return None;
+            }
+            placement.object_ray(&frustum.groups[group].ray(lane))
+        };
+        let used = LANES * frustum.group_count;
+        let mut object_frustum = FrustumPacket::empty();
+        if object_frustum.fill(used, |index| object_ray(frustum, index)) {
+            let object_lanes = std::array::from_fn(|group| object_frustum.groups[group].lanes);
+            placement
+                .geometry
+                .closest_slots_frustum(&mut object_frustum, &object_lanes, found);
+            for (index, primitive_slot) in found.iter().enumerate() {
+                if primitive_slot.is_some() {
+                    let (group, lane) = (index / LANES, index % LANES);
+                    frustum.groups[group].copy_hit(lane, &object_frustum.groups[group], lane);
+                }
+            }
+            return;
+        }
+        for (index, found) in found.iter_mut().enumerate().take(used) {
+            let Some(mut object) = object_ray(frustum, index) else {
+                continue;
+            };
+            if let Some((primitive_slot, bary)) = placement.geometry.closest_slot(&mut object) {
+                frustum.groups[index / LANES].record_hit(index % LANES, object.t_max, bary);
+                *found = Some(primitive_slot);
+            }
+        }
+    }
+
+    /// Per lane of a 2x2 packet, the closest (placement slot, primitive slot).
+    fn closest_packet(&self, packet: &mut RayPacket) -> [Option<(u32, u32)>; LANES] {
+        let mut closest = [None; LANES];
+        let mut visit = |slot: u32, lanes: u32, packet: &mut RayPacket| {
+            let placement = &self.placements[slot as usize];
+            let mut slots = [None; LANES];
+            if placement.world_to_object.is_none() {
+                placement
+                    .geometry
+                    .closest_slots_packet(packet, lanes, &mut slots);
+            } else {
+                self.closest_in_placement(placement, packet, lanes, &mut slots);
+            }
+            for (lane, found) in slots.iter().enumerate() {
+                if let Some(primitive_slot) = found {
+                    closest[lane] = Some((slot, *primitive_slot));
+                }
+            }
+        };
+        let lanes = packet.lanes;
+        if self.placements.len() == 1 {
+            // As in `intersect`: a single placement is visited without a top level.
+            visit(0, lanes, packet);
+        } else {
+            traverse_packet(&self.nodes, packet, lanes, |first, count, lanes, packet| {
+                for slot in first..first + count {
+                    visit(slot, lanes, packet);
+                }
+            });
+        }
+        closest
+    }
+
+    /// Moves the packet's `lanes` into the placement's object space and finds their closest
+    /// hits there; world `t_max` follows the object-space one (the parameter is shared).
+    fn closest_in_placement(
+        &self,
+        placement: &Placement,
+        packet: &mut RayPacket,
+        lanes: u32,
+        slots: &mut [Option<u32>; LANES],
+    ) {
+        let object_rays: [Option<TraversalRay>; LANES] = std::array::from_fn(|lane| {
+            if lanes & (1 << lane) == 0 {
+                return None;
+            }
+            placement.object_ray(&packet.ray(lane))
+        });
+        if let Some(mut object_packet) = RayPacket::new(&object_rays) {
+            let object_lanes = object_packet.lanes;
+            placement
+                .geometry
+                .closest_slots_packet(&mut object_packet, object_lanes, slots);
+            for (lane, found) in slots.iter().enumerate() {
+                if found.is_some() {
+                    packet.copy_hit(lane, &object_packet, lane);
+                }
+            }
+        } else {
+            for (lane, object_ray) in object_rays.iter().enumerate() {
+                let Some(mut object) = *object_ray else {
+                    continue;
+                };
+                if let Some((primitive_slot, bary)) = placement.geometry.closest_slot(&mut object) {
+                    packet.record_hit(lane, object.t_max, bary);
+                    slots[lane] = Some(primitive_slot);
+                }
+            }
+        }
+    }
+
+    /// Whether anything is hit with world `t` in `[t_min, t_max]`.
+    pub fn occluded(&self, ray: &Ray) -> bool {
+        let Some(mut world) = prepare(ray) else {
+            return false;
+        };
+        if let [placement] = self.placements.as_slice() {
+            return placement
+                .object_ray(&world)
+                .is_some_and(|mut object| placement.geometry.any_hit(&mut object));
+        }
+        traverse::<true, _>(&self.nodes, &mut world, |slot, world| {
+            let placement = &self.placements[slot as usize];
+            placement
+                .object_ray(world)
+                .is_some_and(|mut object| placement.geometry.any_hit(&mut object))
+        })
+    }
+
+    /// World box of everything in the scene; [`EMPTY_BOUNDS`] when empty.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        self.bounds
+    }
+
+    /// The top-level nodes to traverse; none when a single placement is visited directly.
+    fn top_level_nodes(&self) -> &[CwBvhNode] {
+        if self.placements.len() == 1 {
+            &[]
+        } else {
+            &self.nodes
+        }
+    }
+
+    fn scene_hit(&self, placement: &Placement, hit: PrimHit) -> SceneHit {
+        let normal = if placement.world_to_object.is_none() {
+            hit.normal
+        } else {
+            let world = (placement.normal_to_world * Vec3A::from(hit.normal)).normalize_or_zero();
+            if world == Vec3A::ZERO {
+                hit.normal
+            } else {
+                world.into()
+            }
+        };
+        SceneHit {
+            t: hit.t,
+            instance: placement.instance,
+            geometry: placement.geometry_index,
+            primitive: hit.primitive,
+            uv: hit.uv,
+            normal,
+            object_normal: hit.normal,
+        }
+    }
+}

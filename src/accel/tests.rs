@@ -1,0 +1,2000 @@
+//! Tests of the public acceleration API against analytic answers and brute force.
+
+use crate::accel::geometry::BUILDS_ON_THIS_THREAD;
+use crate::accel::primitives::{
+    PackedCylinder, PackedSphere, PackedTriangle, cylinder_hit, sphere_t, triangle_t,
+};
+use crate::accel::wide_bvh::TraversalRay;
+use crate::accel::*;
+use glam::{Affine3A, Quat, UVec3, UVec4, Vec3, Vec3A, vec3};
+use std::sync::Arc;
+
+/// Small deterministic generator (xorshift64*), so failures reproduce.
+struct Rng(u64);
+
+impl Rng {
+    fn new(seed: u64) -> Rng {
+        Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+    fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
+    }
+    /// Uniform in [0, 1).
+    fn unit(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+    fn range(&mut self, low: f32, high: f32) -> f32 {
+        low + (high - low) * self.unit()
+    }
+    fn point(&mut self, low: f32, high: f32) -> Vec3 {
+        vec3(
+            self.range(low, high),
+            self.range(low, high),
+            self.range(low, high),
+        )
+    }
+    fn direction(&mut self) -> Vec3 {
+        loop {
+            let v = self.point(-1.0, 1.0);
+            let length = v.length();
+            if length > 0.05 && length <= 1.0 {
+                return v / length;
+            }
+        }
+    }
+}
+
+fn ray(origin: Vec3, direction: Vec3) -> Ray {
+    Ray::new(origin, direction.normalize(), 0.0, f32::INFINITY)
+}
+
+fn assert_close(actual: f32, expected: f32, tolerance: f32) {
+    assert!(
+        (actual - expected).abs() <= tolerance,
+        "{actual} differs from {expected} by more than {tolerance}"
+    );
+}
+
+fn assert_vec_close(actual: Vec3, expected: Vec3, tolerance: f32) {
+    assert!(
+        actual.distance(expected) <= tolerance,
+        "{actual} differs from {expected} by more than {tolerance}"
+    );
+}
+
+fn unit_triangle() -> GeometryBvh {
+    GeometryBvh::build(GeometryPrims::Triangles {
+        positions: vec![
+            vec3(0.0, 0.0, 0.0),
+            vec3(1.0, 0.0, 0.0),
+            vec3(0.0, 1.0, 0.0),
+        ],
+        indices: vec![UVec3::new(0, 1, 2)],
+    })
+}
+
+fn identity_instance(geometries: Vec<Arc<GeometryBvh>>) -> InstanceDesc {
+    InstanceDesc {
+        transform: Affine3A::IDENTITY,
+        geometries,
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Brute force references: every primitive tested with the same primitive routines, no BVH.
+
+/// Closest `(t, primitive id)` over all primitives of `prims`.
+fn brute_force(prims: &GeometryPrims, ray: &TraversalRay) -> Option<(f32, u32)> {
+    let mut ray = *ray;
+    let mut best = None;
+    let mut offer = |hit: Option<f32>, id: u32, ray: &mut TraversalRay| {
+        if let Some(t) = hit {
+            ray.t_max = t;
+            best = Some((t, id));
+        }
+    };
+    match prims {
+        GeometryPrims::Triangles { positions, indices } => {
+            for (id, corners) in indices.iter().enumerate() {
+                let vertex = |i: u32| positions.get(i as usize).copied();
+                if let (Some(a), Some(b), Some(c)) =
+                    (vertex(corners.x), vertex(corners.y), vertex(corners.z))
+                    && let Some(triangle) = PackedTriangle::new(a, b, c)
+                {
+                    offer(triangle_t(&triangle, &ray), id as u32, &mut ray);
+                }
+            }
+        }
+        GeometryPrims::Quads { positions, indices } => {
+            for (id, quad) in indices.iter().enumerate() {
+                let vertex = |i: u32| positions[i as usize];
+                for corners in [[quad.x, quad.y, quad.z], [quad.x, quad.z, quad.w]] {
+                    if let Some(triangle) = PackedTriangle::new(
+                        vertex(corners[0]),
+                        vertex(corners[1]),
+                        vertex(corners[2]),
+                    ) {
+                        offer(triangle_t(&triangle, &ray), id as u32, &mut ray);
+                    }
+                }
+            }
+        }
+        GeometryPrims::Spheres { centers, radii } => {
+            for (id, (center, radius)) in centers.iter().zip(radii).enumerate() {
+                if let Some(sphere) = PackedSphere::new(*center, *radius) {
+                    offer(sphere_t(&sphere, &ray), id as u32, &mut ray);
+                }
+            }
+        }
+        GeometryPrims::Cylinders {
+            starts,
+            ends,
+            radii,
+            caps,
+        } => {
+            for id in 0..starts.len() {
+                if let Some(cylinder) = PackedCylinder::new(starts[id], ends[id], radii[id]) {
+                    let hit = cylinder_hit(&cylinder, *caps, &ray).map(|(t, _)| t);
+                    offer(hit, id as u32, &mut ray);
+                }
+            }
+        }
+    }
+    best
+}
+
+fn traversal_ray(ray: &Ray) -> TraversalRay {
+    TraversalRay::new(
+        ray.origin.into(),
+        ray.direction.into(),
+        ray.t_min,
+        ray.t_max,
+    )
+    .unwrap()
+}
+
+/// Checks a BVH answer against the brute-force answer: equal `t`, and the same primitive
+/// unless another primitive is hit at exactly the same `t`.
+fn check_against_brute_force(
+    prims: &GeometryPrims,
+    found: Option<(f32, u32)>,
+    ray: &TraversalRay,
+    context: &str,
+) {
+    let expected = brute_force(prims, ray);
+    match (found, expected) {
+        (None, None) => {}
+        (Some((t, id)), Some((expected_t, expected_id))) => {
+            assert_eq!(t, expected_t, "{context}: t differs");
+            if id != expected_id {
+                // A tie: the reported primitive must itself be hit at that same t.
+                let mut tied = *ray;
+                tied.t_min = t;
+                tied.t_max = t;
+                let only = single_primitive(prims, id);
+                assert_eq!(
+                    brute_force(&only, &tied).map(|hit| hit.0),
+                    Some(t),
+                    "{context}: primitive {id} reported instead of {expected_id}"
+                );
+            }
+        }
+        (found, expected) => panic!("{context}: BVH gave {found:?}, brute force {expected:?}"),
+    }
+}
+
+/// The primitive `id` alone (ids of the result restart at 0).
+fn single_primitive(prims: &GeometryPrims, id: u32) -> GeometryPrims {
+    let i = id as usize;
+    match prims {
+        GeometryPrims::Triangles { positions, indices } => GeometryPrims::Triangles {
+            positions: positions.clone(),
+            indices: vec![indices[i]],
+        },
+        GeometryPrims::Quads { positions, indices } => GeometryPrims::Quads {
+            positions: positions.clone(),
+            indices: vec![indices[i]],
+        },
+        GeometryPrims::Spheres { centers, radii } => GeometryPrims::Spheres {
+            centers: vec![centers[i]],
+            radii: vec![radii[i]],
+        },
+        GeometryPrims::Cylinders {
+            starts,
+            ends,
+            radii,
+            caps,
+        } => GeometryPrims::Cylinders {
+            starts: vec![starts[i]],
+            ends: vec![ends[i]],
+            radii: vec![radii[i]],
+            caps: *caps,
+        },
+    }
+}
+
+fn random_triangles(rng: &mut Rng, count: usize, extent: f32, size: f32) -> GeometryPrims {
+    let mut positions = Vec::new();
+    let mut indices = Vec::new();
+    for i in 0..count as u32 {
+        let anchor = rng.point(-extent, extent);
+        positions.push(anchor);
+        positions.push(anchor + rng.point(-size, size));
+        positions.push(anchor + rng.point(-size, size));
+        indices.push(UVec3::new(3 * i, 3 * i + 1, 3 * i + 2));
+    }
+    GeometryPrims::Triangles { positions, indices }
+}
+
+fn random_quads(rng: &mut Rng, count: usize, extent: f32, size: f32) -> GeometryPrims {
+    let mut positions = Vec::new();
+    let mut indices = Vec::new();
+    for i in 0..count as u32 {
+        let anchor = rng.point(-extent, extent);
+        let u = rng.point(-size, size);
+        let v = rng.point(-size, size);
+        // Slightly non-planar quads exercise both halves independently.
+        let bend = rng.point(-0.1 * size, 0.1 * size);
+        positions.extend([anchor, anchor + u, anchor + u + v + bend, anchor + v]);
+        indices.push(UVec4::new(4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3));
+    }
+    GeometryPrims::Quads { positions, indices }
+}
+
+fn random_spheres(rng: &mut Rng, count: usize, extent: f32, size: f32) -> GeometryPrims {
+    GeometryPrims::Spheres {
+        centers: (0..count).map(|_| rng.point(-extent, extent)).collect(),
+        radii: (0..count).map(|_| rng.range(0.05 * size, size)).collect(),
+    }
+}
+
+fn random_cylinders(rng: &mut Rng, count: usize, extent: f32, size: f32) -> GeometryPrims {
+    let starts: Vec<Vec3> = (0..count).map(|_| rng.point(-extent, extent)).collect();
+    let ends = starts
+        .iter()
+        .map(|start| *start + rng.point(-size, size))
+        .collect();
+    GeometryPrims::Cylinders {
+        starts,
+        ends,
+        radii: (0..count)
+            .map(|_| rng.range(0.02 * size, 0.3 * size))
+            .collect(),
+        caps: count.is_multiple_of(2),
+    }
+}
+
+/// Rays from outside and inside the primitive cloud, some with finite windows.
+fn random_rays(rng: &mut Rng, count: usize, extent: f32) -> Vec<Ray> {
+    (0..count)
+        .map(|i| {
+            let origin = rng.point(-1.5 * extent, 1.5 * extent);
+            let direction = if i % 2 == 0 {
+                rng.direction()
+            } else {
+                // Aim at the cloud so most rays hit something.
+                (rng.point(-extent, extent) - origin).normalize()
+            };
+            let (t_min, t_max) = match i % 4 {
+                0 => (0.0, f32::INFINITY),
+                1 => (rng.range(0.0, extent), f32::INFINITY),
+                2 => (0.0, rng.range(0.0, 2.0 * extent)),
+                _ => (1.0e-3, 3.0 * extent),
+            };
+            Ray::new(origin, direction, t_min, t_max)
+        })
+        .collect()
+}
+
+fn compare_geometry_with_brute_force(prims: GeometryPrims, rays: &[Ray], name: &str) {
+    let bvh = GeometryBvh::build(prims.clone());
+    let mut hits = 0;
+    for (i, ray) in rays.iter().enumerate() {
+        let found = bvh.intersect(ray).map(|hit| (hit.t, hit.primitive));
+        let context = format!("{name} ray {i} {ray:?}");
+        check_against_brute_force(&prims, found, &traversal_ray(ray), &context);
+        assert_eq!(bvh.occluded(ray), found.is_some(), "{context}: occluded");
+        hits += usize::from(found.is_some());
+    }
+    // The comparison is only meaningful if a good share of rays hit something.
+    assert!(hits > rays.len() / 5, "{name}: only {hits} hits");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Triangles and quads
+
+#[test]
+fn triangle_hit_has_analytic_t_uv_and_normal() {
+    let bvh = unit_triangle();
+    let hit = bvh
+        .intersect(&ray(vec3(0.25, 0.5, 5.0), vec3(0.0, 0.0, -1.0)))
+        .unwrap();
+    assert_eq!(hit.t, 5.0);
+    assert_eq!(hit.primitive, 0);
+    assert_vec_close(hit.uv.extend(0.0), vec3(0.25, 0.5, 0.0), 1e-6);
+    assert_eq!(hit.normal, Vec3::Z);
+    // From below the normal is not flipped.
+    let below = bvh
+        .intersect(&ray(vec3(0.25, 0.25, -2.0), Vec3::Z))
+        .unwrap();
+    assert_eq!(below.t, 2.0);
+    assert_eq!(below.normal, Vec3::Z);
+    // Oblique ray: t is the distance to the plane point.
+    let target = vec3(0.2, 0.3, 0.0);
+    let origin = vec3(3.0, -1.0, 4.0);
+    let hit = bvh.intersect(&ray(origin, target - origin)).unwrap();
+    assert_close(hit.t, origin.distance(target), 1e-5);
+    assert_vec_close(hit.uv.extend(0.0), vec3(0.2, 0.3, 0.0), 1e-5);
+}
+
+#[test]
+fn triangle_misses() {
+    let bvh = unit_triangle();
+    assert!(
+        bvh.intersect(&ray(vec3(0.75, 0.75, 5.0), -Vec3::Z))
+            .is_none()
+    );
+    assert!(
+        bvh.intersect(&ray(vec3(0.25, 0.25, 5.0), Vec3::Z))
+            .is_none()
+    );
+    // Parallel to the plane, inside it.
+    assert!(bvh.intersect(&ray(vec3(-1.0, 0.2, 0.0), Vec3::X)).is_none());
+    assert!(!bvh.occluded(&ray(vec3(0.75, 0.75, 5.0), -Vec3::Z)));
+}
+
+#[test]
+fn t_window_is_inclusive_at_both_ends() {
+    let bvh = unit_triangle();
+    let at = |t_min: f32, t_max: f32| Ray::new(vec3(0.25, 0.25, 4.0), -Vec3::Z, t_min, t_max);
+    assert_eq!(bvh.intersect(&at(0.0, 4.0)).map(|hit| hit.t), Some(4.0));
+    assert_eq!(bvh.intersect(&at(4.0, 10.0)).map(|hit| hit.t), Some(4.0));
+    assert_eq!(bvh.intersect(&at(4.0, 4.0)).map(|hit| hit.t), Some(4.0));
+    assert!(bvh.intersect(&at(0.0, 3.999_999_5)).is_none());
+    assert!(bvh.intersect(&at(4.000_001, 10.0)).is_none());
+    assert!(bvh.occluded(&at(0.0, 4.0)));
+    assert!(!bvh.occluded(&at(0.0, 3.9)));
+    assert!(!bvh.occluded(&at(4.1, 100.0)));
+}
+
+#[test]
+fn closest_of_stacked_triangles_wins_and_window_selects_others() {
+    let mut positions = Vec::new();
+    let mut indices = Vec::new();
+    for (i, z) in [3.0f32, 1.0, 2.0].into_iter().enumerate() {
+        let base = 3 * i as u32;
+        positions.extend([vec3(-1.0, -1.0, z), vec3(2.0, -1.0, z), vec3(-1.0, 2.0, z)]);
+        indices.push(UVec3::new(base, base + 1, base + 2));
+    }
+    let bvh = GeometryBvh::build(GeometryPrims::Triangles { positions, indices });
+    let down = |t_min: f32, t_max: f32| Ray::new(vec3(0.0, 0.0, 10.0), -Vec3::Z, t_min, t_max);
+    let hit = |ray: Ray| bvh.intersect(&ray).map(|hit| (hit.t, hit.primitive));
+    assert_eq!(hit(down(0.0, f32::INFINITY)), Some((7.0, 0)));
+    assert_eq!(hit(down(7.5, f32::INFINITY)), Some((8.0, 2)));
+    assert_eq!(hit(down(8.5, f32::INFINITY)), Some((9.0, 1)));
+    assert_eq!(hit(down(9.5, f32::INFINITY)), None);
+    assert_eq!(hit(down(0.0, 6.0)), None);
+}
+
+#[test]
+fn quads_report_quad_index_and_local_coordinates() {
+    let positions = vec![
+        vec3(10.0, 10.0, 0.0),
+        vec3(0.0, 0.0, 0.0),
+        vec3(2.0, 0.0, 0.0),
+        vec3(2.0, 2.0, 0.0),
+        vec3(0.0, 2.0, 0.0),
+    ];
+    // Quad 0 is degenerate (all corners equal): skipped.
+    let indices = vec![UVec4::new(0, 0, 0, 0), UVec4::new(1, 2, 3, 4)];
+    let bvh = GeometryBvh::build(GeometryPrims::Quads { positions, indices });
+    assert_eq!(bvh.primitive_count(), 1);
+    assert_eq!(bvh.skipped_primitive_count(), 1);
+
+    let first_half = bvh.intersect(&ray(vec3(1.5, 0.5, 3.0), -Vec3::Z)).unwrap();
+    assert_eq!(first_half.primitive, 1);
+    assert_eq!(first_half.t, 3.0);
+    assert_vec_close(first_half.uv.extend(0.0), vec3(0.75, 0.25, 0.0), 1e-6);
+    assert_eq!(first_half.normal, Vec3::Z);
+
+    let second_half = bvh.intersect(&ray(vec3(0.5, 1.5, 3.0), -Vec3::Z)).unwrap();
+    assert_eq!(second_half.primitive, 1);
+    assert_vec_close(second_half.uv.extend(0.0), vec3(0.25, 0.75, 0.0), 1e-6);
+    assert_eq!(second_half.normal, Vec3::Z);
+
+    assert!(bvh.intersect(&ray(vec3(2.5, 0.5, 3.0), -Vec3::Z)).is_none());
+}
+
+#[test]
+fn quad_with_one_degenerate_half_keeps_the_other() {
+    // v2 == v3: the second triangle (v0, v2, v3) has no area.
+    let positions = vec![
+        vec3(0.0, 0.0, 0.0),
+        vec3(1.0, 0.0, 0.0),
+        vec3(1.0, 1.0, 0.0),
+    ];
+    let bvh = GeometryBvh::build(GeometryPrims::Quads {
+        positions,
+        indices: vec![UVec4::new(0, 1, 2, 2)],
+    });
+    assert_eq!(bvh.primitive_count(), 1);
+    let hit = bvh
+        .intersect(&ray(vec3(0.75, 0.25, 1.0), -Vec3::Z))
+        .unwrap();
+    assert_eq!(hit.primitive, 0);
+    assert!(
+        bvh.intersect(&ray(vec3(0.25, 0.75, 1.0), -Vec3::Z))
+            .is_none()
+    );
+}
+
+fn bumpy_grid(cells: u32) -> (Vec<Vec3>, GeometryPrims) {
+    let height = |x: u32, y: u32| ((x * 7 + y * 3) % 5) as f32 * 0.125;
+    let mut positions = Vec::new();
+    for y in 0..=cells {
+        for x in 0..=cells {
+            positions.push(vec3(x as f32, y as f32, height(x, y)));
+        }
+    }
+    let corner = |x: u32, y: u32| y * (cells + 1) + x;
+    let mut indices = Vec::new();
+    for y in 0..cells {
+        for x in 0..cells {
+            indices.push(UVec3::new(
+                corner(x, y),
+                corner(x + 1, y),
+                corner(x + 1, y + 1),
+            ));
+            indices.push(UVec3::new(
+                corner(x, y),
+                corner(x + 1, y + 1),
+                corner(x, y + 1),
+            ));
+        }
+    }
+    let prims = GeometryPrims::Triangles {
+        positions: positions.clone(),
+        indices,
+    };
+    (positions, prims)
+}
+
+#[test]
+fn nearly_axis_parallel_rays_through_box_corners_are_not_culled() {
+    // Regression: this ray meets a grid vertex where three box faces meet while running almost
+    // parallel to x; slab rounding amplified by 1/dx once culled the box.
+    let (positions, prims) = bumpy_grid(16);
+    let bvh = GeometryBvh::build(prims.clone());
+    let origin = vec3(14.014053, 3.7264585, 10.0);
+    let test_ray = ray(origin, vec3(14.0, 9.0, 0.0) - origin);
+    let expected = brute_force(&prims, &traversal_ray(&test_ray));
+    assert!(expected.is_some());
+    assert_eq!(
+        bvh.intersect(&test_ray).map(|hit| (hit.t, hit.primitive)),
+        expected
+    );
+    // The same at every grid vertex, from directions within 1e-3 of an axis-aligned plane.
+    let mut rng = Rng::new(77);
+    for y in 1..16 {
+        for x in 1..16 {
+            let position = positions[(y * 17 + x) as usize];
+            for _ in 0..4 {
+                let mut offset = vec3(rng.range(-8.0, 8.0), rng.range(-8.0, 8.0), 10.0);
+                if rng.unit() < 0.5 {
+                    offset.x = rng.range(-1e-2, 1e-2);
+                } else {
+                    offset.y = rng.range(-1e-2, 1e-2);
+                }
+                let test_ray = ray(position + offset, -offset);
+                let expected = brute_force(&prims, &traversal_ray(&test_ray));
+                let found = bvh.intersect(&test_ray).map(|hit| (hit.t, hit.primitive));
+                check_against_brute_force(&prims, found, &traversal_ray(&test_ray), "corner");
+                assert!(expected.is_some(), "{test_ray:?} leaked");
+            }
+        }
+    }
+}
+
+#[test]
+fn grid_is_watertight_along_shared_edges_and_vertices() {
+    // A bumpy 16x16 grid; rays aimed exactly at its vertices and edge midpoints must all hit.
+    let cells = 16u32;
+    let (positions, prims) = bumpy_grid(cells);
+    let corner = |x: u32, y: u32| y * (cells + 1) + x;
+    let bvh = GeometryBvh::build(prims);
+    let mut rng = Rng::new(7);
+    let mut targets = Vec::new();
+    for y in 1..cells {
+        for x in 1..cells {
+            let p = positions[corner(x, y) as usize];
+            let right = positions[corner(x + 1, y) as usize];
+            let up = positions[corner(x, y + 1) as usize];
+            let diagonal = positions[corner(x + 1, y + 1) as usize];
+            targets.extend([p, (p + right) * 0.5, (p + up) * 0.5, (p + diagonal) * 0.5]);
+        }
+    }
+    for target in targets {
+        for _ in 0..4 {
+            let origin = target + vec3(rng.range(-8.0, 8.0), rng.range(-8.0, 8.0), 10.0);
+            let hit = bvh.intersect(&ray(origin, target - origin));
+            let hit = hit.unwrap_or_else(|| panic!("ray from {origin} to {target} leaked"));
+            assert_close(hit.t, origin.distance(target), 1e-3);
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Spheres
+
+fn one_sphere(center: Vec3, radius: f32) -> GeometryBvh {
+    GeometryBvh::build(GeometryPrims::Spheres {
+        centers: vec![center],
+        radii: vec![radius],
+    })
+}
+
+#[test]
+fn sphere_hits_from_outside_and_inside() {
+    let bvh = one_sphere(vec3(0.0, 0.0, -10.0), 2.0);
+    let hit = bvh.intersect(&ray(Vec3::ZERO, -Vec3::Z)).unwrap();
+    assert_eq!(hit.t, 8.0);
+    assert_eq!(hit.primitive, 0);
+    assert_vec_close(hit.normal, Vec3::Z, 1e-6);
+    assert_close(hit.uv.y, 0.0, 1e-3);
+
+    let inside = bvh.intersect(&ray(vec3(0.0, 0.0, -10.0), Vec3::X)).unwrap();
+    assert_eq!(inside.t, 2.0);
+    assert_vec_close(inside.normal, Vec3::X, 1e-6);
+    assert_close(inside.uv.x, 0.0, 1e-6);
+    assert_close(inside.uv.y, 0.5, 1e-6);
+
+    // Behind the origin, beside the sphere, and outside the window.
+    assert!(bvh.intersect(&ray(Vec3::ZERO, Vec3::Z)).is_none());
+    assert!(bvh.intersect(&ray(vec3(2.5, 0.0, 0.0), -Vec3::Z)).is_none());
+    assert!(
+        bvh.intersect(&Ray::new(Vec3::ZERO, -Vec3::Z, 0.0, 7.9))
+            .is_none()
+    );
+    // With t_min past the front, the back is hit.
+    let back = bvh
+        .intersect(&Ray::new(Vec3::ZERO, -Vec3::Z, 9.0, f32::INFINITY))
+        .unwrap();
+    assert_eq!(back.t, 12.0);
+    assert_vec_close(back.normal, -Vec3::Z, 1e-6);
+}
+
+#[test]
+fn sphere_oblique_hit_matches_analytic_solution() {
+    let center = vec3(1.0, 2.0, -7.0);
+    let radius = 1.5;
+    let bvh = one_sphere(center, radius);
+    let mut rng = Rng::new(11);
+    for _ in 0..200 {
+        let origin = rng.point(-3.0, 3.0);
+        let target = center + rng.direction() * radius * 0.9;
+        let direction = (target - origin).normalize();
+        let hit = bvh
+            .intersect(&Ray::new(origin, direction, 0.0, f32::INFINITY))
+            .unwrap();
+        // f64 reference on exactly the same (f32) ray.
+        let o = origin.as_dvec3() - center.as_dvec3();
+        let d = direction.as_dvec3();
+        let a = d.length_squared();
+        let b = o.dot(d);
+        let c = o.length_squared() - (radius as f64).powi(2);
+        let t = (-b - (b * b - a * c).sqrt()) / a;
+        assert_close(hit.t, t as f32, 1e-5);
+        let expected_normal = ((o + d * t) / radius as f64).as_vec3();
+        assert_vec_close(hit.normal, expected_normal, 1e-5);
+        assert_close(hit.normal.length(), 1.0, 1e-6);
+    }
+}
+
+#[test]
+fn far_away_and_huge_spheres_are_accurate() {
+    // A unit sphere a million units away: the naive b^2 - c discriminant cancels completely.
+    let far = one_sphere(vec3(0.0, 0.0, -1.0e6), 1.0);
+    let hit = far.intersect(&ray(Vec3::ZERO, -Vec3::Z)).unwrap();
+    assert_close(hit.t, 1.0e6 - 1.0, 0.07);
+    assert_vec_close(hit.normal, Vec3::Z, 1e-3);
+    // Off-centre rays at that distance still hit or miss correctly.
+    let grazing = Ray::new(vec3(0.9, 0.0, 0.0), -Vec3::Z, 0.0, f32::INFINITY);
+    assert!(far.intersect(&grazing).is_some());
+    let missing = Ray::new(vec3(1.1, 0.0, 0.0), -Vec3::Z, 0.0, f32::INFINITY);
+    assert!(far.intersect(&missing).is_none());
+
+    // A planet-sized sphere whose surface is 10 units away.
+    let huge = one_sphere(vec3(0.0, -1.0e5, 0.0), 1.0e5 - 10.0);
+    let hit = huge.intersect(&ray(Vec3::ZERO, -Vec3::Y)).unwrap();
+    assert_close(hit.t, 10.0, 0.01);
+    assert_vec_close(hit.normal, Vec3::Y, 1e-6);
+
+    // A tiny sphere.
+    let tiny = one_sphere(vec3(0.0, 0.0, -100.0), 1.0e-3);
+    let hit = tiny.intersect(&ray(Vec3::ZERO, -Vec3::Z)).unwrap();
+    assert_close(hit.t, 100.0 - 1.0e-3, 1e-5);
+}
+
+#[test]
+fn rays_leaving_a_sphere_surface_do_not_hit_it_again() {
+    let mut rng = Rng::new(3);
+    for (center, radius) in [
+        (Vec3::ZERO, 1.0f32),
+        (vec3(300.0, -200.0, 50.0), 20.0),
+        (vec3(0.0, 0.0, -5000.0), 1000.0),
+    ] {
+        let bvh = one_sphere(center, radius);
+        for _ in 0..500 {
+            // A surface point as the renderer gets it: from a primary hit.
+            let origin = center + rng.direction() * radius * 3.0;
+            let target = center + rng.direction() * radius * 0.5;
+            let Some(hit) = bvh.intersect(&ray(origin, target - origin)) else {
+                continue;
+            };
+            let point = origin + (target - origin).normalize() * hit.t;
+            let epsilon = surface_epsilon(point);
+            // Outgoing directions at least ~0.6 degrees above the tangent plane.
+            let mut outward = rng.direction();
+            if outward.dot(hit.normal) < 0.0 {
+                outward = -outward;
+            }
+            if outward.dot(hit.normal) < 0.01 {
+                continue;
+            }
+            let shadow = Ray::new(point, outward, epsilon, f32::INFINITY);
+            assert!(
+                !bvh.occluded(&shadow),
+                "self-hit leaving {point} along {outward} (eps {epsilon})"
+            );
+            // Inward rays hit the far side at the chord length.
+            let inward = -outward;
+            let chord = 2.0 * radius * inward.dot(-hit.normal);
+            let through = bvh
+                .intersect(&Ray::new(point, inward, epsilon, f32::INFINITY))
+                .unwrap();
+            assert_close(
+                through.t,
+                chord,
+                1e-4 * radius.max(point.abs().max_element()),
+            );
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Cylinders
+
+fn one_cylinder(caps: bool) -> GeometryBvh {
+    GeometryBvh::build(GeometryPrims::Cylinders {
+        starts: vec![vec3(0.0, 0.0, 0.0)],
+        ends: vec![vec3(0.0, 0.0, 4.0)],
+        radii: vec![1.0],
+        caps,
+    })
+}
+
+#[test]
+fn cylinder_body_hit_is_analytic() {
+    for caps in [false, true] {
+        let bvh = one_cylinder(caps);
+        let hit = bvh.intersect(&ray(vec3(5.0, 0.0, 1.0), -Vec3::X)).unwrap();
+        assert_eq!(hit.t, 4.0);
+        assert_eq!(hit.primitive, 0);
+        assert_vec_close(hit.normal, Vec3::X, 1e-6);
+        assert_close(hit.uv.x, 0.25, 1e-6);
+        // Oblique: hits the body at (sqrt(0.5), sqrt(0.5), 2).
+        let target = vec3(0.5f32.sqrt(), 0.5f32.sqrt(), 2.0);
+        let origin = vec3(4.0, 3.0, 6.0);
+        let hit = bvh.intersect(&ray(origin, target - origin)).unwrap();
+        assert_close(hit.t, origin.distance(target), 1e-5);
+        assert_vec_close(hit.normal, vec3(target.x, target.y, 0.0), 1e-5);
+        // Above and beside.
+        assert!(bvh.intersect(&ray(vec3(5.0, 0.0, 4.5), -Vec3::X)).is_none());
+        assert!(bvh.intersect(&ray(vec3(5.0, 1.5, 1.0), -Vec3::X)).is_none());
+    }
+}
+
+#[test]
+fn cylinder_caps_close_the_tube() {
+    let capped = one_cylinder(true);
+    let open = one_cylinder(false);
+    // Straight down the axis: only the caps can be hit.
+    let down = ray(vec3(0.5, 0.0, 10.0), -Vec3::Z);
+    let hit = capped.intersect(&down).unwrap();
+    assert_eq!(hit.t, 6.0);
+    assert_eq!(hit.normal, Vec3::Z);
+    assert_close(hit.uv.x, 1.0, 0.0);
+    assert_close(hit.uv.y, 0.5, 1e-6);
+    assert!(open.intersect(&down).is_none());
+    let up = ray(vec3(0.0, 0.5, -3.0), Vec3::Z);
+    let hit = capped.intersect(&up).unwrap();
+    assert_eq!(hit.t, 3.0);
+    assert_eq!(hit.normal, -Vec3::Z);
+
+    // Through the top opening: the open tube is hit on its inner wall at (1, 0, 2).
+    let origin = vec3(0.0, 0.0, 6.0);
+    let slanted = ray(origin, vec3(1.0, 0.0, -4.0));
+    let cap_hit = capped.intersect(&slanted).unwrap();
+    assert_close(cap_hit.t, origin.distance(vec3(0.5, 0.0, 4.0)), 1e-6);
+    assert_eq!(cap_hit.normal, Vec3::Z);
+    let wall_hit = open.intersect(&slanted).unwrap();
+    assert_close(wall_hit.t, origin.distance(vec3(1.0, 0.0, 2.0)), 1e-5);
+    assert_vec_close(wall_hit.normal, Vec3::X, 1e-6);
+    assert_close(wall_hit.uv.x, 0.5, 1e-6);
+}
+
+#[test]
+fn rays_leaving_a_cylinder_do_not_hit_it_again() {
+    let mut rng = Rng::new(5);
+    let bvh = GeometryBvh::build(GeometryPrims::Cylinders {
+        starts: vec![vec3(100.0, 20.0, -30.0)],
+        ends: vec![vec3(110.0, 28.0, -20.0)],
+        radii: vec![2.0],
+        caps: true,
+    });
+    let (min, max) = bvh.bounds();
+    let mut tested = 0;
+    for _ in 0..2000 {
+        let origin = (min + max) * 0.5 + rng.direction() * 30.0;
+        let target = min + (max - min) * rng.point(0.0, 1.0);
+        let Some(hit) = bvh.intersect(&ray(origin, target - origin)) else {
+            continue;
+        };
+        let point = origin + (target - origin).normalize() * hit.t;
+        let mut outward = rng.direction();
+        if outward.dot(hit.normal) < 0.0 {
+            outward = -outward;
+        }
+        if outward.dot(hit.normal) < 0.01 {
+            continue;
+        }
+        tested += 1;
+        let shadow = Ray::new(point, outward, surface_epsilon(point), f32::INFINITY);
+        assert!(
+            !bvh.occluded(&shadow),
+            "self-hit at {point} along {outward}"
+        );
+    }
+    assert!(tested > 200);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Brute-force comparisons
+
+#[test]
+fn random_triangles_match_brute_force() {
+    let mut rng = Rng::new(1);
+    let prims = random_triangles(&mut rng, 3000, 10.0, 1.5);
+    let rays = random_rays(&mut rng, 3000, 10.0);
+    compare_geometry_with_brute_force(prims, &rays, "triangles");
+}
+
+#[test]
+fn random_quads_match_brute_force() {
+    let mut rng = Rng::new(2);
+    let prims = random_quads(&mut rng, 1500, 10.0, 1.5);
+    let rays = random_rays(&mut rng, 2000, 10.0);
+    compare_geometry_with_brute_force(prims, &rays, "quads");
+}
+
+#[test]
+fn random_spheres_match_brute_force() {
+    let mut rng = Rng::new(3);
+    let prims = random_spheres(&mut rng, 2000, 10.0, 0.6);
+    let rays = random_rays(&mut rng, 3000, 10.0);
+    compare_geometry_with_brute_force(prims, &rays, "spheres");
+}
+
+#[test]
+fn random_cylinders_match_brute_force() {
+    let mut rng = Rng::new(4);
+    for count in [1500, 1501] {
+        // Even count: capped, odd: open.
+        let prims = random_cylinders(&mut rng, count, 10.0, 2.0);
+        let rays = random_rays(&mut rng, 2000, 10.0);
+        compare_geometry_with_brute_force(prims, &rays, "cylinders");
+    }
+}
+
+#[test]
+fn triangle_hits_agree_with_an_independent_f64_reference() {
+    // Moeller-Trumbore in f64 as the reference; near edges either answer is acceptable.
+    let mut rng = Rng::new(9);
+    let prims = random_triangles(&mut rng, 500, 5.0, 2.0);
+    let GeometryPrims::Triangles { positions, indices } = &prims else {
+        unreachable!()
+    };
+    let bvh = GeometryBvh::build(prims.clone());
+    let mut confident = 0;
+    for test_ray in random_rays(&mut rng, 2000, 5.0) {
+        let o = test_ray.origin.as_dvec3();
+        let d = test_ray.direction.as_dvec3();
+        let mut reference: Option<(f64, u32, f64)> = None;
+        for (id, corners) in indices.iter().enumerate() {
+            let [a, b, c] = corners.to_array().map(|i| positions[i as usize].as_dvec3());
+            let (e1, e2) = (b - a, c - a);
+            let p = d.cross(e2);
+            let det = e1.dot(p);
+            if det.abs() < 1e-12 {
+                continue;
+            }
+            let s = o - a;
+            let u = s.dot(p) / det;
+            let q = s.cross(e1);
+            let v = d.dot(q) / det;
+            let t = e2.dot(q) / det;
+            let margin = u.min(v).min(1.0 - u - v);
+            if margin >= 0.0
+                && t >= test_ray.t_min as f64
+                && t <= test_ray.t_max as f64
+                && reference.is_none_or(|(best, _, _)| t < best)
+            {
+                reference = Some((t, id as u32, margin));
+            }
+        }
+        let found = bvh.intersect(&test_ray);
+        match (found, reference) {
+            (Some(hit), Some((t, id, margin))) if margin > 1e-4 => {
+                confident += 1;
+                assert_close(hit.t, t as f32, 1e-4 * (1.0 + t as f32));
+                if hit.primitive != id {
+                    assert_close(hit.t, t as f32, 1e-4);
+                }
+            }
+            (None, Some((_, _, margin))) => assert!(margin <= 1e-4, "missed {test_ray:?}"),
+            (Some(hit), None) => panic!("spurious hit {hit:?} for {test_ray:?}"),
+            _ => {}
+        }
+    }
+    assert!(confident > 300);
+}
+
+#[test]
+fn duplicated_primitives_build_and_traverse() {
+    // Thousands of identical triangles stress the builder (equal Morton codes) and the stack.
+    let positions = vec![
+        vec3(0.0, 0.0, 0.0),
+        vec3(1.0, 0.0, 0.0),
+        vec3(0.0, 1.0, 0.0),
+    ];
+    let indices = vec![UVec3::new(0, 1, 2); 5000];
+    let bvh = GeometryBvh::build(GeometryPrims::Triangles { positions, indices });
+    assert_eq!(bvh.primitive_count(), 5000);
+    let hit = bvh.intersect(&ray(vec3(0.2, 0.2, 1.0), -Vec3::Z)).unwrap();
+    assert_eq!(hit.t, 1.0);
+    assert!(hit.primitive < 5000);
+    assert!(bvh.intersect(&ray(vec3(0.8, 0.8, 1.0), -Vec3::Z)).is_none());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Invalid input
+
+#[test]
+fn invalid_primitives_are_skipped_without_affecting_others() {
+    let nan = f32::NAN;
+    let positions = vec![
+        vec3(0.0, 0.0, 0.0),
+        vec3(1.0, 0.0, 0.0),
+        vec3(0.0, 1.0, 0.0),
+        vec3(nan, 0.0, 0.0),
+        vec3(0.0, f32::INFINITY, 0.0),
+        vec3(2.0, 2.0, 0.0),
+        vec3(1.0e30, 0.0, 0.0),
+        vec3(0.0, 0.0, 1.0),
+        vec3(1.0, 0.0, 1.0),
+        vec3(0.0, 1.0, 1.0),
+        vec3(0.0, 2.0, 0.0),
+    ];
+    let indices = vec![
+        UVec3::new(0, 1, 3),  // NaN vertex
+        UVec3::new(0, 1, 2),  // valid, id 1
+        UVec3::new(0, 4, 2),  // infinite vertex
+        UVec3::new(0, 1, 99), // index out of range
+        UVec3::new(0, 5, 5),  // zero area
+        UVec3::new(0, 1, 1),  // zero area
+        UVec3::new(0, 6, 2),  // beyond MAX_COORDINATE
+        UVec3::new(7, 8, 9),  // valid, id 7
+        UVec3::new(0, 2, 10), // collinear
+    ];
+    let bvh = GeometryBvh::build(GeometryPrims::Triangles {
+        positions: positions.clone(),
+        indices,
+    });
+    assert_eq!(bvh.primitive_count(), 2);
+    assert_eq!(bvh.skipped_primitive_count(), 7);
+    assert_eq!(bvh.bounds(), (Vec3::ZERO, vec3(1.0, 1.0, 1.0)));
+    let hit = bvh
+        .intersect(&ray(vec3(0.25, 0.25, -1.0), Vec3::Z))
+        .unwrap();
+    assert_eq!((hit.t, hit.primitive), (1.0, 1));
+    let hit = bvh
+        .intersect(&ray(vec3(0.25, 0.25, 3.0), -Vec3::Z))
+        .unwrap();
+    assert_eq!((hit.t, hit.primitive), (2.0, 7));
+    // Where only broken triangles would be, nothing is hit.
+    assert!(bvh.intersect(&ray(vec3(1.5, 1.2, 5.0), -Vec3::Z)).is_none());
+
+    let spheres = GeometryBvh::build(GeometryPrims::Spheres {
+        centers: vec![
+            vec3(nan, 0.0, 0.0),
+            vec3(0.0, 0.0, -5.0),
+            vec3(3.0, 0.0, -5.0),
+            vec3(6.0, 0.0, -5.0),
+            vec3(9.0, 0.0, -5.0),
+            vec3(12.0, 0.0, -5.0),
+        ],
+        radii: vec![1.0, 1.0, -1.0, 0.0, f32::INFINITY, nan],
+    });
+    assert_eq!(spheres.primitive_count(), 1);
+    assert_eq!(spheres.skipped_primitive_count(), 5);
+    assert_eq!(
+        spheres
+            .intersect(&ray(Vec3::ZERO, -Vec3::Z))
+            .map(|hit| (hit.t, hit.primitive)),
+        Some((4.0, 1))
+    );
+    for x in [3.0, 6.0, 9.0, 12.0] {
+        assert!(
+            spheres
+                .intersect(&ray(vec3(x, 0.0, 0.0), -Vec3::Z))
+                .is_none()
+        );
+    }
+
+    let cylinders = GeometryBvh::build(GeometryPrims::Cylinders {
+        starts: vec![Vec3::ZERO, vec3(5.0, 0.0, 0.0), vec3(nan, 0.0, 0.0)],
+        ends: vec![vec3(0.0, 0.0, 1.0), vec3(5.0, 0.0, 0.0)],
+        radii: vec![0.5, 0.5, 0.5],
+        caps: true,
+    });
+    assert_eq!(cylinders.primitive_count(), 1);
+    assert_eq!(cylinders.skipped_primitive_count(), 2);
+    assert!(
+        cylinders
+            .intersect(&ray(vec3(5.0, 0.0, 3.0), -Vec3::Z))
+            .is_none()
+    );
+}
+
+#[test]
+fn empty_geometry_and_scene_have_documented_empty_bounds() {
+    let empty = GeometryBvh::build(GeometryPrims::Spheres {
+        centers: vec![],
+        radii: vec![],
+    });
+    assert_eq!(empty.bounds(), EMPTY_BOUNDS);
+    assert!(bounds_are_empty(empty.bounds()));
+    assert_eq!(empty.primitive_count(), 0);
+    assert!(empty.intersect(&ray(Vec3::ZERO, Vec3::X)).is_none());
+    assert!(!empty.occluded(&ray(Vec3::ZERO, Vec3::X)));
+
+    let all_invalid = Arc::new(GeometryBvh::build(GeometryPrims::Triangles {
+        positions: vec![Vec3::NAN; 3],
+        indices: vec![UVec3::new(0, 1, 2)],
+    }));
+    assert_eq!(all_invalid.bounds(), EMPTY_BOUNDS);
+
+    let scene = SceneBvh::build(vec![identity_instance(vec![Arc::new(empty), all_invalid])]);
+    assert_eq!(scene.bounds(), EMPTY_BOUNDS);
+    assert!(scene.intersect(&ray(Vec3::ZERO, Vec3::X)).is_none());
+    assert!(!scene.occluded(&ray(Vec3::ZERO, Vec3::X)));
+    let nothing = SceneBvh::build(Vec::new());
+    assert_eq!(nothing.bounds(), EMPTY_BOUNDS);
+    assert!(nothing.intersect(&ray(Vec3::ZERO, Vec3::X)).is_none());
+}
+
+#[test]
+fn invalid_rays_never_hit() {
+    let bvh = unit_triangle();
+    let scene = SceneBvh::build(vec![identity_instance(vec![Arc::new(unit_triangle())])]);
+    let good = ray(vec3(0.25, 0.25, 1.0), -Vec3::Z);
+    assert!(bvh.intersect(&good).is_some());
+    let broken = [
+        Ray {
+            origin: Vec3::NAN,
+            ..good
+        },
+        Ray {
+            direction: Vec3::ZERO,
+            ..good
+        },
+        Ray {
+            direction: vec3(0.0, f32::NAN, -1.0),
+            ..good
+        },
+        Ray {
+            t_min: f32::NAN,
+            ..good
+        },
+        Ray {
+            t_max: f32::NAN,
+            ..good
+        },
+        Ray {
+            t_min: 2.0,
+            t_max: 1.0,
+            ..good
+        },
+    ];
+    for broken in broken {
+        assert!(bvh.intersect(&broken).is_none(), "{broken:?}");
+        assert!(!bvh.occluded(&broken), "{broken:?}");
+        assert!(scene.intersect(&broken).is_none(), "{broken:?}");
+        assert!(!scene.occluded(&broken), "{broken:?}");
+    }
+}
+
+#[test]
+fn axis_parallel_rays_with_zero_components_hit() {
+    // Directions with exact (and negative) zeros exercise the clamped inverse direction.
+    let bvh = GeometryBvh::build(GeometryPrims::Spheres {
+        centers: vec![vec3(0.0, 0.0, 0.0), vec3(0.0, 5.0, 0.0)],
+        radii: vec![1.0, 1.0],
+    });
+    for direction in [
+        vec3(-0.0, -1.0, 0.0),
+        vec3(0.0, -1.0, -0.0),
+        vec3(-0.0, -1.0, -0.0),
+    ] {
+        let hit = bvh
+            .intersect(&Ray::new(
+                vec3(0.0, 10.0, 0.0),
+                direction,
+                0.0,
+                f32::INFINITY,
+            ))
+            .unwrap();
+        assert_eq!((hit.t, hit.primitive), (4.0, 1));
+    }
+    // Starting exactly on a box face, travelling along it.
+    let hit = bvh
+        .intersect(&Ray::new(
+            vec3(-1.0, 5.0, -3.0),
+            Vec3::Z,
+            0.0,
+            f32::INFINITY,
+        ))
+        .unwrap();
+    assert_eq!(hit.t, 3.0);
+}
+
+#[test]
+fn hits_very_close_to_the_origin_are_found() {
+    // obvhs' own traversal ignores hits closer than 1e-4; ours honours t_min.
+    let bvh = unit_triangle();
+    let hit = bvh
+        .intersect(&Ray::new(vec3(0.25, 0.25, 1.0e-6), -Vec3::Z, 0.0, 1.0))
+        .unwrap();
+    assert_close(hit.t, 1.0e-6, 1e-12);
+    assert!(
+        bvh.intersect(&Ray::new(vec3(0.25, 0.25, 1.0e-6), -Vec3::Z, 2.0e-6, 1.0))
+            .is_none()
+    );
+}
+
+// ---------------------------------------------------------------------------------------------
+// Instances
+
+fn unit_sphere() -> Arc<GeometryBvh> {
+    Arc::new(one_sphere(Vec3::ZERO, 1.0))
+}
+
+#[test]
+fn rotated_and_scaled_sphere_instance_gives_world_t_and_normal() {
+    // Unit sphere stretched x2 along object x, rotated so object x points along world y.
+    let transform = Affine3A::from_scale_rotation_translation(
+        vec3(2.0, 1.0, 0.5),
+        Quat::from_rotation_z(std::f32::consts::FRAC_PI_2),
+        vec3(0.0, 0.0, -10.0),
+    );
+    let scene = SceneBvh::build(vec![InstanceDesc {
+        transform,
+        geometries: vec![unit_sphere()],
+    }]);
+    // World semi-axes: 1 along x, 2 along y, 0.5 along z; centre (0, 0, -10).
+    let hit = scene
+        .intersect(&ray(vec3(0.0, 10.0, -10.0), -Vec3::Y))
+        .unwrap();
+    assert_close(hit.t, 8.0, 1e-5);
+    assert_vec_close(hit.normal, Vec3::Y, 1e-5);
+    assert_vec_close(hit.object_normal, Vec3::X, 1e-5);
+    assert_eq!((hit.instance, hit.geometry, hit.primitive), (0, 0, 0));
+    let hit = scene
+        .intersect(&ray(vec3(10.0, 0.0, -10.0), -Vec3::X))
+        .unwrap();
+    assert_close(hit.t, 9.0, 1e-5);
+    assert_vec_close(hit.normal, Vec3::X, 1e-5);
+    let hit = scene.intersect(&ray(Vec3::ZERO, -Vec3::Z)).unwrap();
+    assert_close(hit.t, 9.5, 1e-5);
+    assert_vec_close(hit.normal, Vec3::Z, 1e-5);
+
+    // Oblique rays against the analytic ellipsoid (x/1)^2 + (y/2)^2 + (z/0.5)^2 = 1.
+    let semi_axes = vec3(1.0, 2.0, 0.5).as_dvec3();
+    let centre = vec3(0.0, 0.0, -10.0);
+    let mut rng = Rng::new(21);
+    for _ in 0..300 {
+        let origin = rng.point(-6.0, 6.0);
+        let target = centre + rng.direction() * vec3(0.9, 1.8, 0.45);
+        let direction = (target - origin).normalize();
+        let hit = scene
+            .intersect(&Ray::new(origin, direction, 0.0, f32::INFINITY))
+            .unwrap();
+        let o = (origin - centre).as_dvec3() / semi_axes;
+        let d = direction.as_dvec3() / semi_axes;
+        let a = d.length_squared();
+        let b = o.dot(d);
+        let c = o.length_squared() - 1.0;
+        let t = (-b - (b * b - a * c).sqrt()) / a;
+        assert_close(hit.t, t as f32, 1e-4);
+        let p = (origin - centre).as_dvec3() + direction.as_dvec3() * t;
+        let gradient = (p / (semi_axes * semi_axes)).normalize().as_vec3();
+        assert_vec_close(hit.normal, gradient, 1e-4);
+        assert_close(hit.normal.length(), 1.0, 1e-6);
+    }
+}
+
+#[test]
+fn sheared_triangle_instance_normal_matches_transformed_triangle() {
+    let transform = Affine3A::from_scale_rotation_translation(
+        vec3(3.0, 0.5, 2.0),
+        Quat::from_euler(glam::EulerRot::XYZ, 0.4, -0.7, 1.1),
+        vec3(1.0, -2.0, 3.0),
+    );
+    let vertices = [
+        vec3(-1.0, -1.0, 0.2),
+        vec3(1.5, -0.5, -0.3),
+        vec3(0.0, 1.0, 0.4),
+    ];
+    let geometry = Arc::new(GeometryBvh::build(GeometryPrims::Triangles {
+        positions: vertices.to_vec(),
+        indices: vec![UVec3::new(0, 1, 2)],
+    }));
+    let scene = SceneBvh::build(vec![InstanceDesc {
+        transform,
+        geometries: vec![geometry],
+    }]);
+    let world = vertices.map(|v| transform.transform_point3(v));
+    let world_normal = (world[1] - world[0]).cross(world[2] - world[0]).normalize();
+    let mut rng = Rng::new(8);
+    for _ in 0..100 {
+        let (b1, b2) = (rng.range(0.05, 0.45), rng.range(0.05, 0.45));
+        let target = world[0] + (world[1] - world[0]) * b1 + (world[2] - world[0]) * b2;
+        let origin = target + rng.direction() * 7.0;
+        let hit = scene.intersect(&ray(origin, target - origin)).unwrap();
+        assert_close(hit.t, 7.0, 1e-4);
+        assert_vec_close(hit.normal, world_normal, 1e-5);
+        assert_vec_close(hit.uv.extend(0.0), vec3(b1, b2, 0.0), 1e-4);
+    }
+}
+
+#[test]
+fn multiple_instances_match_brute_force() {
+    let mut rng = Rng::new(12);
+    let shapes = [
+        random_triangles(&mut rng, 300, 2.0, 0.8),
+        random_spheres(&mut rng, 200, 2.0, 0.3),
+        random_cylinders(&mut rng, 200, 2.0, 0.8),
+        random_quads(&mut rng, 200, 2.0, 0.8),
+    ];
+    let geometries: Vec<Arc<GeometryBvh>> = shapes
+        .iter()
+        .map(|prims| Arc::new(GeometryBvh::build(prims.clone())))
+        .collect();
+    let mut instances = Vec::new();
+    for i in 0..40 {
+        let transform = Affine3A::from_scale_rotation_translation(
+            vec3(
+                rng.range(0.3, 2.0),
+                rng.range(0.3, 2.0),
+                rng.range(0.3, 2.0),
+            ),
+            Quat::from_axis_angle(rng.direction(), rng.range(0.0, 6.0)),
+            rng.point(-12.0, 12.0),
+        );
+        let first = i % 4;
+        let chosen = vec![
+            geometries[first].clone(),
+            geometries[(first + 1 + i % 3) % 4].clone(),
+        ];
+        instances.push(InstanceDesc {
+            transform,
+            geometries: chosen,
+        });
+    }
+    let scene = SceneBvh::build(instances.clone());
+    let geometry_index = |geometry: &Arc<GeometryBvh>| {
+        geometries
+            .iter()
+            .position(|candidate| Arc::ptr_eq(candidate, geometry))
+            .unwrap()
+    };
+    let mut hits = 0;
+    for test_ray in random_rays(&mut rng, 2000, 12.0) {
+        let world = traversal_ray(&test_ray);
+        let mut expected: Option<(f32, u32, u32, u32)> = None;
+        for (instance_index, instance) in instances.iter().enumerate() {
+            let inverse = instance.transform.inverse();
+            for (g, geometry) in instance.geometries.iter().enumerate() {
+                let Some(mut object) = TraversalRay::new(
+                    inverse.transform_point3a(world.origin),
+                    inverse.transform_vector3a(world.direction),
+                    world.t_min,
+                    expected.map_or(world.t_max, |hit| hit.0),
+                ) else {
+                    continue;
+                };
+                object.t_max = expected.map_or(world.t_max, |hit| hit.0);
+                if let Some((t, primitive)) =
+                    brute_force(&shapes[geometry_index(geometry)], &object)
+                    && expected.is_none_or(|best| t < best.0)
+                {
+                    expected = Some((t, instance_index as u32, g as u32, primitive));
+                }
+            }
+        }
+        let found = scene.intersect(&test_ray);
+        assert_eq!(scene.occluded(&test_ray), found.is_some());
+        match (found, expected) {
+            (None, None) => {}
+            (Some(hit), Some((t, instance, geometry, primitive))) => {
+                hits += 1;
+                assert_eq!(hit.t, t, "{test_ray:?}");
+                if (hit.instance, hit.geometry, hit.primitive) != (instance, geometry, primitive) {
+                    // Only acceptable as an exact tie; rare enough to just require equal t.
+                    assert_eq!(hit.t, t);
+                }
+                assert_close(hit.normal.length(), 1.0, 1e-5);
+                assert_close(hit.object_normal.length(), 1.0, 1e-5);
+            }
+            (found, expected) => panic!("{test_ray:?}: scene {found:?}, brute force {expected:?}"),
+        }
+    }
+    assert!(hits > 300, "only {hits} hits");
+}
+
+#[test]
+fn single_identity_instance_matches_geometry() {
+    let mut rng = Rng::new(13);
+    let geometry = Arc::new(GeometryBvh::build(random_triangles(
+        &mut rng, 2000, 5.0, 1.0,
+    )));
+    let scene = SceneBvh::build(vec![identity_instance(vec![geometry.clone()])]);
+    assert_eq!(scene.bounds(), geometry.bounds());
+    for test_ray in random_rays(&mut rng, 2000, 5.0) {
+        let direct = geometry.intersect(&test_ray);
+        let through_scene = scene.intersect(&test_ray);
+        assert_eq!(direct.map(|hit| hit.t), through_scene.map(|hit| hit.t));
+        assert_eq!(
+            direct.map(|hit| (hit.primitive, hit.uv, hit.normal)),
+            through_scene.map(|hit| (hit.primitive, hit.uv, hit.normal))
+        );
+        assert_eq!(geometry.occluded(&test_ray), scene.occluded(&test_ray));
+    }
+}
+
+#[test]
+fn occlusion_through_instances() {
+    let scene = SceneBvh::build(vec![
+        InstanceDesc {
+            transform: Affine3A::from_translation(vec3(0.0, 0.0, -5.0)),
+            geometries: vec![unit_sphere()],
+        },
+        InstanceDesc {
+            transform: Affine3A::from_scale(Vec3::splat(0.0)),
+            geometries: vec![unit_sphere()],
+        },
+    ]);
+    let towards = |t_min: f32, t_max: f32| Ray::new(Vec3::ZERO, -Vec3::Z, t_min, t_max);
+    assert!(scene.occluded(&towards(0.0, f32::INFINITY)));
+    assert!(scene.occluded(&towards(0.0, 4.0)));
+    assert!(!scene.occluded(&towards(0.0, 3.99)));
+    assert!(scene.occluded(&towards(5.0, 6.0)));
+    assert!(!scene.occluded(&towards(6.01, 100.0)));
+    assert!(!scene.occluded(&ray(Vec3::ZERO, Vec3::Z)));
+    // The singular instance is left out; the sphere still reports instance 0.
+    let hit = scene.intersect(&towards(0.0, f32::INFINITY)).unwrap();
+    assert_eq!((hit.instance, hit.t), (0, 4.0));
+}
+
+#[test]
+fn hits_report_instance_and_geometry_indices() {
+    let sphere = unit_sphere();
+    let triangle = Arc::new(unit_triangle());
+    let scene = SceneBvh::build(vec![
+        InstanceDesc {
+            transform: Affine3A::from_translation(vec3(0.0, 0.0, -5.0)),
+            geometries: vec![sphere.clone()],
+        },
+        InstanceDesc {
+            transform: Affine3A::from_translation(vec3(10.0, 0.0, 0.0)),
+            geometries: vec![sphere.clone(), triangle.clone()],
+        },
+    ]);
+    let hit = scene
+        .intersect(&ray(vec3(10.0, 0.0, 5.0), -Vec3::Z))
+        .unwrap();
+    assert_eq!((hit.instance, hit.geometry, hit.t), (1, 0, 4.0));
+    // The triangle lies inside the sphere of the same instance: start past the sphere's front.
+    let hit = scene
+        .intersect(&Ray::new(
+            vec3(10.25, 0.25, -5.0),
+            Vec3::Z,
+            4.5,
+            f32::INFINITY,
+        ))
+        .unwrap();
+    assert_eq!((hit.instance, hit.geometry, hit.primitive), (1, 1, 0));
+    assert_eq!(hit.t, 5.0);
+    assert_eq!(hit.normal, Vec3::Z);
+    let (min, max) = scene.bounds();
+    assert!(min.cmple(vec3(-1.0, -1.0, -6.0)).all());
+    assert!(max.cmpge(vec3(11.0, 1.0, 1.0)).all());
+}
+
+#[test]
+fn mirrored_instance_keeps_normals_on_the_same_side() {
+    let scene = SceneBvh::build(vec![InstanceDesc {
+        transform: Affine3A::from_scale(vec3(-1.0, 1.0, 1.0)),
+        geometries: vec![Arc::new(unit_triangle())],
+    }]);
+    // The mirrored triangle covers x in [-1, 0]; its object normal +z stays +z in world.
+    let hit = scene
+        .intersect(&ray(vec3(-0.25, 0.25, 2.0), -Vec3::Z))
+        .unwrap();
+    assert_eq!(hit.t, 2.0);
+    assert_vec_close(hit.normal, Vec3::Z, 1e-6);
+}
+
+#[test]
+fn scene_rebuild_with_new_transforms_does_not_rebuild_geometry() {
+    let geometries: Vec<Arc<GeometryBvh>> = (0..3)
+        .map(|i| Arc::new(one_sphere(vec3(i as f32, 0.0, 0.0), 0.5)))
+        .collect();
+    let instances_at = |offset: f32| -> Vec<InstanceDesc> {
+        (0..10)
+            .map(|i| InstanceDesc {
+                transform: Affine3A::from_rotation_translation(
+                    Quat::from_rotation_y(offset + i as f32),
+                    vec3(offset, i as f32 * 3.0, 0.0),
+                ),
+                geometries: geometries.clone(),
+            })
+            .collect()
+    };
+    let on_this_thread = || BUILDS_ON_THIS_THREAD.with(|count| count.get());
+    let before_here = on_this_thread();
+    let first = SceneBvh::build(instances_at(0.0));
+    let moved = SceneBvh::build(instances_at(5.0));
+    assert_eq!(on_this_thread(), before_here);
+    assert_ne!(first.bounds(), moved.bounds());
+    // The process-wide counter also moves with builds of tests running concurrently, so look
+    // for one quiet window; a scene build that rebuilt geometries would never find one.
+    let quiet_window = (0..2000).any(|attempt| {
+        let before = geometry_build_count();
+        let _scene = SceneBvh::build(instances_at(attempt as f32));
+        let unchanged = geometry_build_count() == before;
+        if !unchanged {
+            std::thread::yield_now();
+        }
+        unchanged
+    });
+    assert!(
+        quiet_window,
+        "geometry_build_count moved on every scene build"
+    );
+    // And a geometry build is counted.
+    let before = on_this_thread();
+    let global_before = geometry_build_count();
+    let _ = unit_triangle();
+    assert_eq!(on_this_thread(), before + 1);
+    assert!(geometry_build_count() > global_before);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Internals
+
+#[test]
+fn memory_stays_within_budget_for_a_grid() {
+    let cells = 100u32;
+    let positions = (0..=cells)
+        .flat_map(|y| (0..=cells).map(move |x| vec3(x as f32, y as f32, ((x + y) as f32).sin())))
+        .collect();
+    let corner = |x: u32, y: u32| y * (cells + 1) + x;
+    let mut indices = Vec::new();
+    for y in 0..cells {
+        for x in 0..cells {
+            indices.push(UVec3::new(
+                corner(x, y),
+                corner(x + 1, y),
+                corner(x + 1, y + 1),
+            ));
+            indices.push(UVec3::new(
+                corner(x, y),
+                corner(x + 1, y + 1),
+                corner(x, y + 1),
+            ));
+        }
+    }
+    let bvh = GeometryBvh::build(GeometryPrims::Triangles { positions, indices });
+    let per_triangle = bvh.memory_bytes() as f64 / bvh.primitive_count() as f64;
+    assert!(
+        per_triangle > 48.0 && per_triangle < 120.0,
+        "{per_triangle}"
+    );
+}
+
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn sse2_box_test_matches_portable_version() {
+    use crate::accel::wide_bvh::{child_box_hits, child_box_hits_portable};
+    let mut rng = Rng::new(17);
+    let prims = random_triangles(&mut rng, 4000, 10.0, 1.0);
+    // Reach into a real BVH for realistic nodes.
+    let GeometryPrims::Triangles { positions, indices } = &prims else {
+        unreachable!()
+    };
+    let boxes: Vec<obvhs::aabb::Aabb> = indices
+        .iter()
+        .map(|c| {
+            let [a, b, d] = c.to_array().map(|i| positions[i as usize]);
+            obvhs::aabb::Aabb::new(a.min(b).min(d).into(), a.max(b).max(d).into())
+        })
+        .collect();
+    let (nodes, _) = crate::accel::wide_bvh::build_wide_bvh(&boxes);
+    let mut mismatches = 0;
+    for test_ray in random_rays(&mut rng, 500, 10.0) {
+        let prepared = traversal_ray(&test_ray);
+        for node in &nodes {
+            if child_box_hits(node, &prepared) != child_box_hits_portable(node, &prepared) {
+                mismatches += 1;
+            }
+        }
+    }
+    assert_eq!(mismatches, 0);
+}
+
+#[test]
+fn traversal_ray_rejects_degenerate_input_and_clamps_inverse() {
+    let prepared = TraversalRay::new(Vec3A::ZERO, Vec3A::new(0.0, -0.0, 1.0), 0.0, 1.0).unwrap();
+    assert!(prepared.inv_direction.is_finite());
+    assert!(prepared.inv_direction.x > 0.0 && prepared.inv_direction.y > 0.0);
+    assert_eq!(prepared.octant_inv, 0b111);
+    assert_eq!(prepared.shear_axes[2], 2);
+    assert!(TraversalRay::new(Vec3A::ZERO, Vec3A::ZERO, 0.0, 1.0).is_none());
+    assert!(TraversalRay::new(Vec3A::ZERO, Vec3A::X, 1.0, 0.0).is_none());
+}
+
+// ---------------------------------------------------------------------------------------------
+// Packets
+
+/// Groups of four rays: coherent 2x2 camera-like blocks, then incoherent groups, plus a tail
+/// that is not a multiple of four.
+fn packet_rays(rng: &mut Rng, groups: usize, extent: f32) -> Vec<Ray> {
+    let mut rays = Vec::new();
+    for group in 0..groups {
+        let origin = rng.point(-1.5 * extent, 1.5 * extent);
+        let aim = (rng.point(-extent, extent) - origin).normalize();
+        let (t_min, t_max) = if group % 3 == 0 {
+            (0.0, f32::INFINITY)
+        } else {
+            (
+                rng.range(0.0, 0.3 * extent),
+                rng.range(extent, 4.0 * extent),
+            )
+        };
+        for lane in 0..4 {
+            let direction = if group % 5 == 4 {
+                rng.direction()
+            } else {
+                let spread = 0.004 * (1 + group % 7) as f32;
+                let offset = vec3((lane % 2) as f32, (lane / 2) as f32, 0.0) * spread;
+                (aim + offset).normalize()
+            };
+            rays.push(Ray::new(origin, direction, t_min, t_max));
+        }
+    }
+    rays.truncate(rays.len() - 1);
+    rays
+}
+
+#[test]
+fn geometry_packets_match_single_rays() {
+    let mut rng = Rng::new(31);
+    let shapes = [
+        random_triangles(&mut rng, 3000, 10.0, 1.5),
+        random_quads(&mut rng, 1000, 10.0, 1.5),
+        random_spheres(&mut rng, 1500, 10.0, 0.6),
+        random_cylinders(&mut rng, 1000, 10.0, 2.0),
+    ];
+    for prims in shapes {
+        let bvh = GeometryBvh::build(prims.clone());
+        let rays = packet_rays(&mut rng, 1500, 10.0);
+        let mut hits = vec![None; rays.len()];
+        bvh.intersect_packet(&rays, &mut hits);
+        let mut hit_count = 0;
+        for (ray, packet_hit) in rays.iter().zip(&hits) {
+            let single = bvh.intersect(ray);
+            assert_eq!(
+                single.map(|hit| hit.t),
+                packet_hit.map(|hit| hit.t),
+                "{ray:?}"
+            );
+            if let (Some(single), Some(packet_hit)) = (single, packet_hit) {
+                hit_count += 1;
+                if single.primitive == packet_hit.primitive {
+                    assert_eq!(single, *packet_hit);
+                } else {
+                    // An exact tie between two primitives: both must be hit at that t.
+                    let prepared =
+                        traversal_ray(&Ray::new(ray.origin, ray.direction, single.t, single.t));
+                    let tied = single_primitive(&prims, packet_hit.primitive);
+                    assert_eq!(
+                        brute_force(&tied, &prepared).map(|hit| hit.0),
+                        Some(single.t)
+                    );
+                }
+            }
+        }
+        assert!(hit_count > rays.len() / 5);
+    }
+}
+
+#[test]
+fn scene_packets_match_single_rays() {
+    let mut rng = Rng::new(32);
+    let geometries: Vec<Arc<GeometryBvh>> = [
+        random_triangles(&mut rng, 500, 2.0, 0.8),
+        random_spheres(&mut rng, 300, 2.0, 0.3),
+        random_cylinders(&mut rng, 300, 2.0, 0.8),
+    ]
+    .into_iter()
+    .map(|prims| Arc::new(GeometryBvh::build(prims)))
+    .collect();
+    let mut instances = vec![identity_instance(geometries.clone())];
+    for i in 0..30 {
+        instances.push(InstanceDesc {
+            transform: Affine3A::from_scale_rotation_translation(
+                vec3(
+                    rng.range(0.3, 2.0),
+                    rng.range(0.3, 2.0),
+                    rng.range(0.3, 2.0),
+                ),
+                Quat::from_axis_angle(rng.direction(), rng.range(0.0, 6.0)),
+                rng.point(-12.0, 12.0),
+            ),
+            geometries: vec![geometries[i % 3].clone()],
+        });
+    }
+    let scene = SceneBvh::build(instances);
+    let rays = packet_rays(&mut rng, 2000, 12.0);
+    let mut hits = vec![None; rays.len()];
+    scene.intersect_packet(&rays, &mut hits);
+    let mut hit_count = 0;
+    for (ray, packet_hit) in rays.iter().zip(&hits) {
+        let single = scene.intersect(ray);
+        assert_eq!(
+            single.map(|hit| hit.t),
+            packet_hit.map(|hit| hit.t),
+            "{ray:?}"
+        );
+        if let (Some(single), Some(packet_hit)) = (single, packet_hit) {
+            hit_count += 1;
+            let same_surface = (single.instance, single.geometry, single.primitive)
+                == (
+                    packet_hit.instance,
+                    packet_hit.geometry,
+                    packet_hit.primitive,
+                );
+            if same_surface {
+                assert_eq!(single, *packet_hit);
+            }
+        }
+    }
+    assert!(hit_count > rays.len() / 5, "{hit_count}");
+}
+
+#[test]
+fn packet_with_invalid_and_missing_lanes() {
+    let bvh = unit_triangle();
+    let good = ray(vec3(0.25, 0.25, 1.0), -Vec3::Z);
+    let rays = [
+        good,
+        Ray {
+            origin: Vec3::NAN,
+            ..good
+        },
+        Ray {
+            t_min: 5.0,
+            t_max: 1.0,
+            ..good
+        },
+        ray(vec3(0.3, 0.2, 2.0), -Vec3::Z),
+        good,
+    ];
+    let mut hits = vec![None; 6];
+    bvh.intersect_packet(&rays, &mut hits);
+    assert_eq!(hits[0].map(|hit| hit.t), Some(1.0));
+    assert!(hits[1].is_none() && hits[2].is_none());
+    assert_eq!(hits[3].map(|hit| hit.t), Some(2.0));
+    assert_eq!(hits[4].map(|hit| hit.t), Some(1.0));
+    assert!(hits[5].is_none());
+}
+
+#[test]
+fn wide_bvh_contains_every_primitive_once_inside_its_quantized_boxes() {
+    use obvhs::aabb::Aabb;
+    let mut rng = Rng::new(41);
+    for count in [1usize, 2, 3, 4, 9, 25, 700, 5000] {
+        let boxes: Vec<Aabb> = (0..count)
+            .map(|_| {
+                let low = rng.point(-50.0, 50.0);
+                Aabb::new(low.into(), (low + rng.point(0.0, 3.0)).into())
+            })
+            .collect();
+        let (nodes, order) = crate::accel::wide_bvh::build_wide_bvh(&boxes);
+        let mut seen = vec![0; count];
+        for &index in &order {
+            seen[index as usize] += 1;
+        }
+        assert!(seen.iter().all(|&n| n == 1), "{count}: {seen:?}");
+        // Walk every node: decoded child boxes (exact, in f64) contain their primitives and
+        // inner children's boxes contain the child node's own box.
+        for node in &nodes {
+            for slot in 0..8 {
+                let meta = node.child_meta[slot];
+                if meta == 0 {
+                    continue;
+                }
+                let step = node.e.map(|e| f32::from_bits((e as u32) << 23) as f64);
+                let decode = |q: u8, axis: usize| node.p[axis] as f64 + q as f64 * step[axis];
+                let low = [
+                    decode(node.child_min_x[slot], 0),
+                    decode(node.child_min_y[slot], 1),
+                    decode(node.child_min_z[slot], 2),
+                ];
+                let high = [
+                    decode(node.child_max_x[slot], 0),
+                    decode(node.child_max_y[slot], 1),
+                    decode(node.child_max_z[slot], 2),
+                ];
+                let inside = |aabb: &Aabb| {
+                    (0..3).all(|axis| {
+                        low[axis] <= aabb.min[axis] as f64 && aabb.max[axis] as f64 <= high[axis]
+                    })
+                };
+                if node.imask & (1 << slot) != 0 {
+                    let child = &nodes[node.child_node_index(slot) as usize];
+                    assert!(inside(&Aabb::new(child.p.into(), child.p.into())));
+                } else {
+                    let (first, primitives) = node.child_primitives(slot);
+                    assert!((1..=3).contains(&primitives));
+                    for i in first..first + primitives {
+                        assert!(inside(&boxes[order[i as usize] as usize]));
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Primary rays of a pinhole camera in 8x8 tiles, each tile as 2x2 blocks (the order
+/// `intersect_packet` expects), with a few per-ray windows and broken rays mixed in.
+fn camera_tiles(rng: &mut Rng, eye: Vec3, target: Vec3, size: usize) -> Vec<Ray> {
+    let forward = (target - eye).normalize();
+    let right = forward.cross(Vec3::Z).normalize();
+    let up = right.cross(forward);
+    let mut rays = Vec::new();
+    for tile_row in (0..size).step_by(8) {
+        for tile_column in (0..size).step_by(8) {
+            for block_row in (tile_row..tile_row + 8).step_by(2) {
+                for block_column in (tile_column..tile_column + 8).step_by(2) {
+                    for (row, column) in [
+                        (block_row, block_column),
+                        (block_row, block_column + 1),
+                        (block_row + 1, block_column),
+                        (block_row + 1, block_column + 1),
+                    ] {
+                        let u = (column as f32 + 0.5) / size as f32 * 2.0 - 1.0;
+                        let v = 1.0 - (row as f32 + 0.5) / size as f32 * 2.0;
+                        let direction = (forward + (right * u + up * v) * 0.6).normalize();
+                        let mut ray = Ray::new(eye, direction, 0.0, f32::INFINITY);
+                        match rng.next_u64() % 16 {
+                            0 => ray.t_max = rng.range(1.0, 30.0),
+                            1 => ray.t_min = rng.range(0.0, 20.0),
+                            2 => ray.direction = Vec3::ZERO,
+                            _ => {}
+                        }
+                        rays.push(ray);
+                    }
+                }
+            }
+        }
+    }
+    rays
+}
+
+fn assert_same_closest_t(singles: &[Option<f32>], packets: &[Option<f32>], rays: &[Ray]) {
+    for ((single, packet), ray) in singles.iter().zip(packets).zip(rays) {
+        assert_eq!(single, packet, "{ray:?}");
+    }
+}
+
+#[test]
+fn frustum_packets_match_single_rays() {
+    let mut rng = Rng::new(51);
+    let shapes = [
+        random_triangles(&mut rng, 4000, 10.0, 1.5),
+        random_quads(&mut rng, 1500, 10.0, 1.5),
+        random_spheres(&mut rng, 2000, 10.0, 0.6),
+        random_cylinders(&mut rng, 1500, 10.0, 2.0),
+    ];
+    // Off-axis views (whole tiles share an octant) and an axis-aligned view (tiles straddle
+    // octants and fall back to smaller packets or single rays).
+    let views = [
+        (vec3(-25.0, -18.0, 12.0), Vec3::ZERO),
+        (vec3(3.0, 4.0, 30.0), vec3(2.0, 1.0, 0.0)),
+        (vec3(0.0, -30.0, 0.0), Vec3::ZERO),
+    ];
+    for prims in shapes {
+        let bvh = GeometryBvh::build(prims);
+        for (eye, target) in views {
+            let rays = camera_tiles(&mut rng, eye, target, 48);
+            let mut hits = vec![None; rays.len()];
+            bvh.intersect_packet(&rays, &mut hits);
+            let singles: Vec<Option<f32>> = rays
+                .iter()
+                .map(|ray| bvh.intersect(ray).map(|hit| hit.t))
+                .collect();
+            let packets: Vec<Option<f32>> = hits.iter().map(|hit| hit.map(|hit| hit.t)).collect();
+            assert_same_closest_t(&singles, &packets, &rays);
+            assert!(singles.iter().flatten().count() > rays.len() / 4);
+            for (ray, hit) in rays.iter().zip(&hits) {
+                if let Some(hit) = hit {
+                    let single = bvh.intersect(ray).unwrap();
+                    if single.primitive == hit.primitive {
+                        assert_eq!(single, *hit);
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn scene_frustum_packets_match_single_rays() {
+    let mut rng = Rng::new(52);
+    let geometries: Vec<Arc<GeometryBvh>> = [
+        random_triangles(&mut rng, 800, 2.0, 0.8),
+        random_spheres(&mut rng, 300, 2.0, 0.3),
+        random_quads(&mut rng, 300, 2.0, 0.8),
+    ]
+    .into_iter()
+    .map(|prims| Arc::new(GeometryBvh::build(prims)))
+    .collect();
+    let mut instances = vec![identity_instance(geometries.clone())];
+    for i in 0..40 {
+        instances.push(InstanceDesc {
+            transform: Affine3A::from_scale_rotation_translation(
+                vec3(
+                    rng.range(0.3, 2.0),
+                    rng.range(0.3, 2.0),
+                    rng.range(0.3, 2.0),
+                ),
+                Quat::from_axis_angle(rng.direction(), rng.range(0.0, 6.0)),
+                rng.point(-10.0, 10.0),
+            ),
+            geometries: vec![geometries[i % 3].clone()],
+        });
+    }
+    let scene = SceneBvh::build(instances);
+    for (eye, target) in [
+        (vec3(-22.0, -17.0, 9.0), Vec3::ZERO),
+        (vec3(0.0, 0.0, 25.0), vec3(0.5, 0.2, 0.0)),
+    ] {
+        let rays = camera_tiles(&mut rng, eye, target, 64);
+        let mut hits = vec![None; rays.len()];
+        scene.intersect_packet(&rays, &mut hits);
+        let singles: Vec<Option<SceneHit>> = rays.iter().map(|ray| scene.intersect(ray)).collect();
+        let single_t: Vec<Option<f32>> = singles.iter().map(|hit| hit.map(|hit| hit.t)).collect();
+        let packet_t: Vec<Option<f32>> = hits.iter().map(|hit| hit.map(|hit| hit.t)).collect();
+        assert_same_closest_t(&single_t, &packet_t, &rays);
+        assert!(single_t.iter().flatten().count() > rays.len() / 5);
+        for (single, packet) in singles.iter().zip(&hits) {
+            if let (Some(single), Some(packet)) = (single, packet) {
+                let key = |hit: &SceneHit| (hit.instance, hit.geometry, hit.primitive);
+                if key(single) == key(packet) {
+                    assert_eq!(single, packet);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn camera_tiles_form_frustum_packets() {
+    use crate::accel::packet::FrustumPacket;
+    let mut rng = Rng::new(53);
+    let rays = camera_tiles(&mut rng, vec3(-25.0, -18.0, 12.0), Vec3::ZERO, 48);
+    let mut formed = 0;
+    let mut frustum = FrustumPacket::empty();
+    for chunk in rays.chunks(64) {
+        formed += usize::from(frustum.fill(chunk.len(), |index| {
+            crate::accel::geometry::prepare(&chunk[index])
+        }));
+    }
+    // Tiles straddling a sign change cannot form one; most can.
+    assert!(formed * 2 > rays.len() / 64, "{formed}");
+    // Rays from different origins never form one.
+    let stray = Ray::new(Vec3::ONE, Vec3::X, 0.0, 1.0);
+    let mixed = |index: usize| {
+        let ray = if index == 5 { &stray } else { &rays[index] };
+        crate::accel::geometry::prepare(ray)
+    };
+    assert!(!frustum.fill(64, mixed));
+    // Nor do chunks without a valid ray, or more than 64 rays.
+    assert!(!frustum.fill(8, |_| None));
+    assert!(!frustum.fill(65, |index| crate::accel::geometry::prepare(&rays[index])));
+}
+
+#[test]
+fn builds_run_inside_a_caller_owned_pool() {
+    fn assert_shareable<T: Send + Sync>() {}
+    assert_shareable::<GeometryBvh>();
+    assert_shareable::<SceneBvh>();
+
+    let mut rng = Rng::new(61);
+    let prims = random_triangles(&mut rng, 3000, 10.0, 1.0);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    let (in_pool, scene) = pool.install(|| {
+        let geometry = Arc::new(GeometryBvh::build(prims.clone()));
+        let scene = SceneBvh::build(vec![identity_instance(vec![geometry.clone()])]);
+        (geometry, scene)
+    });
+    let serial_pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let serial = serial_pool.install(|| GeometryBvh::build(prims.clone()));
+    for test_ray in random_rays(&mut rng, 1000, 10.0) {
+        let expected = serial.intersect(&test_ray).map(|hit| hit.t);
+        assert_eq!(in_pool.intersect(&test_ray).map(|hit| hit.t), expected);
+        assert_eq!(scene.intersect(&test_ray).map(|hit| hit.t), expected);
+    }
+}
+
+#[test]
+fn single_transformed_instance_packets_match_single_rays() {
+    let mut rng = Rng::new(71);
+    let geometry = Arc::new(GeometryBvh::build(random_triangles(
+        &mut rng, 2000, 3.0, 1.0,
+    )));
+    for transform in [
+        Affine3A::IDENTITY,
+        Affine3A::from_scale_rotation_translation(
+            vec3(2.0, 0.5, 1.5),
+            Quat::from_rotation_z(0.7),
+            vec3(1.0, 2.0, -1.0),
+        ),
+    ] {
+        let scene = SceneBvh::build(vec![InstanceDesc {
+            transform,
+            geometries: vec![geometry.clone()],
+        }]);
+        let rays = camera_tiles(&mut rng, vec3(-12.0, -9.0, 6.0), vec3(1.0, 2.0, -1.0), 32);
+        let mut hits = vec![None; rays.len()];
+        scene.intersect_packet(&rays, &mut hits);
+        let mut hit_count = 0;
+        for (ray, packet_hit) in rays.iter().zip(&hits) {
+            let single = scene.intersect(ray);
+            assert_eq!(single.map(|hit| hit.t), packet_hit.map(|hit| hit.t));
+            assert_eq!(scene.occluded(ray), single.is_some());
+            hit_count += usize::from(single.is_some());
+        }
+        assert!(hit_count > rays.len() / 10, "{hit_count}");
+    }
+}
+
+#[test]
+fn sphere_pretest_never_rejects_a_line_that_touches() {
+    use crate::accel::primitives::line_clearly_misses_sphere;
+    let mut rng = Rng::new(81);
+    for _ in 0..20000 {
+        let scale = 10f32.powf(rng.range(-3.0, 4.0));
+        let center = rng.point(-1.0, 1.0) * scale * 100.0;
+        let radius = scale * rng.range(0.1, 2.0);
+        let sphere = PackedSphere::new(center, radius).unwrap();
+        // A line passing at just under one radius from the centre.
+        let direction = rng.direction() * rng.range(0.2, 3.0);
+        let mut side = rng.direction().cross(direction).normalize_or_zero();
+        if side == Vec3::ZERO {
+            continue;
+        }
+        side *= radius * (1.0 - 1.0e-4 * rng.unit());
+        let origin = center + side - direction * rng.range(1.0, 50.0) * scale;
+        let Some(prepared) = TraversalRay::new(origin.into(), direction.into(), 0.0, f32::INFINITY)
+        else {
+            continue;
+        };
+        // Exact perpendicular distance of the f32 ray, in f64.
+        let offset = origin.as_dvec3() - center.as_dvec3();
+        let d = direction.as_dvec3();
+        let perp = offset - d * (offset.dot(d) / d.length_squared());
+        if perp.length() < radius as f64 {
+            assert!(!line_clearly_misses_sphere(&sphere, &prepared));
+        }
+    }
+}
+
+#[test]
+fn vectorized_packet_preparation_matches_single_rays() {
+    use crate::accel::packet::{FrustumPacket, RayPacket};
+    let mut rng = Rng::new(91);
+    let mut checked = 0;
+    for round in 0..3000 {
+        let origin = rng.point(-5.0, 5.0);
+        let base = rng.direction();
+        let rays: Vec<Ray> = (0..4)
+            .map(|lane| {
+                let mut ray = Ray::new(
+                    origin,
+                    (base + rng.point(-0.05, 0.05) * (round % 3) as f32).normalize(),
+                    rng.range(0.0, 1.0),
+                    rng.range(0.5, 100.0),
+                );
+                match rng.next_u64() % 12 {
+                    0 => ray.direction = Vec3::ZERO,
+                    1 => ray.origin.y = f32::NAN,
+                    2 => ray.t_max = f32::NAN,
+                    3 => ray.direction = vec3(0.0, -0.0, if lane % 2 == 0 { 1.0 } else { -1.0 }),
+                    _ => {}
+                }
+                ray
+            })
+            .collect();
+        let singles: [Option<TraversalRay>; 4] =
+            std::array::from_fn(|lane| crate::accel::geometry::prepare(&rays[lane]));
+        let vectorized = RayPacket::prepare(&rays);
+        let reference = RayPacket::new(&singles);
+        assert_eq!(vectorized.is_some(), reference.is_some(), "{rays:?}");
+        let (Some(vectorized), Some(reference)) = (vectorized, reference) else {
+            continue;
+        };
+        assert_eq!(vectorized.lanes, reference.lanes);
+        for lane in 0..4 {
+            if vectorized.lanes & (1 << lane) != 0 {
+                let (a, b) = (vectorized.ray(lane), reference.ray(lane));
+                assert_eq!(format!("{a:?}"), format!("{b:?}"));
+                checked += 1;
+            }
+        }
+    }
+    assert!(checked > 3000);
+    // Whole frustum packets: same decision and same rays either way.
+    let camera = camera_tiles(&mut rng, vec3(-25.0, -18.0, 12.0), Vec3::ZERO, 48);
+    let (mut fast, mut slow) = (FrustumPacket::empty(), FrustumPacket::empty());
+    for chunk in camera.chunks(64) {
+        let formed = fast.fill_from_rays(chunk);
+        assert_eq!(
+            formed,
+            slow.fill(chunk.len(), |index| crate::accel::geometry::prepare(
+                &chunk[index]
+            ))
+        );
+        if formed {
+            for index in 0..chunk.len() {
+                let (group, lane) = (index / 4, index % 4);
+                assert_eq!(fast.groups[group].lanes, slow.groups[group].lanes);
+                if fast.groups[group].lanes & (1 << lane) != 0 {
+                    let (a, b) = (fast.groups[group].ray(lane), slow.groups[group].ray(lane));
+                    assert_eq!(format!("{a:?}"), format!("{b:?}"));
+                }
+            }
+        }
+    }
+}
