@@ -80,7 +80,13 @@ fn setup(dev: ANARIDevice, geometry: ANARIGeometry, renderer_type: &str, size: u
     anariRelease(dev, surface);
     if renderer_type == "default" {
         let light = anariNewLight(dev, c("directional").as_ptr());
-        set(dev, light, "direction", ANARI_FLOAT32_VEC3, &[-0.3f32, -1.0, -0.4]);
+        set(
+            dev,
+            light,
+            "direction",
+            ANARI_FLOAT32_VEC3,
+            &[-0.3f32, -1.0, -0.4],
+        );
         set(dev, light, "irradiance", ANARI_FLOAT32, &3.0f32);
         commit(dev, light);
         let lights = object_array(dev, ANARI_LIGHT, &[light]);
@@ -94,12 +100,24 @@ fn setup(dev: ANARIDevice, geometry: ANARIGeometry, renderer_type: &str, size: u
     commit(dev, renderer);
     let frame = anariNewFrame(dev);
     set(dev, frame, "size", ANARI_UINT32_VEC2, &[size, size]);
-    set(dev, frame, "channel.color", ANARI_DATA_TYPE, &ANARI_UFIXED8_RGBA_SRGB);
+    set(
+        dev,
+        frame,
+        "channel.color",
+        ANARI_DATA_TYPE,
+        &ANARI_UFIXED8_RGBA_SRGB,
+    );
     set_object(dev, frame, "world", ANARI_WORLD, world);
     set_object(dev, frame, "camera", ANARI_CAMERA, camera);
     set_object(dev, frame, "renderer", ANARI_RENDERER, renderer);
     commit(dev, frame);
-    Setup { dev, camera, renderer, frame, world }
+    Setup {
+        dev,
+        camera,
+        renderer,
+        frame,
+        world,
+    }
 }
 
 /// Moves the tracked head a little and commits the camera, as a VR application does per frame.
@@ -130,7 +148,9 @@ fn run(label: &str, s: &Setup, size: u32, frames: u32) {
         .collect();
     let median_ms = median(ms);
     let mrays = (size as f64 * size as f64) / (median_ms * 1e3);
-    println!("{label}: median frame {median_ms:.1} ms, {mrays:.2} Mrays/s (primary, {size}x{size}, {frames} frames)");
+    println!(
+        "{label}: median frame {median_ms:.1} ms, {mrays:.2} Mrays/s (primary, {size}x{size}, {frames} frames)"
+    );
 }
 
 fn release(s: Setup) {
@@ -144,7 +164,11 @@ fn main() {
         return;
     }
     let quick = std::env::var_os("CAVETRACE_BENCH_QUICK").is_some();
-    let (cells, size, spheres, frames) = if quick { (100, 256, 5_000, 3) } else { (708, 1600, 100_000, 7) };
+    let (cells, size, spheres, frames) = if quick {
+        (100, 256, 5_000, 3)
+    } else {
+        (708, 1600, 100_000, 7)
+    };
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
 
@@ -165,19 +189,30 @@ fn main() {
     let fast = setup(dev, geometry, "fast", size);
     track_head(&fast, 0);
     let first = render_once(&fast);
-    println!("first frame (scene already committed): {first:.1} ms; commit + first frame: {:.1} ms", build_ms + first);
+    println!(
+        "first frame (scene already committed): {first:.1} ms; commit + first frame: {:.1} ms",
+        build_ms + first
+    );
     run("(a) fast renderer, moving head", &fast, size, frames);
     release(fast);
     let shaded = setup(dev, geometry, "default", size);
     track_head(&shaded, 0);
-    run("(b) default renderer, 1 directional light + shadows, moving head", &shaded, size, frames);
+    run(
+        "(b) default renderer, 1 directional light + shadows, moving head",
+        &shaded,
+        size,
+        frames,
+    );
     release(shaded);
     anariRelease(dev, geometry);
 
     let cloud = sphere_cloud(dev, spheres);
     let start = Instant::now();
     commit(dev, cloud);
-    println!("sphere cloud: {spheres} spheres, BVH build {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
+    println!(
+        "sphere cloud: {spheres} spheres, BVH build {:.0} ms",
+        start.elapsed().as_secs_f64() * 1e3
+    );
     let s = setup(dev, cloud, "fast", size);
     track_head(&s, 0);
     run("(c) 100k spheres, fast renderer", &s, size, frames);

@@ -14,4 +14,8 @@ if [ -x capi-tests/run.sh ]; then
   echo "== C harness"
   capi-tests/run.sh
 fi
+if [ -x packaging/test-install.sh ]; then
+  echo "== install and packaging (pkg-config, CMake)"
+  packaging/test-install.sh
+fi
 echo "all test stages passed"

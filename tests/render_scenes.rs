@@ -591,3 +591,72 @@ fn bad_primitives_are_reported_and_skipped() {
     anariRelease(dev, dev);
     anariUnloadLibrary(lib);
 }
+
+static CALLBACK_DONE: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+
+unsafe extern "C" fn on_frame_done(
+    user: *const std::ffi::c_void,
+    device: *mut std::ffi::c_void,
+    frame: *mut std::ffi::c_void,
+) {
+    assert_eq!(user as usize, 0xF00D);
+    // The callback may look at the frame it is told about without waiting for itself.
+    assert_eq!(anariFrameReady(device, frame, ANARI_WAIT), 1);
+    let (pixels, w, h) = read_channel::<[f32; 4]>(device, frame, "channel.color");
+    assert_eq!((pixels.len(), w, h), (64, 8, 8));
+    std::thread::sleep(std::time::Duration::from_millis(50));
+    CALLBACK_DONE.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+}
+
+#[test]
+fn the_completion_callback_finishes_before_the_frame_is_ready() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let world = anariNewWorld(dev);
+    commit(dev, world);
+    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
+    let r = renderer(dev, "fast", 0.0);
+    let frame = frame_for(dev, world, camera, r, [8, 8]);
+    let callback: unsafe extern "C" fn(
+        *const std::ffi::c_void,
+        *mut std::ffi::c_void,
+        *mut std::ffi::c_void,
+    ) = on_frame_done;
+    set(
+        dev,
+        frame,
+        "frameCompletionCallback",
+        ANARI_FRAME_COMPLETION_CALLBACK,
+        &callback,
+    );
+    set(
+        dev,
+        frame,
+        "frameCompletionCallbackUserData",
+        ANARI_VOID_POINTER,
+        &(0xF00Dusize),
+    );
+    commit(dev, frame);
+    for round in 1..=2 {
+        anariRenderFrame(dev, frame);
+        assert_eq!(anariFrameReady(dev, frame, ANARI_WAIT), 1);
+        assert_eq!(
+            CALLBACK_DONE.load(std::sync::atomic::Ordering::SeqCst),
+            round
+        );
+    }
+    // Mapping twice keeps both mappings valid; each unmap ends one.
+    let name = c("channel.color");
+    let (mut w, mut h, mut t) = (0u32, 0u32, 0);
+    let first = anariMapFrame(dev, frame, name.as_ptr(), &mut w, &mut h, &mut t);
+    let second = anariMapFrame(dev, frame, name.as_ptr(), &mut w, &mut h, &mut t);
+    assert!(!first.is_null() && first == second);
+    anariUnmapFrame(dev, frame, name.as_ptr());
+    anariUnmapFrame(dev, frame, name.as_ptr());
+    assert!(log.errors().is_empty());
+    anariUnmapFrame(dev, frame, name.as_ptr());
+    assert_eq!(log.errors().len(), 1, "a third unmap has nothing to unmap");
+    release_all(dev, &[world, camera, r, frame]);
+    anariRelease(dev, dev);
+    anariUnloadLibrary(lib);
+}

@@ -124,11 +124,20 @@ struct Inner {
     /// The render in flight, if any.
     running: Option<Arc<Job>>,
     output: Option<Arc<Output>>,
-    /// Mapped outputs by channel, alive until unmapped.
-    mapped: HashMap<String, Arc<Output>>,
+    /// Mapped outputs by channel (one entry per map call), alive until unmapped.
+    mapped: HashMap<String, Vec<Arc<Output>>>,
+    /// The render thread running the completion callback, which may query and map the frame
+    /// it is told about without waiting for itself.
+    callback_thread: Option<std::thread::ThreadId>,
     duration: f32,
     /// Accumulation state: colour sum, passes so far and what they were rendered with.
     accumulation: Option<(Vec<Vec4>, u32, u64, u32, u32)>,
+}
+
+impl Inner {
+    fn in_callback(&self) -> bool {
+        self.callback_thread == Some(std::thread::current().id())
+    }
 }
 
 #[derive(Default)]
@@ -143,13 +152,14 @@ impl FrameState {
     }
 
     pub fn is_ready(&self) -> bool {
-        self.lock().running.is_none()
+        let inner = self.lock();
+        inner.running.is_none() || inner.in_callback()
     }
 
     /// Blocks until no render is in flight.
     pub fn wait(&self) {
         let mut inner = self.lock();
-        while inner.running.is_some() {
+        while inner.running.is_some() && !inner.in_callback() {
             inner = self.finished.wait(inner).unwrap_or_else(|e| e.into_inner());
         }
     }
@@ -265,9 +275,10 @@ impl FrameState {
             inner.output = Some(output);
             inner.duration = job.started.elapsed().as_secs_f32();
             inner.accumulation = accumulation;
-            inner.running = None;
+            inner.callback_thread = Some(std::thread::current().id());
         }
-        self.finished.notify_all();
+        // The callback runs before the frame counts as ready for other threads, so that an
+        // application waiting on the frame knows the callback is done with whatever it touches.
         if let Some((Some(callback), user, device, frame)) = setup.completion {
             // SAFETY: the application registered this callback for this frame; it is called
             // once per completed render with the values it was registered with.
@@ -279,6 +290,12 @@ impl FrameState {
                 )
             }
         }
+        {
+            let mut inner = self.lock();
+            inner.running = None;
+            inner.callback_thread = None;
+        }
+        self.finished.notify_all();
     }
 
     /// Waits for the render and returns the channel's pixels (kept alive until unmap).
@@ -293,12 +310,27 @@ impl FrameState {
             output.height,
             *data_type,
         );
-        inner.mapped.insert(channel.to_owned(), Arc::clone(&output));
+        // Every map keeps its own reference: mapping twice, or rendering again, never frees
+        // pixels the application still holds.
+        inner
+            .mapped
+            .entry(channel.to_owned())
+            .or_default()
+            .push(Arc::clone(&output));
         Some(result)
     }
 
+    /// Ends the oldest mapping of the channel; false when it is not mapped.
     pub fn unmap(&self, channel: &str) -> bool {
-        self.lock().mapped.remove(channel).is_some()
+        let mut inner = self.lock();
+        let Some(maps) = inner.mapped.get_mut(channel) else {
+            return false;
+        };
+        maps.remove(0);
+        if maps.is_empty() {
+            inner.mapped.remove(channel);
+        }
+        true
     }
 }
 

@@ -34,4 +34,7 @@ pub const TRANSFORM: ObjectSpec = ObjectSpec::new(
         ParamSpec::new("attribute3", VEC4, "attribute3 for geometries without one"),
     ],
 )
-.extensions(&["ANARI_KHR_INSTANCE_TRANSFORM", "ANARI_KHR_FRAME_CHANNEL_INSTANCE_ID"]);
+.extensions(&[
+    "ANARI_KHR_INSTANCE_TRANSFORM",
+    "ANARI_KHR_FRAME_CHANNEL_INSTANCE_ID",
+]);

@@ -1,0 +1,477 @@
+/*
+ * A five-sided CAVE (front, left, right, floor, ceiling; 3 m cube) with a tracked head walking a
+ * short path. For every head position, both eyes of every wall are rendered twice:
+ *
+ *   - with the "offAxis" camera: the wall's corners, the tracked head position and its right
+ *     vector; stereoMode "sideBySide" renders both eyes into one frame;
+ *   - with the "matrix" camera: per eye, the view and projection matrices an OpenGL CAVE
+ *     renderer would use, from cavetraceOffAxisMatrices.
+ *
+ * Both must show the same picture; the program prints their largest difference, and the time
+ * each head position took. The scene follows Zellmann and Amstutz's demo: a cloud of 10,000
+ * spheres coloured by their distance from the cloud's centre (a per-vertex attribute through an
+ * image1D sampler), a floor with a grid, and a mirror sphere (physicallyBased, metallic 1,
+ * roughness 0).
+ *
+ * Output, per head position k, in <folder>/k/: <wall>_<eye>_offAxis.png and
+ * <wall>_<eye>_matrix.png for the five walls and two eyes, unfolded_<eye>.png (the CAVE opened
+ * out as a cross), front_anaglyph.png (red-cyan) and front_stereo_pair.png (side by side).
+ *
+ *   cc -std=c99 cave.c $(pkg-config --cflags --libs cavetrace) -lm -o cave
+ *   ./cave [folder (default out/cave)] [wall resolution (default 256)] [head positions (4)]
+ */
+#define _POSIX_C_SOURCE 200809L
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include <cavetrace.h>
+
+#define WALLS 5
+#define EYES 2
+#define IPD 0.0635f
+#define NEAR 0.05f
+#define FAR 100.0f
+
+/* ----- the CAVE -------------------------------------------------------------------------- */
+
+/* CAVE space: meters, floor centre at the origin, x right, y up, the front wall at z = -1.5.
+ * Each screen's lower-left, lower-right and upper-right corners as seen from inside. */
+typedef struct {
+  const char *name;
+  float lower_left[3], lower_right[3], upper_right[3];
+  int cell_x, cell_y; /* where the wall goes in the unfolded cross (cells from the bottom) */
+} Wall;
+
+static const Wall WALL[WALLS] = {
+    {"front", {-1.5f, 0, -1.5f}, {1.5f, 0, -1.5f}, {1.5f, 3, -1.5f}, 1, 1},
+    {"left", {-1.5f, 0, 1.5f}, {-1.5f, 0, -1.5f}, {-1.5f, 3, -1.5f}, 0, 1},
+    {"right", {1.5f, 0, -1.5f}, {1.5f, 0, 1.5f}, {1.5f, 3, 1.5f}, 2, 1},
+    {"floor", {-1.5f, 0, 1.5f}, {1.5f, 0, 1.5f}, {1.5f, 0, -1.5f}, 1, 0},
+    {"ceiling", {-1.5f, 3, -1.5f}, {1.5f, 3, -1.5f}, {1.5f, 3, 1.5f}, 1, 2},
+};
+
+static const char *EYE_NAME[EYES] = {"left", "right"};
+
+/* ----- status and small utilities -------------------------------------------------------- */
+
+static int error_count;
+
+static void print_status(const void *user_data, ANARIDevice device, ANARIObject source,
+                         ANARIDataType source_type, ANARIStatusSeverity severity,
+                         ANARIStatusCode code, const char *message) {
+  (void)user_data, (void)device, (void)source, (void)source_type, (void)code;
+  if (severity <= ANARI_SEVERITY_ERROR)
+    error_count++;
+  if (severity <= ANARI_SEVERITY_WARNING)
+    fprintf(stderr, "[cavetrace] %s\n", message);
+}
+
+static double seconds_now(void) {
+  struct timespec t;
+  clock_gettime(CLOCK_MONOTONIC, &t);
+  return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* mkdir -p: creates every missing folder of `path`; returns 0 on success. */
+static int make_folders(const char *path) {
+  char partial[1024];
+  size_t length = strlen(path);
+  if (length >= sizeof partial)
+    return -1;
+  for (size_t i = 1; i <= length; i++)
+    if (path[i] == '/' || path[i] == '\0') {
+      memcpy(partial, path, i);
+      partial[i] = '\0';
+      if (mkdir(partial, 0755) != 0 && errno != EEXIST)
+        return -1;
+    }
+  return 0;
+}
+
+static uint32_t random_state = 0x12345678u;
+
+/* xorshift32 in [0, 1): the same cloud on every run. */
+static float random_unit(void) {
+  random_state ^= random_state << 13;
+  random_state ^= random_state >> 17;
+  random_state ^= random_state << 5;
+  return (float)(random_state >> 8) / 16777216.0f;
+}
+
+/* A managed array filled with a copy of `data`. */
+static ANARIArray1D array_of(ANARIDevice device, ANARIDataType type, const void *data,
+                             uint64_t count, size_t element_size) {
+  ANARIArray1D array = anariNewArray1D(device, NULL, NULL, NULL, type, count);
+  void *memory = anariMapArray(device, array);
+  if (memory)
+    memcpy(memory, data, (size_t)count * element_size);
+  anariUnmapArray(device, array);
+  return array;
+}
+
+static ANARISurface surface_of(ANARIDevice device, ANARIGeometry geometry,
+                               ANARIMaterial material) {
+  ANARISurface surface = anariNewSurface(device);
+  anariSetParameter(device, surface, "geometry", ANARI_GEOMETRY, &geometry);
+  anariSetParameter(device, surface, "material", ANARI_MATERIAL, &material);
+  anariCommitParameters(device, surface);
+  anariRelease(device, geometry);
+  anariRelease(device, material);
+  return surface;
+}
+
+static ANARIMaterial matte(ANARIDevice device, float r, float g, float b) {
+  ANARIMaterial material = anariNewMaterial(device, "matte");
+  float color[3] = {r, g, b};
+  anariSetParameter(device, material, "color", ANARI_FLOAT32_VEC3, color);
+  anariCommitParameters(device, material);
+  return material;
+}
+
+/* ----- the scene ------------------------------------------------------------------------- */
+
+/* 10,000 spheres in a ball, coloured through a colour map by distance from the centre. */
+static ANARISurface sphere_cloud(ANARIDevice device) {
+  enum { COUNT = 10000 };
+  const float center[3] = {0, 1.5f, -1.1f}, radius = 0.9f;
+  float *positions = malloc(sizeof(float) * 3 * COUNT);
+  float *distance = malloc(sizeof(float) * COUNT);
+  for (int i = 0; i < COUNT; i++) {
+    float p[3], d2;
+    do {
+      for (int k = 0; k < 3; k++)
+        p[k] = 2 * random_unit() - 1;
+      d2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+    } while (d2 > 1);
+    for (int k = 0; k < 3; k++)
+      positions[3 * i + k] = center[k] + radius * p[k];
+    distance[i] = sqrtf(d2); /* 0 at the centre, 1 at the rim */
+  }
+  ANARIGeometry spheres = anariNewGeometry(device, "sphere");
+  ANARIArray1D position_array = array_of(device, ANARI_FLOAT32_VEC3, positions, COUNT, 12);
+  ANARIArray1D distance_array = array_of(device, ANARI_FLOAT32, distance, COUNT, 4);
+  float sphere_radius = 0.014f;
+  anariSetParameter(device, spheres, "vertex.position", ANARI_ARRAY1D, &position_array);
+  anariSetParameter(device, spheres, "vertex.attribute0", ANARI_ARRAY1D, &distance_array);
+  anariSetParameter(device, spheres, "radius", ANARI_FLOAT32, &sphere_radius);
+  anariCommitParameters(device, spheres);
+  anariRelease(device, position_array);
+  anariRelease(device, distance_array);
+  free(positions);
+  free(distance);
+
+  /* Hot at the centre, cool at the rim. */
+  const float colormap[5][3] = {
+      {1.0f, 0.95f, 0.4f}, {1.0f, 0.5f, 0.1f}, {0.85f, 0.1f, 0.3f},
+      {0.4f, 0.1f, 0.6f},  {0.1f, 0.2f, 0.7f}};
+  ANARIArray1D image = array_of(device, ANARI_FLOAT32_VEC3, colormap, 5, 12);
+  ANARISampler sampler = anariNewSampler(device, "image1D");
+  anariSetParameter(device, sampler, "image", ANARI_ARRAY1D, &image);
+  anariSetParameter(device, sampler, "inAttribute", ANARI_STRING, "attribute0");
+  anariSetParameter(device, sampler, "filter", ANARI_STRING, "linear");
+  anariSetParameter(device, sampler, "wrapMode", ANARI_STRING, "clampToEdge");
+  anariCommitParameters(device, sampler);
+  anariRelease(device, image);
+
+  ANARIMaterial material = anariNewMaterial(device, "matte");
+  anariSetParameter(device, material, "color", ANARI_SAMPLER, &sampler);
+  anariCommitParameters(device, material);
+  anariRelease(device, sampler);
+  return surface_of(device, spheres, material);
+}
+
+/* A 12 m square floor at y = 0 (it continues beyond the CAVE's walls). */
+static ANARISurface floor_plane(ANARIDevice device) {
+  const float corners[4][3] = {{-6, 0, 6}, {6, 0, 6}, {6, 0, -6}, {-6, 0, -6}};
+  ANARIGeometry quad = anariNewGeometry(device, "quad");
+  ANARIArray1D positions = array_of(device, ANARI_FLOAT32_VEC3, corners, 4, 12);
+  anariSetParameter(device, quad, "vertex.position", ANARI_ARRAY1D, &positions);
+  anariCommitParameters(device, quad);
+  anariRelease(device, positions);
+  return surface_of(device, quad, matte(device, 0.22f, 0.22f, 0.25f));
+}
+
+/* Grid lines every 0.5 m on the floor, as thin cylinders. */
+static ANARISurface floor_grid(ANARIDevice device) {
+  enum { LINES = 25 };
+  float ends[2 * LINES][2][3];
+  for (int i = 0; i < LINES; i++) {
+    float at = -6 + 0.5f * (float)i;
+    const float along_x[2][3] = {{-6, 0.004f, at}, {6, 0.004f, at}};
+    const float along_z[2][3] = {{at, 0.004f, -6}, {at, 0.004f, 6}};
+    memcpy(ends[i], along_x, sizeof along_x);
+    memcpy(ends[LINES + i], along_z, sizeof along_z);
+  }
+  ANARIGeometry cylinders = anariNewGeometry(device, "cylinder");
+  ANARIArray1D positions = array_of(device, ANARI_FLOAT32_VEC3, ends, 4 * LINES, 12);
+  float radius = 0.006f;
+  anariSetParameter(device, cylinders, "vertex.position", ANARI_ARRAY1D, &positions);
+  anariSetParameter(device, cylinders, "radius", ANARI_FLOAT32, &radius);
+  anariCommitParameters(device, cylinders);
+  anariRelease(device, positions);
+  return surface_of(device, cylinders, matte(device, 0.75f, 0.75f, 0.8f));
+}
+
+static ANARISurface mirror_sphere(ANARIDevice device) {
+  const float center[3] = {0.85f, 0.55f, -0.7f};
+  ANARIGeometry sphere = anariNewGeometry(device, "sphere");
+  ANARIArray1D position = array_of(device, ANARI_FLOAT32_VEC3, center, 1, 12);
+  float radius = 0.45f;
+  anariSetParameter(device, sphere, "vertex.position", ANARI_ARRAY1D, &position);
+  anariSetParameter(device, sphere, "radius", ANARI_FLOAT32, &radius);
+  anariCommitParameters(device, sphere);
+  anariRelease(device, position);
+  ANARIMaterial mirror = anariNewMaterial(device, "physicallyBased");
+  float base[3] = {0.95f, 0.95f, 0.95f}, metallic = 1, roughness = 0;
+  anariSetParameter(device, mirror, "baseColor", ANARI_FLOAT32_VEC3, base);
+  anariSetParameter(device, mirror, "metallic", ANARI_FLOAT32, &metallic);
+  anariSetParameter(device, mirror, "roughness", ANARI_FLOAT32, &roughness);
+  anariCommitParameters(device, mirror);
+  return surface_of(device, sphere, mirror);
+}
+
+static ANARIWorld make_world(ANARIDevice device) {
+  ANARISurface surfaces[4] = {sphere_cloud(device), floor_plane(device), floor_grid(device),
+                              mirror_sphere(device)};
+  ANARILight light = anariNewLight(device, "directional");
+  float direction[3] = {0.3f, -1, -0.5f}, irradiance = 2.5f;
+  anariSetParameter(device, light, "direction", ANARI_FLOAT32_VEC3, direction);
+  anariSetParameter(device, light, "irradiance", ANARI_FLOAT32, &irradiance);
+  anariCommitParameters(device, light);
+  ANARIWorld world = anariNewWorld(device);
+  ANARIArray1D surface_array = array_of(device, ANARI_SURFACE, surfaces, 4, sizeof(ANARIObject));
+  ANARIArray1D light_array = array_of(device, ANARI_LIGHT, &light, 1, sizeof(ANARIObject));
+  anariSetParameter(device, world, "surface", ANARI_ARRAY1D, &surface_array);
+  anariSetParameter(device, world, "light", ANARI_ARRAY1D, &light_array);
+  anariCommitParameters(device, world);
+  for (int i = 0; i < 4; i++)
+    anariRelease(device, surfaces[i]);
+  anariRelease(device, light);
+  anariRelease(device, surface_array);
+  anariRelease(device, light_array);
+  return world;
+}
+
+/* ----- images ---------------------------------------------------------------------------- */
+
+typedef unsigned char Rgba[4];
+
+/* Copies a w×h block of a frame's sRGB colour channel starting at column x0. */
+static void copy_block(const unsigned char *frame, uint32_t frame_width, uint32_t x0,
+                       uint32_t w, uint32_t h, unsigned char *out) {
+  for (uint32_t y = 0; y < h; y++)
+    memcpy(out + 4 * (size_t)y * w, frame + 4 * ((size_t)y * frame_width + x0), 4 * (size_t)w);
+}
+
+static int largest_difference(const unsigned char *a, const unsigned char *b, size_t bytes) {
+  int largest = 0;
+  for (size_t i = 0; i < bytes; i++) {
+    int d = abs((int)a[i] - (int)b[i]);
+    largest = d > largest ? d : largest;
+  }
+  return largest;
+}
+
+static int write_png(ANARIDevice device, const char *folder, const char *name, uint32_t w,
+                     uint32_t h, const unsigned char *rgba) {
+  char path[2048];
+  snprintf(path, sizeof path, "%s/%s", folder, name);
+  return cavetraceWriteImagePNG(device, path, w, h, ANARI_UFIXED8_RGBA_SRGB, rgba) ==
+         ANARI_STATUS_NO_ERROR;
+}
+
+/* The CAVE opened out as a cross (rows bottom to top, like ANARI frames). */
+static void unfold(unsigned char *const walls[WALLS], uint32_t n, unsigned char *out) {
+  memset(out, 0, 4 * (size_t)9 * n * n);
+  for (size_t i = 3; i < 4 * (size_t)9 * n * n; i += 4)
+    out[i] = 255;
+  for (int w = 0; w < WALLS; w++)
+    for (uint32_t y = 0; y < n; y++)
+      memcpy(out + 4 * ((size_t)(WALL[w].cell_y * n + y) * 3 * n + (size_t)WALL[w].cell_x * n),
+             walls[w] + 4 * (size_t)y * n, 4 * (size_t)n);
+}
+
+/* Red from the left eye, green and blue from the right. */
+static void anaglyph(const unsigned char *left, const unsigned char *right, size_t pixels,
+                     unsigned char *out) {
+  for (size_t i = 0; i < pixels; i++) {
+    out[4 * i + 0] = left[4 * i + 0];
+    out[4 * i + 1] = right[4 * i + 1];
+    out[4 * i + 2] = right[4 * i + 2];
+    out[4 * i + 3] = 255;
+  }
+}
+
+/* ----- rendering ------------------------------------------------------------------------- */
+
+static ANARIFrame color_frame(ANARIDevice device, uint32_t width, uint32_t height,
+                              ANARIWorld world, ANARIRenderer renderer) {
+  ANARIFrame frame = anariNewFrame(device);
+  uint32_t size[2] = {width, height};
+  ANARIDataType color = ANARI_UFIXED8_RGBA_SRGB;
+  anariSetParameter(device, frame, "size", ANARI_UINT32_VEC2, size);
+  anariSetParameter(device, frame, "channel.color", ANARI_DATA_TYPE, &color);
+  anariSetParameter(device, frame, "world", ANARI_WORLD, &world);
+  anariSetParameter(device, frame, "renderer", ANARI_RENDERER, &renderer);
+  return frame; /* committed by render(), once it has a camera */
+}
+
+/* Renders `frame` through `camera` and copies its colour into out (NULL: no copy). Returns the
+ * wall-clock seconds the render took. */
+static double render(ANARIDevice device, ANARIFrame frame, ANARICamera camera,
+                     unsigned char *out, size_t bytes) {
+  anariSetParameter(device, frame, "camera", ANARI_CAMERA, &camera);
+  anariCommitParameters(device, frame);
+  double start = seconds_now();
+  anariRenderFrame(device, frame);
+  anariFrameReady(device, frame, ANARI_WAIT);
+  double elapsed = seconds_now() - start;
+  const void *pixels = anariMapFrame(device, frame, "channel.color", NULL, NULL, NULL);
+  if (pixels && out)
+    memcpy(out, pixels, bytes);
+  anariUnmapFrame(device, frame, "channel.color");
+  return elapsed;
+}
+
+int main(int argc, char **argv) {
+  const char *folder = argc > 1 ? argv[1] : "out/cave";
+  const uint32_t n = argc > 2 ? (uint32_t)atoi(argv[2]) : 256;
+  const int steps = argc > 3 ? atoi(argv[3]) : 4;
+  if (n < 8 || n > 4096 || steps < 1 || steps > 100) {
+    fprintf(stderr, "usage: %s [folder] [wall resolution 8..4096] [head positions 1..100]\n",
+            argv[0]);
+    return 2;
+  }
+
+  ANARILibrary library = anariLoadLibrary("cavetrace", print_status, NULL);
+  ANARIDevice device = anariNewDevice(library, "default");
+  if (!device)
+    return 1;
+  double start = seconds_now();
+  ANARIWorld world = make_world(device);
+  printf("scene: 10,000-sphere cloud, floor grid, mirror sphere (%.0f ms to build)\n",
+         1e3 * (seconds_now() - start));
+
+  ANARIRenderer renderer = anariNewRenderer(device, "default");
+  float background[4] = {0.10f, 0.14f, 0.26f, 1}, ambient = 0.5f;
+  anariSetParameter(device, renderer, "background", ANARI_FLOAT32_VEC4, background);
+  anariSetParameter(device, renderer, "ambientRadiance", ANARI_FLOAT32, &ambient);
+  anariCommitParameters(device, renderer);
+
+  ANARIFrame pair_frame = color_frame(device, 2 * n, n, world, renderer);
+  ANARIFrame eye_frame = color_frame(device, n, n, world, renderer);
+  ANARICamera off_axis = anariNewCamera(device, "offAxis");
+  ANARICamera matrix = anariNewCamera(device, "matrix");
+
+  const size_t wall_bytes = 4 * (size_t)n * n;
+  unsigned char *pair = malloc(2 * wall_bytes);
+  unsigned char *composite = malloc(9 * wall_bytes);
+  unsigned char *matrix_image = malloc(wall_bytes);
+  unsigned char *walls[EYES][WALLS];
+  for (int e = 0; e < EYES; e++)
+    for (int w = 0; w < WALLS; w++)
+      walls[e][w] = malloc(wall_bytes);
+
+  int ok = 1;
+  for (int step = 0; step < steps; step++) {
+    /* The tracked head walks from the back left towards the front right, turning right. */
+    float s = steps > 1 ? (float)step / (float)(steps - 1) : 0;
+    float head[3] = {-0.4f + 0.8f * s, 1.70f - 0.05f * s, 0.7f - 0.9f * s};
+    float yaw = 0.25f - 0.55f * s; /* radians, positive turns left */
+    float right[3] = {cosf(yaw), 0, -sinf(yaw)};
+    char step_folder[1024];
+    snprintf(step_folder, sizeof step_folder, "%s/%d", folder, step);
+    if (make_folders(step_folder) != 0) {
+      perror(step_folder);
+      return 1;
+    }
+
+    double off_axis_seconds = 0, matrix_seconds = 0;
+    int difference = 0;
+    for (int w = 0; w < WALLS; w++) {
+      /* offAxis: corners, head and its right vector; both eyes side by side in one frame. */
+      anariSetParameter(device, off_axis, "screen.lowerLeft", ANARI_FLOAT32_VEC3,
+                        WALL[w].lower_left);
+      anariSetParameter(device, off_axis, "screen.lowerRight", ANARI_FLOAT32_VEC3,
+                        WALL[w].lower_right);
+      anariSetParameter(device, off_axis, "screen.upperRight", ANARI_FLOAT32_VEC3,
+                        WALL[w].upper_right);
+      anariSetParameter(device, off_axis, "position", ANARI_FLOAT32_VEC3, head);
+      anariSetParameter(device, off_axis, "right", ANARI_FLOAT32_VEC3, right);
+      float ipd = IPD;
+      anariSetParameter(device, off_axis, "interpupillaryDistance", ANARI_FLOAT32, &ipd);
+      anariSetParameter(device, off_axis, "stereoMode", ANARI_STRING, "sideBySide");
+      /* The same clipping planes as the matrices below, so both cameras see the same. */
+      float near = NEAR, far = FAR;
+      anariSetParameter(device, off_axis, "near", ANARI_FLOAT32, &near);
+      anariSetParameter(device, off_axis, "far", ANARI_FLOAT32, &far);
+      anariCommitParameters(device, off_axis);
+      off_axis_seconds += render(device, pair_frame, off_axis, pair, 2 * wall_bytes);
+      for (int e = 0; e < EYES; e++)
+        copy_block(pair, 2 * n, e * n, n, n, walls[e][w]);
+      if (w == 0) {
+        char path[2048];
+        snprintf(path, sizeof path, "%s/front_stereo_pair.png", step_folder);
+        ok &= cavetraceWriteFramePNG(device, pair_frame, "channel.color", path) ==
+              ANARI_STATUS_NO_ERROR;
+      }
+
+      /* matrix: what an OpenGL CAVE renderer would load for each eye. */
+      for (int e = 0; e < EYES; e++) {
+        float eye[3], view[16], proj[16];
+        float side = e == 0 ? -0.5f * IPD : 0.5f * IPD;
+        for (int k = 0; k < 3; k++)
+          eye[k] = head[k] + side * right[k];
+        if (cavetraceOffAxisMatrices(WALL[w].lower_left, WALL[w].lower_right,
+                                     WALL[w].upper_right, eye, NEAR, FAR, view, proj) !=
+            ANARI_STATUS_NO_ERROR) {
+          fprintf(stderr, "no off-axis frustum for the %s wall\n", WALL[w].name);
+          ok = 0;
+          continue;
+        }
+        anariSetParameter(device, matrix, "view", ANARI_FLOAT32_MAT4, view);
+        anariSetParameter(device, matrix, "proj", ANARI_FLOAT32_MAT4, proj);
+        anariCommitParameters(device, matrix);
+        matrix_seconds += render(device, eye_frame, matrix, matrix_image, wall_bytes);
+        int d = largest_difference(matrix_image, walls[e][w], wall_bytes);
+        difference = d > difference ? d : difference;
+        char name[64];
+        snprintf(name, sizeof name, "%s_%s_offAxis.png", WALL[w].name, EYE_NAME[e]);
+        ok &= write_png(device, step_folder, name, n, n, walls[e][w]);
+        snprintf(name, sizeof name, "%s_%s_matrix.png", WALL[w].name, EYE_NAME[e]);
+        ok &= write_png(device, step_folder, name, n, n, matrix_image);
+      }
+    }
+    for (int e = 0; e < EYES; e++) {
+      char name[64];
+      snprintf(name, sizeof name, "unfolded_%s.png", EYE_NAME[e]);
+      unfold(walls[e], n, composite);
+      ok &= write_png(device, step_folder, name, 3 * n, 3 * n, composite);
+    }
+    anaglyph(walls[0][0], walls[1][0], (size_t)n * n, composite);
+    ok &= write_png(device, step_folder, "front_anaglyph.png", n, n, composite);
+    printf("head %d at (%.2f, %.2f, %.2f): 5 walls × 2 eyes of %u×%u in %.0f ms with offAxis "
+           "(%.1f ms per wall, both eyes), %.0f ms with matrix; largest matrix/offAxis "
+           "difference %d/255\n",
+           step, head[0], head[1], head[2], n, n, 1e3 * off_axis_seconds,
+           1e3 * off_axis_seconds / WALLS, 1e3 * matrix_seconds, difference);
+  }
+  printf("images in %s/<head position>/\n", folder);
+
+  for (int e = 0; e < EYES; e++)
+    for (int w = 0; w < WALLS; w++)
+      free(walls[e][w]);
+  free(pair), free(composite), free(matrix_image);
+  ANARIObject objects[] = {off_axis, matrix, pair_frame, eye_frame, renderer, world};
+  for (size_t i = 0; i < sizeof objects / sizeof objects[0]; i++)
+    anariRelease(device, objects[i]);
+  anariRelease(device, device);
+  anariUnloadLibrary(library);
+  return ok && error_count == 0 ? 0 : 1;
+}
