@@ -663,6 +663,10 @@ where
         }
 
         let (inner, mut primitives) = classify_hits(node, child_box_hits(node, ray), octant_inv);
+        if inner != 0 {
+            // The children are fetched next; start loading them while the leaves are tested.
+            prefetch(&nodes[node.child_base_idx as usize]);
+        }
         group = NodeGroup {
             first_child: node.child_base_idx,
             bits: inner | node.imask as u32,

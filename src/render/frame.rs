@@ -10,11 +10,11 @@ use std::time::Instant;
 use glam::{Vec2, Vec3, Vec4};
 
 use crate::accel::Ray;
-use crate::camera::{Camera, EyeRays};
+use crate::camera::{Camera, CameraRay, EyeRays};
 use crate::device::datatype::*;
 use crate::device::property::PropertyValue;
 use crate::render::color::{encode_srgb8, to_unorm8};
-use crate::render::renderer::{RendererSettings, primary_sample};
+use crate::render::renderer::{RendererSettings, Sample, shade_primary};
 use crate::scene::world::SceneSnapshot;
 
 /// Side of the square tiles the threads share out.
@@ -372,71 +372,120 @@ fn radical_inverse(mut i: u32, base: u32) -> f32 {
     result
 }
 
+/// Side of the pixel blocks traced together as one coherent packet of primary rays.
+const PACKET_SIDE: u32 = 8;
+
+/// Pixel offsets of an 8×8 block in the order packet traversal expects: sixteen 2×2 quads of
+/// four consecutive rays, quads in row order.
+const PACKET_ORDER: [(u32, u32); 64] = {
+    let mut order = [(0, 0); 64];
+    let mut i = 0;
+    while i < 64 {
+        let quad = i / 4;
+        let lane = i % 4;
+        order[i] = (
+            (quad % 4) as u32 * 2 + (lane % 2) as u32,
+            (quad / 4) as u32 * 2 + (lane / 2) as u32,
+        );
+        i += 1;
+    }
+    order
+};
+
+/// A ray that hits nothing (zero direction): fills packet lanes outside the frame or any eye.
+const NO_RAY: Ray = Ray {
+    origin: Vec3::ZERO,
+    direction: Vec3::ZERO,
+    t_min: 0.0,
+    t_max: 0.0,
+};
+
+/// What a pixel of a tile produced: averaged colour and the first sample's channel values.
+struct PixelResult<'a> {
+    color: Vec4,
+    first: Option<(Sample, CameraRay, &'a EyeRays)>,
+}
+
 fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: usize) {
     let setup = &job.setup;
     let tx = (tile as u32 % job.tiles_x) * TILE_SIZE;
     let ty = (tile as u32 / job.tiles_x) * TILE_SIZE;
     let x_end = (tx + TILE_SIZE).min(setup.width);
     let y_end = (ty + TILE_SIZE).min(setup.height);
+    let tile_width = x_end - tx;
     let samples = setup.settings.pixel_samples;
-    let mut results = Vec::with_capacity(((x_end - tx) * (y_end - ty)) as usize);
-    for y in ty..y_end {
-        for x in tx..x_end {
-            let eye = eyes
-                .iter()
-                .find(|(v, _)| x >= v.x && x < v.x + v.width && y >= v.y && y < v.y + v.height);
-            let Some((viewport, rays)) = eye else {
-                results.push(None);
-                continue;
-            };
-            let mut color = Vec4::ZERO;
-            let mut first = None;
+    let mut results: Vec<PixelResult> = (0..tile_width * (y_end - ty))
+        .map(|_| PixelResult {
+            color: Vec4::ZERO,
+            first: None,
+        })
+        .collect();
+    let mut rays = [NO_RAY; 64];
+    let mut camera_rays = [None; 64];
+    let mut hits = [None; 64];
+    for by in (ty..y_end).step_by(PACKET_SIDE as usize) {
+        for bx in (tx..x_end).step_by(PACKET_SIDE as usize) {
             for s in 0..samples {
-                let offset = jitter(job.pass * samples + s);
-                let u = (x - viewport.x) as f32 + offset.x;
-                let v = (y - viewport.y) as f32 + offset.y;
-                let lens = lens_sample(job.pass * samples + s);
-                let camera_ray =
-                    rays.ray(u / viewport.width as f32, v / viewport.height as f32, lens);
-                let ray = Ray {
-                    origin: camera_ray.origin,
-                    direction: camera_ray.direction,
-                    t_min: camera_ray.t_min,
-                    t_max: camera_ray.t_max,
-                };
-                let sample = primary_sample(&setup.scene, &setup.settings, &ray);
-                color += sample.color;
-                if s == 0 {
-                    first = Some((sample, camera_ray));
+                let index = job.pass * samples + s;
+                let offset = jitter(index);
+                let lens = lens_sample(index);
+                for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
+                    let (x, y) = (bx + dx, by + dy);
+                    rays[lane] = NO_RAY;
+                    camera_rays[lane] = None;
+                    if x >= x_end || y >= y_end {
+                        continue;
+                    }
+                    let Some((viewport, eye_rays)) = eyes.iter().find(|(v, _)| {
+                        x >= v.x && x < v.x + v.width && y >= v.y && y < v.y + v.height
+                    }) else {
+                        continue;
+                    };
+                    let u = ((x - viewport.x) as f32 + offset.x) / viewport.width as f32;
+                    let v = ((y - viewport.y) as f32 + offset.y) / viewport.height as f32;
+                    let camera_ray = eye_rays.ray(u, v, lens);
+                    rays[lane] = Ray {
+                        origin: camera_ray.origin,
+                        direction: camera_ray.direction,
+                        t_min: camera_ray.t_min,
+                        t_max: camera_ray.t_max,
+                    };
+                    camera_rays[lane] = Some((camera_ray, eye_rays));
+                }
+                setup.scene.bvh.intersect_packet(&rays, &mut hits);
+                for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
+                    let Some((camera_ray, eye_rays)) = camera_rays[lane] else {
+                        continue;
+                    };
+                    let sample =
+                        shade_primary(&setup.scene, &setup.settings, &rays[lane], hits[lane]);
+                    let pixel = &mut results[((by + dy - ty) * tile_width + bx + dx - tx) as usize];
+                    pixel.color += sample.color;
+                    if s == 0 {
+                        pixel.first = Some((sample, camera_ray, eye_rays));
+                    }
                 }
             }
-            results
-                .push(first.map(|(sample, camera_ray)| {
-                    (color / samples as f32, sample, camera_ray, rays)
-                }));
         }
     }
     let mut buffers = job.buffers.lock().unwrap_or_else(|e| e.into_inner());
-    let mut k = 0;
-    for y in ty..y_end {
-        for x in tx..x_end {
-            let index = (y * setup.width + x) as usize;
-            match results[k].take() {
-                Some((color, sample, camera_ray, rays)) => {
-                    buffers.color[index] = color;
-                    if let Some(hit) = sample.hit {
-                        buffers.depth[index] = rays.depth(&camera_ray, hit.t);
-                        buffers.window_depth[index] = rays.window_depth(hit.point);
-                        buffers.primitive_id[index] = hit.primitive_id;
-                        buffers.object_id[index] = hit.object_id;
-                        buffers.instance_id[index] = hit.instance_id;
-                        buffers.albedo[index] = hit.albedo;
-                        buffers.normal[index] = hit.normal;
-                    }
+    for (k, pixel) in results.iter().enumerate() {
+        let (x, y) = (tx + k as u32 % tile_width, ty + k as u32 / tile_width);
+        let index = (y * setup.width + x) as usize;
+        match &pixel.first {
+            Some((sample, camera_ray, eye_rays)) => {
+                buffers.color[index] = pixel.color / samples as f32;
+                if let Some(hit) = sample.hit {
+                    buffers.depth[index] = eye_rays.depth(camera_ray, hit.t);
+                    buffers.window_depth[index] = eye_rays.window_depth(hit.point);
+                    buffers.primitive_id[index] = hit.primitive_id;
+                    buffers.object_id[index] = hit.object_id;
+                    buffers.instance_id[index] = hit.instance_id;
+                    buffers.albedo[index] = hit.albedo;
+                    buffers.normal[index] = hit.normal;
                 }
-                None => buffers.color[index] = setup.settings.background,
             }
-            k += 1;
+            None => buffers.color[index] = setup.settings.background,
         }
     }
 }

@@ -301,7 +301,17 @@ fn shade(
 
 /// One primary sample: colour plus the auxiliary channel values.
 pub fn primary_sample(scene: &SceneSnapshot, settings: &RendererSettings, ray: &Ray) -> Sample {
-    let Some(hit) = scene.bvh.intersect(ray) else {
+    shade_primary(scene, settings, ray, scene.bvh.intersect(ray))
+}
+
+/// A primary sample whose closest hit is already known (e.g. traced in a packet).
+pub fn shade_primary(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    ray: &Ray,
+    hit: Option<SceneHit>,
+) -> Sample {
+    let Some(hit) = hit else {
         return Sample {
             color: settings.background,
             hit: None,
