@@ -355,6 +355,16 @@ impl SdkDevice {
             object, name.as_ptr(), data_type, value as *const T as *const c_void
         )
     }
+    /// An ANARI_VOID_POINTER parameter: its value is passed as `mem` itself, not by address.
+    fn set_void_pointer(&self, object: Handle, name: &str, value: usize) {
+        let name = c(name);
+        virtual_call!(
+            self.0,
+            device_slot::SET_PARAMETER,
+            (Handle, *const c_char, i32, *const c_void);
+            object, name.as_ptr(), ANARI_VOID_POINTER, value as *const c_void
+        )
+    }
     fn set_string(&self, object: Handle, name: &str, value: &str) {
         let (name, value) = (c(name), c(value));
         virtual_call!(
@@ -638,12 +648,12 @@ fn run_scenario(library_path: &Path, binds_own_symbols: bool, temporary: bool) {
         ANARI_FRAME_COMPLETION_CALLBACK,
         &(on_frame_completion as CompletionCallback),
     );
-    dev.set(
-        frame,
-        "frameCompletionCallbackUserData",
-        ANARI_VOID_POINTER,
-        &completion_user,
-    );
+    // NULL is a valid user pointer, not a missing value.
+    dev.set_void_pointer(frame, "frameCompletionCallbackUserData", 0);
+    let errors = log.errors();
+    assert!(errors.is_empty(), "{errors:?}");
+    // Not a readable address: a device that dereferenced the user pointer would crash here.
+    dev.set_void_pointer(frame, "frameCompletionCallbackUserData", completion_user);
     dev.commit(frame);
     let errors = log.errors();
     assert!(errors.is_empty(), "{errors:?}");
@@ -688,12 +698,7 @@ fn run_scenario(library_path: &Path, binds_own_symbols: bool, temporary: bool) {
         ANARI_STATUS_CALLBACK,
         &parameter_callback_fn,
     );
-    dev.set(
-        dev.0,
-        "statusCallbackUserData",
-        ANARI_VOID_POINTER,
-        &log_pointer,
-    );
+    dev.set_void_pointer(dev.0, "statusCallbackUserData", log_pointer as usize);
     dev.set(geometry, "vertex.position", ANARI_FLOAT32, &1.0f32);
     assert_eq!(
         log.errors().iter().map(|m| m.callback).collect::<Vec<_>>(),

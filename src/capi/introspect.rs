@@ -57,7 +57,17 @@ fn spec_value_bytes(value: SpecValue, data_type: ANARIDataType) -> Option<Vec<u8
     Some(bytes)
 }
 
-fn object_info(spec: &'static ObjectSpec, info: &str, info_type: ANARIDataType) -> usize {
+/// anariGetObjectInfo's answer: the address of the cached value, or 0 when there is none. Shared
+/// with the SDK device (`crate::sdk`), so both boundaries hand out the same pointers.
+pub(crate) fn object_info(
+    object_type: ANARIDataType,
+    subtype: Option<&str>,
+    info: &str,
+    info_type: ANARIDataType,
+) -> usize {
+    let Some(spec) = spec_for(object_type, subtype) else {
+        return 0;
+    };
     let key = format!("info {} {} {info} {info_type}", spec.kind, spec.subtype);
     match (info, info_type) {
         ("description", ANARI_STRING) => cached(key, || leak_c_string(spec.description) as usize),
@@ -102,14 +112,30 @@ pub extern "C" fn anariGetObjectInfo(
             return std::ptr::null();
         };
         let subtype = plain_string(object_subtype);
-        match spec_for(object_type, subtype.as_deref()) {
-            Some(spec) => object_info(spec, &info, info_type) as *const c_void,
-            None => std::ptr::null(),
-        }
+        object_info(object_type, subtype.as_deref(), &info, info_type) as *const c_void
     })
 }
 
-fn parameter_info(
+/// anariGetParameterInfo's answer: the address of the cached value, or 0 when there is none.
+/// Shared with the SDK device (`crate::sdk`).
+pub(crate) fn parameter_info(
+    object_type: ANARIDataType,
+    subtype: Option<&str>,
+    name: &str,
+    param_type: ANARIDataType,
+    info: &str,
+    info_type: ANARIDataType,
+) -> usize {
+    let Some(spec) = spec_for(object_type, subtype) else {
+        return 0;
+    };
+    let Some(param) = spec.param(name).filter(|p| p.types.contains(&param_type)) else {
+        return 0;
+    };
+    param_info_value(spec, param, param_type, info, info_type)
+}
+
+fn param_info_value(
     spec: &'static ObjectSpec,
     param: &'static ParamSpec,
     param_type: ANARIDataType,
@@ -183,21 +209,20 @@ pub extern "C" fn anariGetParameterInfo(
             return std::ptr::null();
         };
         let subtype = plain_string(object_subtype);
-        let Some(spec) = spec_for(object_type, subtype.as_deref()) else {
-            return std::ptr::null();
-        };
-        let Some(param) = spec
-            .param(&name)
-            .filter(|p| p.types.contains(&parameter_type))
-        else {
-            return std::ptr::null();
-        };
-        parameter_info(spec, param, parameter_type, &info, info_type) as *const c_void
+        parameter_info(
+            object_type,
+            subtype.as_deref(),
+            &name,
+            parameter_type,
+            &info,
+            info_type,
+        ) as *const c_void
     })
 }
 
-/// Writes a property value into `mem` if the type matches and `size` is large enough.
-fn write_property(
+/// Writes a property value into `mem` if the type matches and `size` is large enough; returns 1
+/// when written, 0 otherwise. Shared with the SDK device (`crate::sdk`).
+pub(crate) fn write_property(
     value: &PropertyValue,
     data_type: ANARIDataType,
     mem: *mut c_void,

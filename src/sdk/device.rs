@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, RwLock};
 
 use crate::capi::cache::{cached, leak_string_list};
-use crate::capi::introspect::ANARIProcAddress;
+use crate::capi::introspect::{ANARIProcAddress, object_info, parameter_info, write_property};
 use crate::capi::params::incoming_value;
 use crate::capi::types::*;
 use crate::capi::{plain_string, string_arg};
@@ -24,7 +24,7 @@ use crate::device::status::*;
 use crate::device::{Device, IncomingValue, catalog, property};
 use crate::render::frame::ANARIFrameCompletionCallback;
 use crate::scene::array::ANARIMemoryDeleter;
-use crate::sdk::{VirtualTable, allocate, introspect, panic_text};
+use crate::sdk::{VirtualTable, allocate, panic_text};
 
 /// Begins with the layout of `anari::DeviceImpl` (vtable, then its two data members); cavetrace's
 /// state follows.
@@ -328,9 +328,9 @@ fn with_device<R>(
     }
 }
 
-/// Reads the pointer-sized value (a function or data address) a parameter value points at.
-fn pointer_value(mem: *const c_void) -> Option<usize> {
-    // SAFETY: for pointer-typed parameters `mem` points at one pointer value (API contract).
+/// Reads the function address a callback-typed parameter value points at.
+fn function_value(mem: *const c_void) -> Option<usize> {
+    // SAFETY: for function-pointer parameters `mem` points at one pointer value (API contract).
     (!mem.is_null()).then(|| unsafe { (mem as *const usize).read_unaligned() })
 }
 
@@ -389,6 +389,10 @@ impl DeviceObject {
 
     /// Callback parameters of the device and of frames stay here; the internal device gets this
     /// module's forwarders instead, which pass the SDK device pointer on. True when handled.
+    ///
+    /// A callback's `mem` points at the function pointer, but an ANARI_VOID_POINTER value is
+    /// passed by value (`mem` is the user pointer itself, NULL included), as the ANARI
+    /// specification and the SDK's C++ `anari::setParameter` have it.
     fn stage_callback_parameter(
         &self,
         function: &str,
@@ -397,16 +401,16 @@ impl DeviceObject {
         data_type: ANARIDataType,
         mem: *const c_void,
     ) -> bool {
-        let Some(value) = pointer_value(mem) else {
-            return false;
-        };
         if handle == self.device.handle {
             match (name, data_type) {
                 ("statusCallback", ANARI_STATUS_CALLBACK) => {
-                    self.status().staged_function = Some(value)
+                    let Some(address) = function_value(mem) else {
+                        return false;
+                    };
+                    self.status().staged_function = Some(address)
                 }
                 ("statusCallbackUserData", ANARI_VOID_POINTER) => {
-                    self.status().staged_user_data = Some(value)
+                    self.status().staged_user_data = Some(mem as usize)
                 }
                 _ => return false,
             }
@@ -420,6 +424,14 @@ impl DeviceObject {
         if !self.is_frame(handle) {
             return false;
         }
+        let value = if is_function {
+            let Some(address) = function_value(mem) else {
+                return false;
+            };
+            address
+        } else {
+            mem as usize
+        };
         {
             let mut callbacks = self.frame_callbacks();
             let entry = callbacks.entry(handle).or_default();
@@ -618,7 +630,7 @@ impl DeviceObject {
             property::object_property(&self.device, &target, &name, mask & ANARI_WAIT != 0)
         };
         match value {
-            Some(value) => introspect::write_property(&value, data_type, mem, size),
+            Some(value) => write_property(&value, data_type, mem, size),
             None => 0,
         }
     }
@@ -1040,7 +1052,7 @@ extern "C" fn get_object_info(
             return std::ptr::null();
         };
         let subtype = plain_string(object_subtype);
-        introspect::object_info(object_type, subtype.as_deref(), &info, info_type) as _
+        object_info(object_type, subtype.as_deref(), &info, info_type) as _
     })
 }
 
@@ -1062,7 +1074,7 @@ extern "C" fn get_parameter_info(
             return std::ptr::null();
         };
         let subtype = plain_string(object_subtype);
-        introspect::parameter_info(
+        parameter_info(
             object_type,
             subtype.as_deref(),
             &name,

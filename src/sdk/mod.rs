@@ -13,7 +13,6 @@
 //!   global symbol scope and would be called instead (ELF interposition).
 
 mod device;
-mod introspect;
 mod library;
 
 pub use library::anari_library_cavetrace_new_library;
