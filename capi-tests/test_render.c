@@ -119,7 +119,7 @@ static void poll_until_ready(void) {
   anariSetParameter(device, frame, "frameCompletionCallback", ANARI_FRAME_COMPLETION_CALLBACK,
                     &callback);
   void *user = &record;
-  anariSetParameter(device, frame, "frameCompletionCallbackUserData", ANARI_VOID_POINTER, &user);
+  anariSetParameter(device, frame, "frameCompletionCallbackUserData", ANARI_VOID_POINTER, user);
   anariCommitParameters(device, frame);
   anariRenderFrame(device, frame);
   int polls = 0;

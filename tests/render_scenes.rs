@@ -629,12 +629,13 @@ fn the_completion_callback_finishes_before_the_frame_is_ready() {
         ANARI_FRAME_COMPLETION_CALLBACK,
         &callback,
     );
-    set(
+    // A VOID_POINTER value is passed as `mem` itself.
+    anariSetParameter(
         dev,
         frame,
-        "frameCompletionCallbackUserData",
+        c("frameCompletionCallbackUserData").as_ptr(),
         ANARI_VOID_POINTER,
-        &(0xF00Dusize),
+        0xF00D as *const std::ffi::c_void,
     );
     commit(dev, frame);
     for round in 1..=2 {
@@ -657,6 +658,28 @@ fn the_completion_callback_finishes_before_the_frame_is_ready() {
     anariUnmapFrame(dev, frame, name.as_ptr());
     assert_eq!(log.errors().len(), 1, "a third unmap has nothing to unmap");
     release_all(dev, &[world, camera, r, frame]);
+    anariRelease(dev, dev);
+    anariUnloadLibrary(lib);
+}
+
+#[test]
+fn ambient_radiance_times_albedo_is_the_colour_of_a_matte_surface() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let g = spheres(dev, &[[0.0, 0.0, -3.0]], 1.0);
+    let s = matte_surface(dev, g, [0.7, 0.7, 0.7]);
+    let world = world_of(dev, &[s]);
+    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
+    let r = renderer(dev, "default", 0.5);
+    let frame = frame_for(dev, world, camera, r, [8, 8]);
+    let (color, _, _) = render_channel::<[f32; 4]>(dev, frame, "channel.color");
+    // Radiance L from every direction gives irradiance πL; a Lambertian surface returns ρ/π of it.
+    assert!(
+        (color[4 * 8 + 4][0] - 0.35).abs() < 1e-5,
+        "{:?}",
+        color[4 * 8 + 4]
+    );
+    release_all(dev, &[g, s, world, camera, r, frame]);
     anariRelease(dev, dev);
     anariUnloadLibrary(lib);
 }

@@ -662,7 +662,7 @@ fn run_scenario(library_path: &Path, binds_own_symbols: bool, temporary: bool) {
     let (color, width, height) = dev.read_color(frame);
     assert_eq!((width, height), (32, 32));
     let centre = color[16 * 32 + 16];
-    // Red matte lit by the ambient light only: red, no green or blue (ambient × albedo / π).
+    // Red matte lit by the ambient light only: red, no green or blue (ambient radiance × albedo).
     assert!(
         centre[0] > 0.1 && centre[1] == 0.0 && centre[2] == 0.0,
         "centre {centre:?}"

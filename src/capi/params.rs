@@ -26,6 +26,10 @@ pub(crate) unsafe fn incoming_value(
         );
         None
     };
+    // ANARI passes a VOID_POINTER value as `mem` itself (NULL is a valid value), not by address.
+    if data_type == ANARI_VOID_POINTER {
+        return Some(IncomingValue::Pointer(mem as usize));
+    }
     if mem.is_null() {
         return fail(format!(
             "the value pointer for a {} parameter is NULL; ignored",
@@ -51,8 +55,7 @@ pub(crate) unsafe fn incoming_value(
             // SAFETY: for object types `mem` points at one handle (caller contract).
             IncomingValue::Handle(unsafe { (mem as *const usize).read_unaligned() })
         }
-        ANARI_VOID_POINTER
-        | ANARI_FUNCTION_POINTER
+        ANARI_FUNCTION_POINTER
         | ANARI_MEMORY_DELETER
         | ANARI_STATUS_CALLBACK
         | ANARI_FRAME_COMPLETION_CALLBACK => {

@@ -308,7 +308,14 @@ impl FrameState {
         }
         {
             let mut inner = self.lock();
-            inner.running = None;
+            // The callback may have started the next render of this frame: leave that one be.
+            if inner
+                .running
+                .as_ref()
+                .is_some_and(|running| std::ptr::eq(Arc::as_ptr(running), job))
+            {
+                inner.running = None;
+            }
             inner.callback_thread = None;
         }
         self.finished.notify_all();

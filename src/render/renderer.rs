@@ -267,7 +267,8 @@ fn shade(
     depth: u32,
 ) -> Vec3 {
     let diffuse_weight = 1.0 - sp.metallic;
-    let light = direct_light(scene, settings, sp) + settings.ambient;
+    // Ambient light is radiance from every direction: it arrives as irradiance π·L.
+    let light = direct_light(scene, settings, sp) + settings.ambient * std::f32::consts::PI;
     // Lambertian: albedo/π × irradiance.
     let mut color = sp.base_color * std::f32::consts::FRAC_1_PI * light * diffuse_weight;
     color += sp.emissive;
