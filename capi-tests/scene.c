@@ -91,9 +91,10 @@ ANARICamera perspective_camera(ANARIDevice device, const float eye[3], const flo
 ANARIRenderer albedo_renderer(ANARIDevice device) {
   ANARIRenderer renderer = anariNewRenderer(device, "default");
   float background[4] = {0, 0, 0, 1};
-  float pi = 3.14159265358979f;
+  /* Ambient radiance 1 from every direction: a matte surface shows exactly its albedo. */
+  float one = 1.0f;
   anariSetParameter(device, renderer, "background", ANARI_FLOAT32_VEC4, background);
-  anariSetParameter(device, renderer, "ambientRadiance", ANARI_FLOAT32, &pi);
+  anariSetParameter(device, renderer, "ambientRadiance", ANARI_FLOAT32, &one);
   anariCommitParameters(device, renderer);
   return renderer;
 }

@@ -119,7 +119,7 @@ void triangle_renders_and_reads_back() {
   set(d, camera.get(), "position", ANARI_FLOAT32_VEC3, std::array<float, 3>{0, 0, 0});
   anariCommitParameters(d, camera.get());
   Handle renderer(d, anariNewRenderer(d, "default"));
-  set(d, renderer.get(), "ambientRadiance", ANARI_FLOAT32, 3.14159265f);
+  set(d, renderer.get(), "ambientRadiance", ANARI_FLOAT32, 1.0f);
   anariCommitParameters(d, renderer.get());
   Handle frame(d, anariNewFrame(d));
   set(d, frame.get(), "size", ANARI_UINT32_VEC2, std::array<uint32_t, 2>{32, 32});

@@ -97,8 +97,8 @@ static float render_triangle(const Api *a) {
   a->anariSetParameter(d, camera, "position", ANARI_FLOAT32_VEC3, origin);
   a->anariCommitParameters(d, camera);
   ANARIRenderer renderer = a->anariNewRenderer(d, "default");
-  const float pi = 3.14159265f;
-  a->anariSetParameter(d, renderer, "ambientRadiance", ANARI_FLOAT32, &pi);
+  const float one = 1.0f; /* ambient radiance 1: matte surfaces show their albedo */
+  a->anariSetParameter(d, renderer, "ambientRadiance", ANARI_FLOAT32, &one);
   a->anariCommitParameters(d, renderer);
   ANARIFrame frame = a->anariNewFrame(d);
   const uint32_t size[2] = {32, 32};

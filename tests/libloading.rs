@@ -306,12 +306,13 @@ fn a_triangle_renders_through_the_c_abi() {
         let camera = new_camera(dev, c("perspective").as_ptr());
         (api.commit)(dev, camera);
         let renderer = new_renderer(dev, c("default").as_ptr());
-        let pi = std::f32::consts::PI;
+        // Ambient radiance 1 from every direction: a matte surface shows exactly its albedo.
+        let one = 1.0f32;
         set(
             renderer,
             "ambientRadiance",
             ANARI_FLOAT32,
-            &pi as *const f32 as _,
+            &one as *const f32 as _,
         );
         (api.commit)(dev, renderer);
 
