@@ -12,7 +12,7 @@ use crate::device::{Device, catalog};
 
 /// Names under which this library answers anariLoadLibrary, and its device subtypes.
 const LIBRARY_NAMES: &[&str] = &["cavetrace", "default"];
-const DEVICE_SUBTYPES: &[&str] = &["default", "cavetrace"];
+pub(crate) const DEVICE_SUBTYPES: &[&str] = &["default", "cavetrace"];
 
 fn report_without_device(
     callback: ANARIStatusCallback,

@@ -105,7 +105,7 @@ pub extern "C" fn anariNewFrame(device: ANARIDevice) -> ANARIFrame {
 }
 
 /// The kind named by anariNewObject's objectType ("geometry", "spatialField", …).
-fn kind_from_name(name: &str) -> Option<ANARIDataType> {
+pub(crate) fn kind_from_name(name: &str) -> Option<ANARIDataType> {
     Some(match name {
         "light" => ANARI_LIGHT,
         "camera" => ANARI_CAMERA,

@@ -15,6 +15,7 @@ use std::sync::{Arc, Mutex, MutexGuard, RwLock};
 
 use crate::capi::cache::{cached, leak_string_list};
 use crate::capi::introspect::{ANARIProcAddress, object_info, parameter_info, write_property};
+use crate::capi::object::kind_from_name;
 use crate::capi::params::incoming_value;
 use crate::capi::types::*;
 use crate::capi::{plain_string, string_arg};
@@ -1159,26 +1160,6 @@ extern "C" fn discard_frame(this: *mut DeviceObject, frame: ANARIFrame) {
         if let Some(state) = device.frame_of(F, frame).and_then(|f| f.frame.clone()) {
             state.discard();
         }
-    })
-}
-
-/// The kind named by anariNewObject's objectType ("geometry", "spatialField", …).
-fn kind_from_name(name: &str) -> Option<ANARIDataType> {
-    Some(match name {
-        "light" => ANARI_LIGHT,
-        "camera" => ANARI_CAMERA,
-        "geometry" => ANARI_GEOMETRY,
-        "spatialField" => ANARI_SPATIAL_FIELD,
-        "volume" => ANARI_VOLUME,
-        "surface" => ANARI_SURFACE,
-        "material" => ANARI_MATERIAL,
-        "sampler" => ANARI_SAMPLER,
-        "group" => ANARI_GROUP,
-        "instance" => ANARI_INSTANCE,
-        "world" => ANARI_WORLD,
-        "renderer" => ANARI_RENDERER,
-        "frame" => ANARI_FRAME,
-        _ => return None,
     })
 }
 

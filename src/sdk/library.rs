@@ -15,7 +15,7 @@ use crate::sdk::device::{self, DeviceObject};
 use crate::sdk::{VirtualTable, allocate, panic_text};
 
 /// Device subtypes this library creates (the same as `anariNewDevice` of libcavetrace accepts).
-const DEVICE_SUBTYPES: &[&str] = &["default", "cavetrace"];
+use crate::capi::library::DEVICE_SUBTYPES;
 
 /// Begins with the layout of `anari::LibraryImpl` (32 bytes); the front end reads `dl_handle`
 /// (byte offset 8) to dlclose the library after deleting the object (SDK ≥ 0.16).
