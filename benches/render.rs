@@ -7,11 +7,52 @@
 //! frame), rendered (a) by the "fast" renderer and (b) by the "default" renderer with one
 //! directional light and shadows; and a cloud of 100k spheres. Printed: Mrays/s (primary rays),
 //! median frame ms, BVH build ms, first-frame latency (commit to image), bytes per triangle.
+//!
+//! The device's overhead is shown on the same rays in the same run: for one head position the
+//! camera's own primary rays (as the frame generates them: pixel centres, 8×8 packets) are
+//! traced (1) by raw obvhs (`ray_traverse` over an obvhs CWBVH of the same triangles, ray by
+//! ray), (2) by cavetrace's packet traversal alone, and (3) rendered as a whole frame by the
+//! fast renderer at that head position (rays, traversal, shading, encoding to sRGB bytes).
 
 #[path = "../tests/common/mod.rs"]
 mod common;
 use common::*;
-use std::time::Instant;
+use glam::Vec3A;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+
+use cavetrace::accel::{InstanceDesc, Ray, SceneBvh};
+use cavetrace::camera::CameraModel;
+use cavetrace::scene::geometry::Geometry;
+
+/// CPU seconds used by this process so far (all threads). The development machine is shared,
+/// so rates per CPU second are printed beside wall-clock rates: they stay meaningful under load.
+fn cpu_seconds() -> f64 {
+    let mut now = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `now` is a valid, writable timespec for the duration of the call.
+    let status = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut now) };
+    if status != 0 {
+        return 0.0;
+    }
+    now.tv_sec as f64 + now.tv_nsec as f64 * 1e-9
+}
+
+/// Runs `work` `runs` times; medians of (wall ms, CPU ms) and the last result.
+fn timed<T>(runs: u32, mut work: impl FnMut() -> T) -> (f64, f64, T) {
+    let mut wall = Vec::new();
+    let mut cpu = Vec::new();
+    let mut last = None;
+    for _ in 0..runs {
+        let (start, cpu_start) = (Instant::now(), cpu_seconds());
+        last = Some(work());
+        wall.push(start.elapsed().as_secs_f64() * 1e3);
+        cpu.push((cpu_seconds() - cpu_start) * 1e3);
+    }
+    (median(wall), median(cpu), last.expect("at least one run"))
+}
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(|a, b| a.partial_cmp(b).unwrap());
@@ -26,7 +67,10 @@ struct Setup {
     world: ANARIWorld,
 }
 
-fn height_field(dev: ANARIDevice, cells: u32) -> (ANARIGeometry, usize) {
+/// The height field's triangles as vertex triples (for the raw obvhs comparison).
+type Triangles = Vec<[[f32; 3]; 3]>;
+
+fn height_field(dev: ANARIDevice, cells: u32) -> (ANARIGeometry, Triangles) {
     let n = cells + 1;
     let mut positions = Vec::with_capacity((n * n) as usize);
     for j in 0..n {
@@ -52,7 +96,11 @@ fn height_field(dev: ANARIDevice, cells: u32) -> (ANARIGeometry, usize) {
     set_object(dev, g, "primitive.index", ANARI_ARRAY1D, ix);
     anariRelease(dev, p);
     anariRelease(dev, ix);
-    (g, indices.len())
+    let triangles = indices
+        .iter()
+        .map(|corners| corners.map(|i| positions[i as usize]))
+        .collect();
+    (g, triangles)
 }
 
 fn sphere_cloud(dev: ANARIDevice, count: usize) -> ANARIGeometry {
@@ -140,16 +188,169 @@ fn render_once(s: &Setup) -> f64 {
 }
 
 fn run(label: &str, s: &Setup, size: u32, frames: u32) {
-    let ms: Vec<f64> = (0..frames)
-        .map(|i| {
-            track_head(s, i + 1);
-            render_once(s)
+    let mut step = 0;
+    let (wall, cpu, _) = timed(frames, || {
+        step += 1;
+        track_head(s, step);
+        render_once(s)
+    });
+    let rays = size as f64 * size as f64;
+    println!(
+        "{label}: median frame {wall:.1} ms, {:.2} Mrays/s ({cpu:.0} ms CPU, {:.2} Mrays/CPU-s; \
+         primary rays, {size}x{size}, {frames} frames)",
+        rays / (wall * 1e3),
+        rays / (cpu * 1e3)
+    );
+}
+
+/// The camera's primary rays for a `size`×`size` frame through pixel centres, in the order the
+/// frame traces them (8×8 blocks of sixteen 2×2 quads).
+fn camera_rays(s: &Setup, size: u32) -> Vec<Ray> {
+    let camera = cavetrace::device::registry::device(s.dev as usize)
+        .and_then(|d| d.lookup(s.camera as usize))
+        .and_then(|o| o.derived_as::<CameraModel>())
+        .expect("committed camera");
+    let viewport = camera.0.viewports(size, size)[0];
+    let eye = camera.0.prepare(viewport.eye, size, size);
+    let mut rays = Vec::with_capacity((size * size) as usize);
+    for by in (0..size).step_by(8) {
+        for bx in (0..size).step_by(8) {
+            for i in 0..64 {
+                let (quad, lane) = (i / 4, i % 4);
+                let x = bx + (quad % 4) * 2 + lane % 2;
+                let y = by + (quad / 4) * 2 + lane / 2;
+                let u = (x as f32 + 0.5) / size as f32;
+                let v = (y as f32 + 0.5) / size as f32;
+                let r = eye.ray(u, v, glam::Vec2::ZERO);
+                rays.push(Ray::new(r.origin, r.direction, r.t_min, r.t_max));
+            }
+        }
+    }
+    rays
+}
+
+/// Traces `rays` in 64-ray chunks on `threads` threads; returns (wall ms, hits).
+fn trace_rays(
+    rays: &[Ray],
+    threads: usize,
+    trace_chunk: impl Fn(&[Ray]) -> usize + Sync,
+) -> (f64, usize) {
+    let next = AtomicUsize::new(0);
+    let chunks = rays.len().div_ceil(64);
+    let start = Instant::now();
+    let hits: usize = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut hits = 0;
+                    loop {
+                        // 16 chunks (1024 rays, one 32×32 tile) at a time, like the frame.
+                        let first = next.fetch_add(16, Ordering::Relaxed);
+                        if first >= chunks {
+                            break hits;
+                        }
+                        for chunk in first..(first + 16).min(chunks) {
+                            let end = ((chunk + 1) * 64).min(rays.len());
+                            hits += trace_chunk(&rays[chunk * 64..end]);
+                        }
+                    }
+                })
+            })
+            .collect();
+        workers.into_iter().map(|w| w.join().unwrap()).sum()
+    });
+    (start.elapsed().as_secs_f64() * 1e3, hits)
+}
+
+/// Raw obvhs, cavetrace's traversal alone and the whole device frame on the same rays.
+fn same_rays(s: &Setup, geometry: ANARIGeometry, triangles: &Triangles, size: u32, frames: u32) {
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    track_head(s, 1);
+    let rays = camera_rays(s, size);
+    let mrays = |ms: f64| rays.len() as f64 / (ms * 1e3);
+
+    let obvhs_triangles: Vec<obvhs::triangle::Triangle> = triangles
+        .iter()
+        .map(|t| obvhs::triangle::Triangle {
+            v0: Vec3A::from_array(t[0]),
+            v1: Vec3A::from_array(t[1]),
+            v2: Vec3A::from_array(t[2]),
         })
         .collect();
-    let median_ms = median(ms);
-    let mrays = (size as f64 * size as f64) / (median_ms * 1e3);
+    let start = Instant::now();
+    let raw_bvh = obvhs::cwbvh::builder::build_cwbvh_from_tris(
+        &obvhs_triangles,
+        obvhs::BvhBuildParams::fast_build(),
+        &mut Duration::default(),
+    );
+    let raw_build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let ordered: Vec<obvhs::triangle::Triangle> = raw_bvh
+        .primitive_indices
+        .iter()
+        .map(|&i| obvhs_triangles[i as usize])
+        .collect();
+    let raw = timed(frames, || {
+        trace_rays(&rays, threads, |chunk| {
+            chunk
+                .iter()
+                .filter(|r| {
+                    let ray = obvhs::ray::Ray::new(
+                        Vec3A::from(r.origin),
+                        Vec3A::from(r.direction),
+                        r.t_min,
+                        r.t_max,
+                    );
+                    let mut hit = obvhs::ray::RayHit::none();
+                    raw_bvh.ray_traverse(ray, &mut hit, |ray, id| ordered[id].intersect(ray))
+                })
+                .count()
+        })
+    });
+
+    let bvh = cavetrace::device::registry::device(s.dev as usize)
+        .and_then(|d| d.lookup(geometry as usize))
+        .and_then(|o| o.derived_as::<Geometry>())
+        .map(|g| g.bvh.clone())
+        .expect("committed geometry");
+    let scene = SceneBvh::build(vec![InstanceDesc {
+        transform: glam::Affine3A::IDENTITY,
+        geometries: vec![bvh],
+    }]);
+    let packets = timed(frames, || {
+        trace_rays(&rays, threads, |chunk| {
+            let mut hits = [None; 64];
+            scene.intersect_packet(chunk, &mut hits);
+            hits.iter().filter(|h| h.is_some()).count()
+        })
+    });
+    let frame = timed(frames, || render_once(s));
     println!(
-        "{label}: median frame {median_ms:.1} ms, {mrays:.2} Mrays/s (primary, {size}x{size}, {frames} frames)"
+        "same rays ({} primary rays of one head position, {threads} threads, medians of {frames}):",
+        rays.len()
+    );
+    let row = |label: &str, (wall, cpu): (f64, f64)| {
+        println!(
+            "  {label}: {wall:.1} ms, {:.2} Mrays/s ({cpu:.0} ms CPU, {:.2} Mrays/CPU-s)",
+            mrays(wall),
+            mrays(cpu)
+        );
+    };
+    row(
+        &format!(
+            "raw obvhs ray_traverse, ray by ray ({} hits; CWBVH fast_build {raw_build_ms:.0} ms)",
+            raw.2.1
+        ),
+        (raw.0, raw.1),
+    );
+    row(
+        &format!("cavetrace packet traversal alone ({} hits)", packets.2.1),
+        (packets.0, packets.1),
+    );
+    row("device frame, fast renderer", (frame.0, frame.1));
+    println!(
+        "  device overhead in CPU time: {:+.0}% over raw obvhs traversal, {:+.0}% over its own traversal",
+        (frame.1 / raw.1 - 1.0) * 100.0,
+        (frame.1 / packets.1 - 1.0) * 100.0
     );
 }
 
@@ -172,7 +373,8 @@ fn main() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
 
-    let (geometry, triangles) = height_field(dev, cells);
+    let (geometry, triangle_list) = height_field(dev, cells);
+    let triangles = triangle_list.len();
     let start = Instant::now();
     commit(dev, geometry);
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -194,6 +396,8 @@ fn main() {
         build_ms + first
     );
     run("(a) fast renderer, moving head", &fast, size, frames);
+    same_rays(&fast, geometry, &triangle_list, size, frames);
+    drop(triangle_list);
     release(fast);
     let shaded = setup(dev, geometry, "default", size);
     track_head(&shaded, 0);

@@ -683,3 +683,55 @@ fn ambient_radiance_times_albedo_is_the_colour_of_a_matte_surface() {
     anariRelease(dev, dev);
     anariUnloadLibrary(lib);
 }
+
+#[test]
+fn rendering_again_rewrites_every_pixel_and_leaves_mapped_pixels_alone() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let g = spheres(dev, &[[0.0, 0.0, -4.0]], 1.0);
+    let s = matte_surface(dev, g, [1.0, 1.0, 1.0]);
+    let world = world_of(dev, &[s]);
+    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], 0.8);
+    let r = renderer(dev, "fast", 0.0);
+    let frame = frame_for(dev, world, camera, r, [32, 32]);
+    let (sphere_ids, _, _) = render_channel::<u32>(dev, frame, "channel.primitiveId");
+    let (sphere_depth, _, _) = read_channel::<f32>(dev, frame, "channel.depth");
+    assert!(sphere_ids.iter().filter(|id| **id == 0).count() > 100);
+
+    // Keep the sphere's depth mapped while the camera turns away and the frame renders again.
+    let name = c("channel.depth");
+    let (mut w, mut h, mut t) = (0u32, 0u32, 0);
+    let mapped = anariMapFrame(dev, frame, name.as_ptr(), &mut w, &mut h, &mut t) as *const f32;
+    assert!(!mapped.is_null());
+    let look = |direction: [f32; 3]| {
+        set(dev, camera, "direction", ANARI_FLOAT32_VEC3, &direction);
+        commit(dev, camera);
+    };
+    look([0.0, 0.0, 1.0]);
+    anariRenderFrame(dev, frame);
+    anariFrameReady(dev, frame, ANARI_WAIT);
+    // SAFETY: the channel stays mapped (32×32 floats) until the unmap below.
+    let still_mapped = unsafe { std::slice::from_raw_parts(mapped, (w * h) as usize) };
+    assert_eq!(still_mapped, &sphere_depth[..]);
+    anariUnmapFrame(dev, frame, name.as_ptr());
+
+    // Render after render with nothing mapped: every channel of every pixel is rewritten.
+    for _ in 0..2 {
+        look([0.0, 0.0, -1.0]);
+        let (ids, _, _) = render_channel::<u32>(dev, frame, "channel.primitiveId");
+        let (depth, _, _) = read_channel::<f32>(dev, frame, "channel.depth");
+        assert_eq!(ids, sphere_ids);
+        assert_eq!(depth, sphere_depth);
+        look([0.0, 0.0, 1.0]);
+        let (ids, _, _) = render_channel::<u32>(dev, frame, "channel.primitiveId");
+        let (depth, _, _) = read_channel::<f32>(dev, frame, "channel.depth");
+        let (color, _, _) = read_channel::<[f32; 4]>(dev, frame, "channel.color");
+        assert!(ids.iter().all(|id| *id == u32::MAX));
+        assert!(depth.iter().all(|d| *d == f32::INFINITY));
+        assert!(color.iter().all(|c| *c == [0.0, 0.0, 0.0, 1.0]));
+    }
+    release_all(dev, &[g, s, world, camera, r, frame]);
+    anariRelease(dev, dev);
+    anariUnloadLibrary(lib);
+    assert!(log.errors().is_empty());
+}

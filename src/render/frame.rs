@@ -14,7 +14,7 @@ use crate::camera::{Camera, CameraRay, EyeRays};
 use crate::device::datatype::*;
 use crate::device::property::PropertyValue;
 use crate::render::color::{encode_srgb8, to_unorm8};
-use crate::render::renderer::{RendererSettings, Sample, shade_primary};
+use crate::render::renderer::{PrimaryHit, RendererSettings, shade_primary};
 use crate::scene::world::SceneSnapshot;
 
 /// Side of the square tiles the threads share out.
@@ -65,53 +65,143 @@ pub struct RenderSetup {
     pub completion: Option<(ANARIFrameCompletionCallback, usize, usize, usize)>,
 }
 
-/// Linear per-pixel results, shared by the tiles of one render.
-struct Buffers {
-    color: Vec<Vec4>,
-    depth: Vec<f32>,
-    window_depth: Vec<f32>,
-    primitive_id: Vec<u32>,
-    object_id: Vec<u32>,
-    instance_id: Vec<u32>,
-    albedo: Vec<Vec3>,
-    normal: Vec<Vec3>,
+/// What a channel holds.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum ChannelKind {
+    Color,
+    Depth,
+    WindowDepth,
+    PrimitiveId,
+    ObjectId,
+    InstanceId,
+    Albedo,
+    Normal,
 }
 
-impl Buffers {
-    /// Colour always; the other channels only when the frame asks for them (each is a full
-    /// frame of memory, so a 1600×1600 frame saves ~100 MB per render without them).
-    fn try_new(pixels: usize, channels: &HashMap<&'static str, ANARIDataType>) -> Option<Buffers> {
-        fn filled<T: Clone>(n: usize, v: T) -> Option<Vec<T>> {
-            let mut out = Vec::new();
-            out.try_reserve_exact(n).ok()?;
-            out.resize(n, v);
-            Some(out)
-        }
-        let size = |name: &str| {
-            if channels.contains_key(name) {
-                pixels
-            } else {
-                0
-            }
-        };
-        Some(Buffers {
-            color: filled(pixels, Vec4::ZERO)?,
-            depth: filled(size("channel.depth"), f32::INFINITY)?,
-            window_depth: filled(size("channel.windowDepth"), 1.0)?,
-            primitive_id: filled(size("channel.primitiveId"), u32::MAX)?,
-            object_id: filled(size("channel.objectId"), u32::MAX)?,
-            instance_id: filled(size("channel.instanceId"), u32::MAX)?,
-            albedo: filled(size("channel.albedo"), Vec3::ZERO)?,
-            normal: filled(size("channel.normal"), Vec3::ZERO)?,
+impl ChannelKind {
+    fn of(name: &str) -> Option<ChannelKind> {
+        Some(match name {
+            "channel.color" => ChannelKind::Color,
+            "channel.depth" => ChannelKind::Depth,
+            "channel.windowDepth" => ChannelKind::WindowDepth,
+            "channel.primitiveId" => ChannelKind::PrimitiveId,
+            "channel.objectId" => ChannelKind::ObjectId,
+            "channel.instanceId" => ChannelKind::InstanceId,
+            "channel.albedo" => ChannelKind::Albedo,
+            "channel.normal" => ChannelKind::Normal,
+            _ => return None,
         })
     }
 }
 
-/// Stores `value` at `index` of a channel buffer that exists (was requested).
-fn store<T>(buffer: &mut [T], index: usize, value: impl FnOnce() -> T) {
-    if let Some(slot) = buffer.get_mut(index) {
-        *slot = value();
+/// One requested channel of a render, encoded as the type the application asked for. Tiles
+/// write their pixels straight into it, so a finished render needs no encoding pass.
+struct Channel {
+    name: &'static str,
+    kind: ChannelKind,
+    data_type: ANARIDataType,
+    pixel_bytes: usize,
+    bytes: Vec<u8>,
+}
+
+impl Channel {
+    /// Writes pixel `index`; `hit` is the first sample's hit with its camera ray, `None` for
+    /// a pixel where nothing was hit.
+    #[inline]
+    fn write(
+        &mut self,
+        index: usize,
+        color: Vec4,
+        hit: Option<(&PrimaryHit, &CameraRay, &EyeRays)>,
+    ) {
+        let offset = index * self.pixel_bytes;
+        let Some(out) = self.bytes.get_mut(offset..offset + self.pixel_bytes) else {
+            return;
+        };
+        fn put_f32s(out: &mut [u8], values: &[f32]) {
+            for (chunk, value) in out.chunks_exact_mut(4).zip(values) {
+                chunk.copy_from_slice(&value.to_ne_bytes());
+            }
+        }
+        match (self.kind, self.data_type) {
+            (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB) => out.copy_from_slice(&[
+                encode_srgb8(color.x),
+                encode_srgb8(color.y),
+                encode_srgb8(color.z),
+                to_unorm8(color.w),
+            ]),
+            (ChannelKind::Color, ANARI_UFIXED8_VEC4) => {
+                out.copy_from_slice(&color.to_array().map(to_unorm8))
+            }
+            (ChannelKind::Color, _) => put_f32s(out, &color.to_array()),
+            (ChannelKind::Depth, _) => put_f32s(
+                out,
+                &[hit.map_or(f32::INFINITY, |(hit, ray, eye)| eye.depth(ray, hit.t))],
+            ),
+            (ChannelKind::WindowDepth, _) => put_f32s(
+                out,
+                &[hit.map_or(1.0, |(hit, _, eye)| eye.window_depth(hit.point))],
+            ),
+            (ChannelKind::PrimitiveId, _) => {
+                out.copy_from_slice(&hit.map_or(u32::MAX, |h| h.0.primitive_id).to_ne_bytes())
+            }
+            (ChannelKind::ObjectId, _) => {
+                out.copy_from_slice(&hit.map_or(u32::MAX, |h| h.0.object_id).to_ne_bytes())
+            }
+            (ChannelKind::InstanceId, _) => {
+                out.copy_from_slice(&hit.map_or(u32::MAX, |h| h.0.instance_id).to_ne_bytes())
+            }
+            (ChannelKind::Albedo, data_type) => {
+                let albedo = hit.map_or(Vec3::ZERO, |h| h.0.albedo);
+                match data_type {
+                    ANARI_UFIXED8_RGB_SRGB => {
+                        out.copy_from_slice(&albedo.to_array().map(encode_srgb8))
+                    }
+                    ANARI_UFIXED8_VEC3 => out.copy_from_slice(&albedo.to_array().map(to_unorm8)),
+                    _ => put_f32s(out, &albedo.to_array()),
+                }
+            }
+            (ChannelKind::Normal, _) => {
+                put_f32s(out, &hit.map_or(Vec3::ZERO, |h| h.0.normal).to_array())
+            }
+        }
     }
+}
+
+/// The channels of a render: the previous render's buffers when nobody has them mapped and
+/// they fit (a head-tracked application renders the same frame again and again), otherwise
+/// new ones. `None` when memory runs out.
+fn allocate_channels(setup: &RenderSetup, previous: Option<Output>) -> Option<Vec<Channel>> {
+    let pixels = setup.width as usize * setup.height as usize;
+    let mut reusable = match previous {
+        Some(output) if output.width == setup.width && output.height == setup.height => {
+            output.channels
+        }
+        _ => HashMap::new(),
+    };
+    let mut channels = Vec::new();
+    for (&name, &data_type) in &setup.channels {
+        let kind = ChannelKind::of(name)?;
+        let pixel_bytes = element_size(data_type)?;
+        let bytes = match reusable.remove(name) {
+            Some((previous_type, bytes)) if previous_type == data_type => bytes,
+            _ => {
+                let length = pixels.checked_mul(pixel_bytes)?;
+                let mut bytes = Vec::new();
+                bytes.try_reserve_exact(length).ok()?;
+                bytes.resize(length, 0);
+                bytes
+            }
+        };
+        channels.push(Channel {
+            name,
+            kind,
+            data_type,
+            pixel_bytes,
+            bytes,
+        });
+    }
+    Some(channels)
 }
 
 /// Encoded channels of a finished render; mapped pointers point into these.
@@ -128,11 +218,18 @@ struct Job {
     tiles_x: u32,
     tile_count: usize,
     workers_left: AtomicUsize,
-    buffers: Mutex<Buffers>,
-    /// Accumulation pass number (0 = first) and the running colour sum.
+    channels: Mutex<Vec<Channel>>,
+    /// Whether a channel other than colour needs each pixel's first hit.
+    keeps_hits: bool,
+    /// Accumulation pass number (0 = first).
     pass: u32,
-    accumulated: Option<Vec<Vec4>>,
+    /// Running colour sum over the accumulated passes (accumulation only).
+    color_sum: Option<Mutex<Vec<Vec4>>>,
     started: Instant,
+}
+
+fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
+    mutex.lock().unwrap_or_else(|e| e.into_inner())
 }
 
 #[derive(Default)]
@@ -206,13 +303,9 @@ impl FrameState {
         // One render per frame at a time: a second request waits for the first.
         self.wait();
         let pixels = setup.width as usize * setup.height as usize;
-        let Some(buffers) = Buffers::try_new(pixels, &setup.channels) else {
-            return false;
-        };
-        let (pass, accumulated) = {
+        let (pass, color_sum, previous_output) = {
             let mut inner = self.lock();
-            let previous = inner.accumulation.take();
-            match previous {
+            let (pass, sum) = match inner.accumulation.take() {
                 Some((sum, passes, version, w, h))
                     if setup.accumulate
                         && version == setup.scene_version
@@ -230,7 +323,20 @@ impl FrameState {
                     (0, Some(sum))
                 }
                 _ => (0, None),
-            }
+            };
+            // The last image's buffers are reused unless the application has them mapped.
+            let previous = match inner.output.take().map(Arc::try_unwrap) {
+                Some(Ok(output)) => Some(output),
+                Some(Err(shared)) => {
+                    inner.output = Some(shared);
+                    None
+                }
+                None => None,
+            };
+            (pass, sum, previous)
+        };
+        let Some(channels) = allocate_channels(&setup, previous_output) else {
+            return false;
         };
         let tiles_x = setup.width.div_ceil(TILE_SIZE);
         let tiles_y = setup.height.div_ceil(TILE_SIZE);
@@ -242,9 +348,10 @@ impl FrameState {
             tiles_x,
             tile_count: (tiles_x * tiles_y) as usize,
             workers_left: AtomicUsize::new(workers),
-            buffers: Mutex::new(buffers),
+            keeps_hits: channels.iter().any(|c| c.kind != ChannelKind::Color),
+            channels: Mutex::new(channels),
             pass,
-            accumulated,
+            color_sum: color_sum.map(Mutex::new),
             started: Instant::now(),
         });
         self.lock().running = Some(Arc::clone(&job));
@@ -273,19 +380,24 @@ impl FrameState {
 
     fn finish(&self, job: &Job) {
         let setup = &job.setup;
-        let mut buffers = job.buffers.lock().unwrap_or_else(|e| e.into_inner());
-        let mut accumulation = None;
-        if let Some(sum) = &job.accumulated {
-            let mut sum = sum.clone();
-            let passes = job.pass + 1;
-            for (s, c) in sum.iter_mut().zip(buffers.color.iter_mut()) {
-                *s += *c;
-                *c = *s / passes as f32;
-            }
-            accumulation = Some((sum, passes, setup.scene_version, setup.width, setup.height));
-        }
-        let output = Arc::new(encode(setup, &buffers));
-        drop(buffers);
+        let channels = std::mem::take(&mut *lock(&job.channels));
+        let output = Arc::new(Output {
+            width: setup.width,
+            height: setup.height,
+            channels: channels
+                .into_iter()
+                .map(|channel| (channel.name, (channel.data_type, channel.bytes)))
+                .collect(),
+        });
+        let accumulation = job.color_sum.as_ref().map(|sum| {
+            (
+                std::mem::take(&mut *lock(sum)),
+                job.pass + 1,
+                setup.scene_version,
+                setup.width,
+                setup.height,
+            )
+        });
         {
             let mut inner = self.lock();
             inner.output = Some(output);
@@ -423,10 +535,12 @@ const NO_RAY: Ray = Ray {
     t_max: 0.0,
 };
 
-/// What a pixel of a tile produced: averaged colour and the first sample's channel values.
+/// What a pixel of a tile produced: the colour summed over its samples, whether any eye
+/// covers it, and the first sample's hit when channels other than colour need it.
 struct PixelResult<'a> {
     color: Vec4,
-    first: Option<(Sample, CameraRay, &'a EyeRays)>,
+    covered: bool,
+    first_hit: Option<(PrimaryHit, CameraRay, &'a EyeRays)>,
 }
 
 fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: usize) {
@@ -440,7 +554,8 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
     let mut results: Vec<PixelResult> = (0..tile_width * (y_end - ty))
         .map(|_| PixelResult {
             color: Vec4::ZERO,
-            first: None,
+            covered: false,
+            first_hit: None,
         })
         .collect();
     let mut rays = [NO_RAY; 64];
@@ -484,94 +599,38 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
                         shade_primary(&setup.scene, &setup.settings, &rays[lane], hits[lane]);
                     let pixel = &mut results[((by + dy - ty) * tile_width + bx + dx - tx) as usize];
                     pixel.color += sample.color;
-                    if s == 0 {
-                        pixel.first = Some((sample, camera_ray, eye_rays));
+                    pixel.covered = true;
+                    if s == 0 && job.keeps_hits {
+                        pixel.first_hit = sample.hit.map(|hit| (hit, camera_ray, eye_rays));
                     }
                 }
             }
         }
     }
-    let mut buffers = job.buffers.lock().unwrap_or_else(|e| e.into_inner());
+    let passes = (job.pass + 1) as f32;
+    let mut channels = lock(&job.channels);
+    let mut color_sum = job.color_sum.as_ref().map(lock);
     for (k, pixel) in results.iter().enumerate() {
         let (x, y) = (tx + k as u32 % tile_width, ty + k as u32 / tile_width);
         let index = (y * setup.width + x) as usize;
-        match &pixel.first {
-            Some((sample, camera_ray, eye_rays)) => {
-                buffers.color[index] = pixel.color / samples as f32;
-                if let Some(hit) = sample.hit {
-                    let b = &mut *buffers;
-                    store(&mut b.depth, index, || eye_rays.depth(camera_ray, hit.t));
-                    store(&mut b.window_depth, index, || {
-                        eye_rays.window_depth(hit.point)
-                    });
-                    store(&mut b.primitive_id, index, || hit.primitive_id);
-                    store(&mut b.object_id, index, || hit.object_id);
-                    store(&mut b.instance_id, index, || hit.instance_id);
-                    store(&mut b.albedo, index, || hit.albedo);
-                    store(&mut b.normal, index, || hit.normal);
-                }
-            }
-            None => buffers.color[index] = setup.settings.background,
-        }
-    }
-}
-
-fn bytes_of_f32s(values: impl Iterator<Item = f32>) -> Vec<u8> {
-    values.flat_map(f32::to_ne_bytes).collect()
-}
-
-fn bytes_of_u32s(values: &[u32]) -> Vec<u8> {
-    values.iter().flat_map(|v| v.to_ne_bytes()).collect()
-}
-
-/// Encodes each requested channel into the type it was requested as.
-fn encode(setup: &RenderSetup, b: &Buffers) -> Output {
-    let mut channels = HashMap::new();
-    for (&name, &data_type) in &setup.channels {
-        let bytes = match (name, data_type) {
-            ("channel.color", ANARI_UFIXED8_RGBA_SRGB) => b
-                .color
-                .iter()
-                .flat_map(|c| {
-                    [
-                        encode_srgb8(c.x),
-                        encode_srgb8(c.y),
-                        encode_srgb8(c.z),
-                        to_unorm8(c.w),
-                    ]
-                })
-                .collect(),
-            ("channel.color", ANARI_UFIXED8_VEC4) => b
-                .color
-                .iter()
-                .flat_map(|c| c.to_array().map(to_unorm8))
-                .collect(),
-            ("channel.color", _) => bytes_of_f32s(b.color.iter().flat_map(|c| c.to_array())),
-            ("channel.depth", _) => bytes_of_f32s(b.depth.iter().copied()),
-            ("channel.windowDepth", _) => bytes_of_f32s(b.window_depth.iter().copied()),
-            ("channel.primitiveId", _) => bytes_of_u32s(&b.primitive_id),
-            ("channel.objectId", _) => bytes_of_u32s(&b.object_id),
-            ("channel.instanceId", _) => bytes_of_u32s(&b.instance_id),
-            ("channel.albedo", ANARI_UFIXED8_RGB_SRGB) => b
-                .albedo
-                .iter()
-                .flat_map(|c| c.to_array().map(encode_srgb8))
-                .collect(),
-            ("channel.albedo", ANARI_UFIXED8_VEC3) => b
-                .albedo
-                .iter()
-                .flat_map(|c| c.to_array().map(to_unorm8))
-                .collect(),
-            ("channel.albedo", _) => bytes_of_f32s(b.albedo.iter().flat_map(|c| c.to_array())),
-            ("channel.normal", _) => bytes_of_f32s(b.normal.iter().flat_map(|c| c.to_array())),
-            _ => continue,
+        let mut color = if pixel.covered {
+            pixel.color / samples as f32
+        } else {
+            setup.settings.background
         };
-        channels.insert(name, (data_type, bytes));
-    }
-    Output {
-        width: setup.width,
-        height: setup.height,
-        channels,
+        let hit = pixel
+            .first_hit
+            .as_ref()
+            .map(|(hit, camera_ray, eye_rays)| (hit, camera_ray, *eye_rays));
+        if let Some(sum) = color_sum.as_deref_mut()
+            && let Some(total) = sum.get_mut(index)
+        {
+            *total += color;
+            color = *total / passes;
+        }
+        for channel in channels.iter_mut() {
+            channel.write(index, color, hit);
+        }
     }
 }
 
