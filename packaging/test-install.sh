@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Installs cavetrace into a temporary prefix with scripts/install.sh, then builds
-# examples-c/tutorial.c against that prefix twice — with pkg-config and with CMake's
-# find_package(cavetrace) — and runs both programs. Prints one line per check and
-# "N passed, M failed"; exits non-zero when a check fails.
+# Installs cavetrace into a temporary prefix with scripts/install.sh, checks the installed
+# ANARI SDK device library (soname, dependencies, and packaging/sdk-library-load.c loading it as
+# the SDK front end does), then builds examples-c/tutorial.c against that prefix twice — with
+# pkg-config and with CMake's find_package(cavetrace) — and runs both programs. Prints one line
+# per check and "N passed, M failed, K skipped"; exits non-zero when a check fails.
 set -uo pipefail
 
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -48,6 +49,32 @@ check "installed files" test -f "$lib/libcavetrace.so.$version" -a -L "$lib/libc
   -a -f "$lib/pkgconfig/cavetrace.pc" -a -f "$lib/cmake/cavetrace/cavetraceConfig.cmake"
 check "soname is libcavetrace.so.0" \
   bash -c "objdump -p '$lib/libcavetrace.so.$version' | grep -Eq 'SONAME +libcavetrace\.so\.0$'"
+
+# The SDK device library: its own soname (not libcavetrace.so.0), self-contained (the Rust core is
+# linked in; it needs neither libcavetrace nor the SDK's libanari), loadable as the SDK loads it.
+sdk_library=$lib/libanari_library_cavetrace.so
+check "libanari_library_cavetrace.so is installed" test -f "$sdk_library" -a ! -L "$sdk_library"
+check "its soname is libanari_library_cavetrace.so" \
+  bash -c "objdump -p '$sdk_library' | grep -Eq 'SONAME +libanari_library_cavetrace\.so$'"
+check "it needs neither libcavetrace nor libanari, and its dependencies resolve" bash -c "
+  objdump -p '$sdk_library' | awk '\$1 == \"NEEDED\" {print \$2}' >'$work/needed' &&
+  grep -q '^libc\.so' '$work/needed' && ! grep -Eq '^lib(cavetrace|anari)' '$work/needed' &&
+  ldd '$sdk_library' >'$work/ldd' && ! grep -q 'not found' '$work/ldd'"
+check "sdk-library-load.c builds" ${CC:-cc} -std=c99 -Wall -Wextra -Werror \
+  "$root/packaging/sdk-library-load.c" -o "$work/sdk-library-load" -ldl
+check "the installed SDK library loads; its library object answers through the vtable" \
+  "$work/sdk-library-load" "$sdk_library"
+# With a build of the Khronos ANARI SDK (ANARI_SDK_BUILD=<dir holding anariInfo and libanari.so>),
+# the SDK's own front end loads the installed library too. The SDK is not a CI tool.
+if [ -n "${ANARI_SDK_BUILD:-}" ]; then
+  check "anariInfo -l cavetrace (Khronos front end) lists the installed device" bash -c "
+    ANARI_LIBRARY=cavetrace LD_LIBRARY_PATH='$lib:$ANARI_SDK_BUILD' \
+      '$ANARI_SDK_BUILD/anariInfo' -l cavetrace >'$work/anariInfo' 2>&1 &&
+    grep -q 'default' '$work/anariInfo' && grep -q 'ANARI_KHR_GEOMETRY_TRIANGLE' '$work/anariInfo'"
+else
+  skipped=$((skipped + 1))
+  echo "skip anariInfo -l cavetrace: set ANARI_SDK_BUILD to a Khronos ANARI SDK build"
+fi
 
 # pkg-config: flags from the .pc file, an rpath to the installed libdir.
 if command -v pkg-config >/dev/null; then
