@@ -379,7 +379,10 @@ fn introspection_comes_from_the_tables() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     let geometries = strings(anariGetObjectSubtypes(dev, ANARI_GEOMETRY));
-    assert_eq!(geometries, ["triangle", "quad", "sphere", "cylinder"]);
+    assert_eq!(
+        geometries,
+        ["triangle", "quad", "sphere", "cylinder", "cone", "curve"]
+    );
     let renderers = strings(anariGetObjectSubtypes(dev, ANARI_RENDERER));
     assert_eq!(renderers[0], "default");
     let description = anariGetObjectInfo(

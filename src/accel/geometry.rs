@@ -8,6 +8,7 @@ use crate::accel::primitives::{
     CylinderPart, PackedCylinder, PackedSphere, PackedTriangle, cylinder_hit, cylinder_surface,
     sphere_surface, sphere_t, triangle_t, triangle_t_uv,
 };
+use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
 use crate::accel::wide_bvh::{TraversalRay, build_wide_bvh, prefetch, traverse};
 use crate::accel::{EMPTY_BOUNDS, GeometryPrims, PrimHit, Ray};
 use glam::{Vec2, Vec3, Vec3A};
@@ -41,6 +42,7 @@ enum PrimitiveData {
         cylinders: Vec<PackedCylinder>,
         caps: bool,
     },
+    Tubes(Vec<PackedTube>),
 }
 
 /// A BVH over the primitives of one geometry, in object space.
@@ -238,6 +240,31 @@ impl GeometryBvh {
         }
     }
 
+    /// Builds the BVH over cones, cylinders and round curve segments; unusable segments are
+    /// skipped (see [`PackedTube`]). Increments [`geometry_build_count`].
+    pub fn build_tubes(segments: &[TubeSegment]) -> GeometryBvh {
+        GEOMETRY_BUILDS.fetch_add(1, Ordering::Relaxed);
+        #[cfg(test)]
+        BUILDS_ON_THIS_THREAD.with(|count| count.set(count.get() + 1));
+
+        let mut collected = Collected::with_capacity(segments.len());
+        for (id, segment) in segments.iter().enumerate().take(u32::MAX as usize) {
+            if let Some(tube) = PackedTube::new(segment) {
+                collected.push(tube, id as u32);
+            }
+        }
+        let accepted = collected.primitives.len();
+        let (nodes, tubes, source_ids, bounds) = order_for_bvh(collected, PackedTube::bounds);
+        GeometryBvh {
+            nodes,
+            primitives: PrimitiveData::Tubes(tubes),
+            source_ids,
+            bounds,
+            primitive_count: accepted,
+            skipped_primitive_count: segments.len() - accepted,
+        }
+    }
+
     /// Closest hit with `t` in `[t_min, t_max]`.
     pub fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         let mut ray = prepare(ray)?;
@@ -311,6 +338,7 @@ impl GeometryBvh {
             PrimitiveData::Cylinders { cylinders, .. } => {
                 cylinders.capacity() * size_of::<PackedCylinder>()
             }
+            PrimitiveData::Tubes(tubes) => tubes.capacity() * size_of::<PackedTube>(),
         };
         self.nodes.capacity() * size_of::<CwBvhNode>()
             + self.source_ids.capacity() * size_of::<u32>()
@@ -351,6 +379,16 @@ impl GeometryBvh {
             PrimitiveData::Cylinders { cylinders, caps } => {
                 traverse::<false, _>(&self.nodes, ray, |slot, ray| {
                     let hit = cylinder_hit(&cylinders[slot as usize], *caps, ray);
+                    if let Some((t, _)) = hit {
+                        ray.t_max = t;
+                        closest = Some((slot, Vec2::ZERO));
+                    }
+                    hit.is_some()
+                });
+            }
+            PrimitiveData::Tubes(tubes) => {
+                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
+                    let hit = tube_hit(&tubes[slot as usize], ray);
                     if let Some((t, _)) = hit {
                         ray.t_max = t;
                         closest = Some((slot, Vec2::ZERO));
@@ -428,6 +466,11 @@ impl GeometryBvh {
                     prefetch(cylinder);
                 }
             }
+            PrimitiveData::Tubes(tubes) => {
+                if let Some(tube) = tubes.get(slot) {
+                    prefetch(tube);
+                }
+            }
         }
     }
 
@@ -476,6 +519,12 @@ impl GeometryBvh {
                         cylinder_hit(cylinder, *caps, ray).map(|hit| hit.0)
                     });
                 }
+                PrimitiveData::Tubes(tubes) => {
+                    let tube = &tubes[slot as usize];
+                    per_lane(packet, closest, slot, &|ray| {
+                        tube_hit(tube, ray).map(|hit| hit.0)
+                    });
+                }
             }
         }
     }
@@ -499,6 +548,9 @@ impl GeometryBvh {
                     cylinder_hit(&cylinders[slot as usize], *caps, ray).is_some()
                 })
             }
+            PrimitiveData::Tubes(tubes) => traverse::<true, _>(&self.nodes, ray, |slot, ray| {
+                tube_hit(&tubes[slot as usize], ray).is_some()
+            }),
         }
     }
 
@@ -539,7 +591,9 @@ impl GeometryBvh {
                 uv: quad_coordinates(bary, source_id),
                 normal: triangles[slot as usize].normal(),
             }),
-            PrimitiveData::Spheres(_) | PrimitiveData::Cylinders { .. } => None,
+            PrimitiveData::Spheres(_)
+            | PrimitiveData::Cylinders { .. }
+            | PrimitiveData::Tubes(_) => None,
         }
     }
 
@@ -598,6 +652,17 @@ impl GeometryBvh {
                 let (t, part) =
                     cylinder_hit(cylinder, *caps, ray).unwrap_or((ray.t_max, CylinderPart::Body));
                 let (normal, uv) = cylinder_surface(cylinder, ray, t, part);
+                PrimHit {
+                    t,
+                    primitive: source_id,
+                    uv,
+                    normal,
+                }
+            }
+            PrimitiveData::Tubes(tubes) => {
+                let tube = &tubes[slot];
+                let (t, part) = tube_hit(tube, ray).unwrap_or((ray.t_max, TubePart::Side));
+                let (normal, uv) = tube_surface(tube, ray, t, part);
                 PrimHit {
                     t,
                     primitive: source_id,

@@ -44,6 +44,7 @@ mod geometry;
 mod packet;
 mod primitives;
 mod scene;
+mod tube;
 mod wide_bvh;
 
 #[cfg(test)]
@@ -51,6 +52,7 @@ mod tests;
 
 pub use geometry::{GeometryBvh, geometry_build_count};
 pub use scene::SceneBvh;
+pub use tube::{TubeKind, TubeSegment};
 
 use glam::{Vec2, Vec3};
 use std::sync::Arc;

@@ -17,12 +17,12 @@ use glam::{DVec3, Vec2, Vec3, Vec3A, Vec4, Vec4Swizzles};
 use obvhs::aabb::Aabb;
 
 #[inline]
-fn is_usable_point(point: Vec3) -> bool {
+pub(crate) fn is_usable_point(point: Vec3) -> bool {
     point.is_finite() && point.abs().max_element() <= MAX_COORDINATE
 }
 
 #[inline]
-fn is_usable_box(aabb: &Aabb) -> bool {
+pub(crate) fn is_usable_box(aabb: &Aabb) -> bool {
     aabb.min.is_finite()
         && aabb.max.is_finite()
         && aabb.min.abs().max_element() <= MAX_COORDINATE
@@ -143,7 +143,7 @@ pub(crate) fn triangle_t_uv(triangle: &PackedTriangle, ray: &TraversalRay) -> Op
 
 /// Accepts a root if, rounded to f32, it lies inside the ray interval.
 #[inline(always)]
-fn in_interval(t: f64, ray: &TraversalRay) -> Option<f32> {
+pub(crate) fn in_interval(t: f64, ray: &TraversalRay) -> Option<f32> {
     let t = t as f32;
     (t >= ray.t_min && t <= ray.t_max).then_some(t)
 }
@@ -151,7 +151,7 @@ fn in_interval(t: f64, ray: &TraversalRay) -> Option<f32> {
 /// Roots of `a t^2 - 2 b t + c = 0` given `disc = b^2 - a c >= 0`, in ascending order, without
 /// cancellation between `b` and the square root.
 #[inline(always)]
-fn quadratic_roots(a: f64, b: f64, c: f64, disc: f64) -> [f64; 2] {
+pub(crate) fn quadratic_roots(a: f64, b: f64, c: f64, disc: f64) -> [f64; 2] {
     let q = b + disc.sqrt().copysign(b);
     if q == 0.0 {
         // b == 0 and disc == 0: a double root at b / a.
@@ -234,7 +234,7 @@ pub(crate) fn sphere_surface(sphere: &PackedSphere, ray: &TraversalRay, t: f32) 
 }
 
 /// Normalizes in f64, then once more in f32 so the result is unit length in f32.
-fn unit_or_axis(v: DVec3) -> Vec3 {
+pub(crate) fn unit_or_axis(v: DVec3) -> Vec3 {
     let unit = v.normalize_or_zero().as_vec3().normalize_or_zero();
     if unit == Vec3::ZERO { Vec3::Z } else { unit }
 }

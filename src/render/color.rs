@@ -24,6 +24,13 @@ pub fn to_unorm8(value: f32) -> u8 {
     (value.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
 }
 
+/// Quantises [−1,1] to a signed 16-bit fixed-point value (FIXED16: v·32767, rounding to
+/// nearest), as for normals.
+pub fn to_snorm16(value: f32) -> i16 {
+    let v = if value.is_nan() { 0.0 } else { value };
+    (v.clamp(-1.0, 1.0) * 32767.0).round() as i16
+}
+
 /// Steps of the linear → sRGB byte table: fine enough that every table entry rounds like the
 /// exact formula except within 1/2¹⁶ of a byte boundary.
 const SRGB_TABLE_STEPS: usize = 1 << 16;
@@ -62,6 +69,17 @@ mod tests {
         assert_eq!(to_unorm8(0.5), 128);
         assert_eq!(encode_srgb8(-1.0), 0);
         assert_eq!(encode_srgb8(7.0), 255);
+    }
+
+    #[test]
+    fn signed_fixed16_covers_minus_one_to_one() {
+        assert_eq!(to_snorm16(1.0), 32767);
+        assert_eq!(to_snorm16(-1.0), -32767);
+        assert_eq!(to_snorm16(0.0), 0);
+        assert_eq!(to_snorm16(0.5), 16384);
+        assert_eq!(to_snorm16(-0.25), -8192);
+        assert_eq!(to_snorm16(3.0), 32767);
+        assert_eq!(to_snorm16(f32::NAN), 0);
     }
 
     #[test]

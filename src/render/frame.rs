@@ -13,8 +13,8 @@ use crate::accel::Ray;
 use crate::camera::{Camera, CameraRay, EyeRays};
 use crate::device::datatype::*;
 use crate::device::property::PropertyValue;
-use crate::render::color::{encode_srgb8, to_unorm8};
-use crate::render::renderer::{PrimaryHit, RendererSettings, shade_primary};
+use crate::render::color::{encode_srgb8, to_snorm16, to_unorm8};
+use crate::render::renderer::{PrimaryHit, RendererSettings, shade_primary_at};
 use crate::scene::world::SceneSnapshot;
 
 /// Side of the square tiles the threads share out.
@@ -46,7 +46,7 @@ pub const CHANNELS: &[(&str, &[ANARIDataType])] = &[
             ANARI_FLOAT32_VEC3,
         ],
     ),
-    ("channel.normal", &[ANARI_FLOAT32_VEC3]),
+    ("channel.normal", &[ANARI_FLOAT32_VEC3, ANARI_FIXED16_VEC3]),
     ("channel.windowDepth", &[ANARI_FLOAT32]),
 ];
 
@@ -161,8 +161,16 @@ impl Channel {
                     _ => put_f32s(out, &albedo.to_array()),
                 }
             }
-            (ChannelKind::Normal, _) => {
-                put_f32s(out, &hit.map_or(Vec3::ZERO, |h| h.0.normal).to_array())
+            (ChannelKind::Normal, data_type) => {
+                let normal = hit.map_or(Vec3::ZERO, |h| h.0.normal);
+                match data_type {
+                    ANARI_FIXED16_VEC3 => {
+                        for (chunk, value) in out.chunks_exact_mut(2).zip(normal.to_array()) {
+                            chunk.copy_from_slice(&to_snorm16(value).to_ne_bytes());
+                        }
+                    }
+                    _ => put_f32s(out, &normal.to_array()),
+                }
             }
         }
     }
@@ -595,8 +603,19 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
                     let Some((camera_ray, eye_rays)) = camera_rays[lane] else {
                         continue;
                     };
-                    let sample =
-                        shade_primary(&setup.scene, &setup.settings, &rays[lane], hits[lane]);
+                    // The sample's position in the frame places the background image.
+                    let screen = Vec2::new(
+                        ((bx + dx) as f32 + offset.x) / setup.width as f32,
+                        ((by + dy) as f32 + offset.y) / setup.height as f32,
+                    );
+                    let sample = shade_primary_at(
+                        &setup.scene,
+                        &setup.settings,
+                        &rays[lane],
+                        hits[lane],
+                        Some(screen),
+                        &crate::scene::light::LightSampling::for_pixel(index, bx + dx, by + dy),
+                    );
                     let pixel = &mut results[((by + dy - ty) * tile_width + bx + dx - tx) as usize];
                     pixel.color += sample.color;
                     pixel.covered = true;
@@ -616,7 +635,10 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
         let mut color = if pixel.covered {
             pixel.color / samples as f32
         } else {
-            setup.settings.background
+            setup.settings.background_at(Vec2::new(
+                (x as f32 + 0.5) / setup.width as f32,
+                (y as f32 + 0.5) / setup.height as f32,
+            ))
         };
         let hit = pixel
             .first_hit

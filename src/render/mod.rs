@@ -63,7 +63,7 @@ pub const FRAME: ObjectSpec = ObjectSpec::new(
             DATA_TYPE,
             "world-space shading normal of the hit",
         )
-        .values(&["ANARI_FLOAT32_VEC3"]),
+        .values(&["ANARI_FLOAT32_VEC3", "ANARI_FIXED16_VEC3"]),
         ParamSpec::new(
             "channel.windowDepth",
             DATA_TYPE,
@@ -101,6 +101,7 @@ pub const FRAME: ObjectSpec = ObjectSpec::new(
 .extensions(&[
     "ANARI_KHR_FRAME_CHANNEL_PRIMITIVE_ID",
     "ANARI_KHR_FRAME_CHANNEL_ALBEDO",
+    "ANARI_KHR_FRAME_CHANNEL_NORMAL",
     "ANARI_KHR_FRAME_ACCUMULATION",
     "ANARI_KHR_FRAME_COMPLETION_CALLBACK",
     "ANARI_CAVETRACE_FRAME_CHANNEL_WINDOW_DEPTH",
@@ -114,7 +115,7 @@ pub const MAX_FRAME_SIDE: u32 = 1 << 15;
 pub fn commit(device: &Device, object: &Object) {
     match object.kind {
         ANARI_RENDERER => {
-            object.set_derived(Some(Arc::new(RendererSettings::from_object(object))));
+            object.set_derived(Some(Arc::new(renderer::commit(device, object))));
         }
         ANARI_FRAME => {
             let params = object.committed();

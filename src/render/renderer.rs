@@ -2,22 +2,33 @@
 //! shadows, ambient light, mirror reflections and transparency. "fast": primary rays only with
 //! eye-light shading, for head-tracked interactivity.
 
-use glam::{Vec3, Vec4};
+use std::sync::Arc;
+
+use glam::{Vec2, Vec3, Vec4};
 
 use crate::accel::{Ray, SceneHit, surface_epsilon};
+use crate::device::Device;
 use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
-use crate::scene::attributes::{ATTRIBUTE_DEFAULT, Interpolation};
-use crate::scene::material::MaterialKind;
+use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
+use crate::scene::attributes::{
+    ATTRIBUTE_DEFAULT, Interpolation, VALUE_ELEMENT_TYPES, read_values,
+};
+use crate::scene::light::LightSampling;
+use crate::scene::material::{Input, MaterialKind};
+use crate::scene::sampler::{Image, Wrap};
+use crate::scene::volume::{VolumeIntegral, integrate};
 use crate::scene::world::SceneSnapshot;
 
 const BACKGROUND: ParamSpec = ParamSpec::new(
     "background",
-    &[ANARI_FLOAT32_VEC4],
-    "colour of pixels where no surface is hit (linear RGBA)",
+    &[ANARI_FLOAT32_VEC4, ANARI_ARRAY2D],
+    "what shows where no surface is hit: a colour (linear RGBA) or an image stretched over \
+     the frame (its first row along the frame's first row)",
 )
-.default(SpecValue::Floats(&[0.0, 0.0, 0.0, 1.0]));
+.default(SpecValue::Floats(&[0.0, 0.0, 0.0, 1.0]))
+.elements(VALUE_ELEMENT_TYPES);
 const AMBIENT_COLOR: ParamSpec = ParamSpec::new(
     "ambientColor",
     &[ANARI_FLOAT32_VEC3],
@@ -61,6 +72,7 @@ pub const DEFAULT: ObjectSpec = ObjectSpec::new(
 .extensions(&[
     "ANARI_KHR_RENDERER_AMBIENT_LIGHT",
     "ANARI_KHR_RENDERER_BACKGROUND_COLOR",
+    "ANARI_KHR_RENDERER_BACKGROUND_IMAGE",
 ]);
 
 pub const FAST: ObjectSpec = ObjectSpec::new(
@@ -74,7 +86,10 @@ pub const FAST: ObjectSpec = ObjectSpec::new(
 #[derive(Clone, Debug, PartialEq)]
 pub struct RendererSettings {
     pub fast: bool,
+    /// Background colour, where no background image is set.
     pub background: Vec4,
+    /// Background image stretched over the frame (KHR_RENDERER_BACKGROUND_IMAGE).
+    pub background_image: Option<Arc<Image>>,
     pub ambient: Vec3,
     pub pixel_samples: u32,
     pub max_ray_depth: u32,
@@ -86,6 +101,7 @@ impl Default for RendererSettings {
         RendererSettings {
             fast: false,
             background: Vec4::new(0.0, 0.0, 0.0, 1.0),
+            background_image: None,
             ambient: Vec3::ZERO,
             pixel_samples: 1,
             max_ray_depth: 5,
@@ -108,12 +124,77 @@ impl RendererSettings {
             background: p
                 .get_vec4("background")
                 .unwrap_or(Vec4::new(0.0, 0.0, 0.0, 1.0)),
+            background_image: background_image(object),
             ambient: p.get_vec3("ambientColor").unwrap_or(Vec3::ONE)
                 * p.get_f32("ambientRadiance").unwrap_or(0.0),
             pixel_samples: int("pixelSamples", 1).clamp(1, 1024),
             max_ray_depth: int("maxRayDepth", 5).min(64),
             shadows: p.get_bool("shadows").unwrap_or(true),
         }
+    }
+}
+
+/// Settings from a committed renderer, reporting a background image that cannot be used.
+pub fn commit(device: &Device, object: &Object) -> RendererSettings {
+    let settings = RendererSettings::from_object(object);
+    if settings.background_image.is_none()
+        && let Some(array) = object.committed().get_object("background")
+    {
+        device.error(
+            ANARI_STATUS_INVALID_ARGUMENT,
+            Some(object),
+            format!(
+                "anariCommitParameters: {} parameter 'background': {} holds no texels; the \
+                 background is black",
+                object.describe(),
+                array.describe()
+            ),
+        );
+    }
+    settings
+}
+
+/// The renderer's `background` when it is an ARRAY2D: bilinear between texel centres and clamped
+/// at the edges, so the image's texels stretch evenly over the frame.
+fn background_image(renderer: &Object) -> Option<Arc<Image>> {
+    let params = renderer.committed();
+    let array = params
+        .get_object("background")
+        .filter(|a| a.kind == ANARI_ARRAY2D)?;
+    let store = array.array.as_ref()?;
+    let size = [store.dims[0] as usize, store.dims[1] as usize, 1];
+    let image = Image::new(read_values(store)?, size, true, [Wrap::ClampToEdge; 3])?;
+    Some(Arc::new(image))
+}
+
+impl RendererSettings {
+    /// The background at `screen`, the position in the frame from (0, 0) at the corner of the
+    /// first pixel (bottom left) to (1, 1) at the far corner of the last: the image's first
+    /// row lies along the frame's first row.
+    pub fn background_at(&self, screen: Vec2) -> Vec4 {
+        match &self.background_image {
+            Some(image) => image.sample(screen.extend(0.0)),
+            None => self.background,
+        }
+    }
+
+    /// These settings with one background colour everywhere: what the secondary rays of one
+    /// primary sample see behind the scene (the background image at that sample's position).
+    fn with_uniform_background(&self, background: Vec4) -> RendererSettings {
+        RendererSettings {
+            background,
+            background_image: None,
+            ..self.clone()
+        }
+    }
+}
+
+/// A material input at a hit: like `Input::evaluate`, but samplers also see the primitive index
+/// (the primitive sampler reads by it).
+fn evaluate_input(input: &Input, attributes: &[Option<Vec4>; 5], primitive: u32) -> Option<Vec4> {
+    match input {
+        Input::Sampler(sampler) => Some(sampler.evaluate_at(attributes, primitive)),
+        other => other.evaluate(attributes),
     }
 }
 
@@ -156,9 +237,15 @@ fn shading_point(scene: &SceneSnapshot, ray: &Ray, hit: &SceneHit) -> ShadingPoi
     let material = &surface.material;
     let point = ray.origin + ray.direction * hit.t;
 
-    let at: Interpolation = geometry.interpolation(hit.primitive, hit.uv);
+    let uses_attributes = material.uses_attributes();
+    // Vertex weights only when something is interpolated (their index lookup is a likely
+    // cache miss on large meshes).
+    let at: Option<Interpolation> = (uses_attributes || geometry.has_shading_normals())
+        .then(|| geometry.interpolation(hit.primitive, hit.uv));
     let primitive_id = geometry.primitive_id(hit.primitive);
-    let object_normal = geometry.shading_normal(&at, hit.object_normal);
+    let object_normal = at.as_ref().map_or(hit.object_normal, |at| {
+        geometry.shading_normal(at, hit.object_normal)
+    });
     let mut normal = (instance.normal_transform * object_normal)
         .try_normalize()
         .unwrap_or(hit.normal);
@@ -167,21 +254,19 @@ fn shading_point(scene: &SceneSnapshot, ray: &Ray, hit: &SceneHit) -> ShadingPoi
         normal = -normal;
     }
 
-    let attributes: [Option<Vec4>; 5] = if material.uses_attributes() {
+    let attributes: [Option<Vec4>; 5] = if let Some(at) = at.as_ref().filter(|_| uses_attributes) {
         std::array::from_fn(|slot| {
             geometry.attributes[slot]
-                .evaluate(primitive_id, &at)
+                .evaluate(primitive_id, at)
                 .or(instance.attributes[slot])
         })
     } else {
         [None; 5]
     };
-    let scalar = |input: &crate::scene::material::Input, default: f32| {
-        input.evaluate(&attributes).map_or(default, |v| v.x)
+    let scalar = |input: &Input, default: f32| {
+        evaluate_input(input, &attributes, primitive_id).map_or(default, |v| v.x)
     };
-    let base = material
-        .base_color
-        .evaluate(&attributes)
+    let base = evaluate_input(&material.base_color, &attributes, primitive_id)
         .unwrap_or(ATTRIBUTE_DEFAULT);
     let is_matte = material.kind == MaterialKind::Matte;
     ShadingPoint {
@@ -201,9 +286,7 @@ fn shading_point(scene: &SceneSnapshot, ray: &Ray, hit: &SceneHit) -> ShadingPoi
         } else {
             scalar(&material.roughness, 1.0).clamp(0.0, 1.0)
         },
-        emissive: material
-            .emissive
-            .evaluate(&attributes)
+        emissive: evaluate_input(&material.emissive, &attributes, primitive_id)
             .map_or(Vec3::ZERO, |v| v.truncate()),
         primitive_id,
         object_id: surface.id,
@@ -220,11 +303,17 @@ fn offset_ray(origin: Vec3, direction: Vec3, t_max: f32) -> Ray {
     }
 }
 
-/// Direct light from the scene's lights at a point.
-fn direct_light(scene: &SceneSnapshot, settings: &RendererSettings, sp: &ShadingPoint) -> Vec3 {
+/// Direct light from the scene's lights at a point; lights with extent are sampled at
+/// `sampling`'s point (one shadow ray each), so their soft shadows converge over samples.
+fn direct_light(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    sp: &ShadingPoint,
+    sampling: &LightSampling,
+) -> Vec3 {
     let mut sum = Vec3::ZERO;
     for light in &scene.lights {
-        let Some(incoming) = light.incoming(sp.point) else {
+        let Some(incoming) = light.incoming_sampled(sp.point, sampling) else {
             continue;
         };
         let cos = sp.normal.dot(incoming.to_light);
@@ -251,12 +340,36 @@ fn direct_light(scene: &SceneSnapshot, settings: &RendererSettings, sp: &Shading
 }
 
 /// Radiance along a ray (the default renderer).
-pub fn trace(scene: &SceneSnapshot, settings: &RendererSettings, ray: &Ray, depth: u32) -> Vec4 {
-    let Some(hit) = scene.bvh.intersect(ray) else {
-        return settings.background;
+pub fn trace(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    ray: &Ray,
+    depth: u32,
+    sampling: &LightSampling,
+) -> Vec4 {
+    let hit = scene.bvh.intersect(ray);
+    let volume = volumes_in_front(scene, ray, hit.as_ref());
+    if let Some(volume) = volume.filter(|v| v.transmittance == 0.0) {
+        return volume.over(Vec4::ZERO);
+    }
+    let behind = match hit {
+        None => settings.background,
+        Some(hit) => {
+            let sp = shading_point(scene, ray, &hit);
+            shade(scene, settings, ray, &sp, depth, sampling).extend(1.0)
+        }
     };
-    let sp = shading_point(scene, ray, &hit);
-    shade(scene, settings, ray, &sp, depth).extend(1.0)
+    volume.map_or(behind, |v| v.over(behind))
+}
+
+/// The volumes between the ray's start and its surface hit (or its end).
+fn volumes_in_front(
+    scene: &SceneSnapshot,
+    ray: &Ray,
+    hit: Option<&SceneHit>,
+) -> Option<VolumeIntegral> {
+    let t_end = hit.map_or(ray.t_max, |h| h.t);
+    integrate(&scene.volumes, ray.origin, ray.direction, ray.t_min, t_end)
 }
 
 fn shade(
@@ -265,10 +378,11 @@ fn shade(
     ray: &Ray,
     sp: &ShadingPoint,
     depth: u32,
+    sampling: &LightSampling,
 ) -> Vec3 {
     let diffuse_weight = 1.0 - sp.metallic;
     // Ambient light is radiance from every direction: it arrives as irradiance π·L.
-    let light = direct_light(scene, settings, sp) + settings.ambient * std::f32::consts::PI;
+    let light = direct_light(scene, settings, sp, sampling) + settings.ambient * std::f32::consts::PI;
     // Lambertian: albedo/π × irradiance.
     let mut color = sp.base_color * std::f32::consts::FRAC_1_PI * light * diffuse_weight;
     color += sp.emissive;
@@ -282,6 +396,7 @@ fn shade(
                 settings,
                 &offset_ray(sp.point, reflected, f32::INFINITY),
                 depth + 1,
+                sampling,
             );
             color += sp.base_color * incoming.truncate() * reflectivity;
         }
@@ -294,6 +409,7 @@ fn shade(
             settings,
             &offset_ray(sp.point, ray.direction, f32::INFINITY),
             depth + 1,
+            sampling,
         );
         color = color * sp.opacity + behind.truncate() * (1.0 - sp.opacity);
     }
@@ -301,20 +417,83 @@ fn shade(
 }
 
 /// One primary sample: colour plus the auxiliary channel values.
-pub fn primary_sample(scene: &SceneSnapshot, settings: &RendererSettings, ray: &Ray) -> Sample {
-    shade_primary(scene, settings, ray, scene.bvh.intersect(ray))
+pub fn primary_sample(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    ray: &Ray,
+    sampling: &LightSampling,
+) -> Sample {
+    shade_primary(scene, settings, ray, scene.bvh.intersect(ray), sampling)
 }
 
-/// A primary sample whose closest hit is already known (e.g. traced in a packet).
+/// A primary sample whose closest hit is already known (e.g. traced in a packet), with the
+/// background colour (not the background image) where nothing is hit.
 pub fn shade_primary(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
     ray: &Ray,
     hit: Option<SceneHit>,
+    sampling: &LightSampling,
 ) -> Sample {
+    shade_primary_at(scene, settings, ray, hit, None, sampling)
+}
+
+/// A primary sample whose closest hit is already known. `screen` is the sample's position in
+/// the frame (see `RendererSettings::background_at`), which picks the background image's
+/// colour; without it the background colour is used. `sampling` picks the points of lights
+/// with extent.
+pub fn shade_primary_at(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    ray: &Ray,
+    hit: Option<SceneHit>,
+    screen: Option<Vec2>,
+    sampling: &LightSampling,
+) -> Sample {
+    let Some(volume) = volumes_in_front(scene, ray, hit.as_ref()) else {
+        return shade_surface_primary(scene, settings, ray, hit, screen, sampling);
+    };
+    // What lies behind matters only if light from there gets through.
+    let behind = if volume.transmittance > 0.0 {
+        shade_surface_primary(scene, settings, ray, hit, screen, sampling)
+    } else {
+        Sample {
+            color: Vec4::ZERO,
+            hit: None,
+        }
+    };
+    // The channels describe the first thing seen: the volume where it absorbs anything.
+    let first = volume.first.map(|v| PrimaryHit {
+        t: v.t,
+        point: ray.origin + ray.direction * v.t,
+        primitive_id: u32::MAX,
+        object_id: v.object_id,
+        instance_id: v.instance_id,
+        albedo: v.color,
+        normal: Vec3::ZERO,
+    });
+    Sample {
+        color: volume.over(behind.color),
+        hit: first.or(behind.hit),
+    }
+}
+
+/// The surface (or background) part of a primary sample.
+fn shade_surface_primary(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    ray: &Ray,
+    hit: Option<SceneHit>,
+    screen: Option<Vec2>,
+    sampling: &LightSampling,
+) -> Sample {
+    let background = match screen {
+        Some(screen) => settings.background_at(screen),
+        None => settings.background,
+    };
     let Some(hit) = hit else {
         return Sample {
-            color: settings.background,
+            color: background,
             hit: None,
         };
     };
@@ -323,8 +502,12 @@ pub fn shade_primary(
         // Eye light: a light at the camera, so what faces the viewer is brightest.
         let facing = (-ray.direction).dot(sp.normal).max(0.0);
         sp.base_color * (0.2 + 0.8 * facing) + sp.emissive
+    } else if settings.background_image.is_some() {
+        // Rays through transparent surfaces and off mirrors see this sample's background.
+        let settings = settings.with_uniform_background(background);
+        shade(scene, &settings, ray, &sp, 0, sampling)
     } else {
-        shade(scene, settings, ray, &sp, 0)
+        shade(scene, settings, ray, &sp, 0, sampling)
     };
     Sample {
         color: color.extend(1.0),
@@ -337,5 +520,72 @@ pub fn shade_primary(
             albedo: sp.base_color,
             normal: sp.normal,
         }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Settings whose background is a 2×2 image: red, green along the first row (bottom of the
+    /// frame), blue, white along the second.
+    fn four_colour_background() -> RendererSettings {
+        let texels = vec![
+            Vec4::new(1.0, 0.0, 0.0, 1.0),
+            Vec4::new(0.0, 1.0, 0.0, 1.0),
+            Vec4::new(0.0, 0.0, 1.0, 1.0),
+            Vec4::new(1.0, 1.0, 1.0, 0.5),
+        ];
+        let image = Image::new(texels, [2, 2, 1], true, [Wrap::ClampToEdge; 3]).unwrap();
+        RendererSettings {
+            background: Vec4::new(0.1, 0.2, 0.3, 1.0),
+            background_image: Some(Arc::new(image)),
+            ..RendererSettings::default()
+        }
+    }
+
+    #[test]
+    fn the_background_image_stretches_over_the_frame() {
+        let settings = four_colour_background();
+        let at = |x: f32, y: f32| settings.background_at(Vec2::new(x, y));
+        // Corners and texel centres show one texel each; the centre blends all four.
+        assert_eq!(at(0.0, 0.0), Vec4::new(1.0, 0.0, 0.0, 1.0));
+        assert_eq!(at(0.25, 0.25), Vec4::new(1.0, 0.0, 0.0, 1.0));
+        assert_eq!(at(1.0, 0.0), Vec4::new(0.0, 1.0, 0.0, 1.0));
+        assert_eq!(at(0.0, 1.0), Vec4::new(0.0, 0.0, 1.0, 1.0));
+        assert_eq!(at(1.0, 1.0), Vec4::new(1.0, 1.0, 1.0, 0.5));
+        assert_eq!(at(0.5, 0.5), Vec4::new(0.5, 0.5, 0.5, 0.875));
+        // Halfway along the bottom edge: red and green in equal parts.
+        assert_eq!(at(0.5, 0.0), Vec4::new(0.5, 0.5, 0.0, 1.0));
+        let plain = RendererSettings::default();
+        assert_eq!(
+            plain.background_at(Vec2::new(0.3, 0.7)),
+            Vec4::new(0.0, 0.0, 0.0, 1.0)
+        );
+    }
+
+    #[test]
+    fn a_missed_primary_ray_shows_the_background_at_its_screen_position() {
+        let settings = four_colour_background();
+        let scene = SceneSnapshot::empty();
+        let ray = Ray {
+            origin: Vec3::ZERO,
+            direction: Vec3::NEG_Z,
+            t_min: 0.0,
+            t_max: f32::INFINITY,
+        };
+        let sample = shade_primary_at(
+            &scene,
+            &settings,
+            &ray,
+            None,
+            Some(Vec2::new(0.9, 0.1)),
+            &LightSampling::default(),
+        );
+        assert_eq!(sample.color, Vec4::new(0.0, 1.0, 0.0, 1.0));
+        assert!(sample.hit.is_none());
+        // Without a screen position only the colour is known.
+        let sample = shade_primary(&scene, &settings, &ray, None, &LightSampling::default());
+        assert_eq!(sample.color, Vec4::new(0.1, 0.2, 0.3, 1.0));
     }
 }

@@ -1,12 +1,12 @@
-//! Geometry objects: triangle, quad, sphere and cylinder. A commit validates the arrays, skips
-//! (and reports) bad primitives, and builds the geometry's BVH once; everything that references
-//! the geometry reuses it until the geometry itself is committed again.
+//! Geometry objects: triangle, quad, sphere, cylinder, cone and curve. A commit validates the
+//! arrays, skips (and reports) bad primitives, and builds the geometry's BVH once; everything
+//! that references the geometry reuses it until the geometry itself is committed again.
 
 use std::sync::Arc;
 
 use glam::{UVec2, UVec3, UVec4, Vec2, Vec3, Vec4};
 
-use crate::accel::{GeometryBvh, GeometryPrims};
+use crate::accel::{GeometryBvh, GeometryPrims, TubeKind, TubeSegment};
 use crate::device::Device;
 use crate::device::datatype::*;
 use crate::device::object::Object;
@@ -119,16 +119,33 @@ const SPHERE_PARAMS: &[ParamSpec] = &[
     .default(SpecValue::Float(1.0)),
 ];
 
+const CAP_VALUES: &[&str] = &["none", "first", "second", "both"];
+const VERTEX_CAP: ParamSpec = ParamSpec::new(
+    "vertex.cap",
+    ARRAY,
+    "per-vertex end caps (0: open, 1: flat cap); overrides 'caps'",
+)
+.elements(&[ANARI_UINT8]);
+const CAPS: ParamSpec = ParamSpec::new(
+    "caps",
+    &[ANARI_STRING],
+    "which end of every primitive gets a flat cap when 'vertex.cap' is not set",
+)
+.default(SpecValue::Str("none"))
+.values(CAP_VALUES);
+const PAIR_INDEX_ELEMENTS: &[ANARIDataType] = &[ANARI_UINT32_VEC2, ANARI_UINT64_VEC2];
+
 const CYLINDER_PARAMS: &[ParamSpec] = &[
     ParamSpec::new("vertex.position", ARRAY, "cylinder end points")
         .required()
         .elements(VEC3_ELEMENTS),
+    VERTEX_CAP,
     ParamSpec::new(
         "primitive.index",
         ARRAY,
         "end point indices of each cylinder; absent: consecutive pairs",
     )
-    .elements(&[ANARI_UINT32_VEC2, ANARI_UINT64_VEC2]),
+    .elements(PAIR_INDEX_ELEMENTS),
     ParamSpec::new("primitive.radius", ARRAY, "per-cylinder radii").elements(&[ANARI_FLOAT32]),
     ParamSpec::new(
         "radius",
@@ -136,9 +153,46 @@ const CYLINDER_PARAMS: &[ParamSpec] = &[
         "radius of cylinders without primitive.radius",
     )
     .default(SpecValue::Float(1.0)),
-    ParamSpec::new("caps", &[ANARI_STRING], "which ends get flat caps")
-        .default(SpecValue::Str("none"))
-        .values(&["none", "both"]),
+    CAPS,
+];
+
+const CONE_PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("vertex.position", ARRAY, "cone end points")
+        .required()
+        .elements(VEC3_ELEMENTS),
+    ParamSpec::new(
+        "vertex.radius",
+        ARRAY,
+        "radius at each end point (absent: 1 everywhere)",
+    )
+    .elements(&[ANARI_FLOAT32]),
+    VERTEX_CAP,
+    ParamSpec::new(
+        "primitive.index",
+        ARRAY,
+        "end point indices of each cone; absent: consecutive pairs",
+    )
+    .elements(PAIR_INDEX_ELEMENTS),
+    CAPS,
+];
+
+const CURVE_PARAMS: &[ParamSpec] = &[
+    ParamSpec::new("vertex.position", ARRAY, "curve vertices")
+        .required()
+        .elements(VEC3_ELEMENTS),
+    ParamSpec::new("vertex.radius", ARRAY, "radius at each vertex").elements(&[ANARI_FLOAT32]),
+    ParamSpec::new(
+        "primitive.index",
+        ARRAY,
+        "first vertex of each segment (which ends at the next vertex); absent: one curve through all vertices",
+    )
+    .elements(&[ANARI_UINT32, ANARI_UINT64]),
+    ParamSpec::new(
+        "radius",
+        &[ANARI_FLOAT32],
+        "radius of every vertex without vertex.radius",
+    )
+    .default(SpecValue::Float(1.0)),
 ];
 
 pub const TRIANGLE: ObjectSpec = ObjectSpec::new(
@@ -168,12 +222,27 @@ pub const SPHERE: ObjectSpec = ObjectSpec::new(
 pub const CYLINDER: ObjectSpec = ObjectSpec::new(
     ANARI_GEOMETRY,
     "cylinder",
-    "cylinders between pairs of points",
+    "cylinders between pairs of points, each end open or flat-capped",
     CYLINDER_PARAMS,
 )
-.shared(POINT_ATTRIBUTES);
-// KHR_GEOMETRY_CYLINDER is not advertised: per-end caps ("first", "second", vertex.cap) are
-// not implemented.
+.shared(POINT_ATTRIBUTES)
+.extensions(&["ANARI_KHR_GEOMETRY_CYLINDER"]);
+pub const CONE: ObjectSpec = ObjectSpec::new(
+    ANARI_GEOMETRY,
+    "cone",
+    "truncated cones between pairs of points with a radius per point, each end open or flat-capped",
+    CONE_PARAMS,
+)
+.shared(POINT_ATTRIBUTES)
+.extensions(&["ANARI_KHR_GEOMETRY_CONE"]);
+pub const CURVE: ObjectSpec = ObjectSpec::new(
+    ANARI_GEOMETRY,
+    "curve",
+    "round curves of linear segments with a radius per vertex and rounded joints",
+    CURVE_PARAMS,
+)
+.shared(POINT_ATTRIBUTES)
+.extensions(&["ANARI_KHR_GEOMETRY_CURVE"]);
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Shape {
@@ -181,6 +250,8 @@ pub enum Shape {
     Quad,
     Sphere,
     Cylinder,
+    Cone,
+    Curve,
 }
 
 /// A committed geometry: its BVH plus what shading needs to evaluate attributes and normals.
@@ -190,7 +261,8 @@ pub struct Geometry {
     pub bvh: Arc<GeometryBvh>,
     /// BVH primitive number → ANARI primitive index (None: identical, nothing was skipped).
     pub primitive_ids: Option<Vec<u32>>,
-    /// Vertex indices per BVH primitive (triangle 3, quad 4, sphere 1, cylinder 2 used).
+    /// Vertex indices per BVH primitive (triangle 3, quad 4, sphere 1, cylinder, cone and curve
+    /// segment 2 used).
     pub vertex_indices: Vec<UVec4>,
     pub vertex_normals: Option<Vec<Vec3>>,
     pub corner_normals: Option<Vec<Vec3>>,
@@ -237,7 +309,7 @@ impl Geometry {
                 }
             }
             Shape::Sphere => Interpolation::single(v.x),
-            Shape::Cylinder => {
+            Shape::Cylinder | Shape::Cone | Shape::Curve => {
                 // uv.x runs from the first end point (0) to the second (1).
                 let s = uv.x.clamp(0.0, 1.0);
                 Interpolation {
@@ -248,6 +320,12 @@ impl Geometry {
                 }
             }
         }
+    }
+
+    /// Whether [`Self::shading_normal`] can differ from the geometric normal.
+    pub fn has_shading_normals(&self) -> bool {
+        matches!(self.shape, Shape::Triangle | Shape::Quad)
+            && (self.vertex_normals.is_some() || self.corner_normals.is_some())
     }
 
     /// The shading normal in object space at a hit, falling back to the geometric one.
@@ -306,6 +384,82 @@ impl Problems<'_> {
             format!("anariCommitParameters: {} {text}", self.object.describe()),
         );
     }
+
+    fn warn(&self, text: String) {
+        self.device.warning(
+            Some(self.object),
+            format!("anariCommitParameters: {} {text}", self.object.describe()),
+        );
+    }
+}
+
+/// Where cones and cylinders take their per-end flat caps from.
+enum Caps {
+    /// `vertex.cap`: a non-zero byte caps the primitives' ends at that vertex.
+    PerVertex(Vec<u8>),
+    /// `caps`: the same ends of every primitive.
+    Uniform { first: bool, second: bool },
+}
+
+impl Caps {
+    fn read(params: &ParamSet, problems: &Problems) -> Caps {
+        if let Some(caps) = array(params, "vertex.cap") {
+            if caps.element_type == ANARI_UINT8 {
+                return Caps::PerVertex(caps.with_bytes(<[u8]>::to_vec));
+            }
+            problems.report(
+                "has a 'vertex.cap' array that is not of ANARI_UINT8; 'caps' is used instead"
+                    .into(),
+            );
+        }
+        let (first, second) = match params.get_string("caps").unwrap_or("none") {
+            "none" => (false, false),
+            "first" => (true, false),
+            "second" => (false, true),
+            "both" => (true, true),
+            other => {
+                problems.report(format!(
+                    "parameter 'caps' is '{other}'; expected one of {}; 'none' is used",
+                    CAP_VALUES.join(", ")
+                ));
+                (false, false)
+            }
+        };
+        Caps::Uniform { first, second }
+    }
+
+    /// Caps at the first and second end point; `None` when `vertex.cap` is too short.
+    fn of(&self, ends: UVec2) -> Option<(bool, bool)> {
+        match self {
+            Caps::PerVertex(caps) => Some((
+                *caps.get(ends.x as usize)? != 0,
+                *caps.get(ends.y as usize)? != 0,
+            )),
+            Caps::Uniform { first, second } => Some((*first, *second)),
+        }
+    }
+}
+
+/// What a geometry's BVH is built from.
+enum Primitives {
+    Standard(GeometryPrims),
+    Tubes(Vec<TubeSegment>),
+}
+
+/// Radii at the two ends of a tube are usable: finite, not negative, not both zero.
+fn usable_radii(r0: f32, r1: f32) -> bool {
+    r0.is_finite() && r1.is_finite() && r0 >= 0.0 && r1 >= 0.0 && (r0 > 0.0 || r1 > 0.0)
+}
+
+/// Why a tube was skipped for its radii, naming the parameter they came from.
+fn bad_radius(from_array: bool, array_name: &str) -> String {
+    if from_array {
+        format!(
+            "has a radius missing from '{array_name}' (index beyond its end), negative or not finite, or no radius above 0"
+        )
+    } else {
+        "has a 'radius' that is negative, zero or not finite".into()
+    }
 }
 
 fn array<'p>(params: &'p ParamSet, name: &str) -> Option<&'p crate::scene::array::ArrayStore> {
@@ -351,6 +505,8 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
         "quad" => Shape::Quad,
         "sphere" => Shape::Sphere,
         "cylinder" => Shape::Cylinder,
+        "cone" => Shape::Cone,
+        "curve" => Shape::Curve,
         _ => return None,
     };
     let Some(positions) = array(&params, "vertex.position").and_then(|a| a.read_vec3()) else {
@@ -389,10 +545,10 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
                 primitive_ids.push(i as u32);
                 vertex_indices.push(t.extend(0));
             }
-            GeometryPrims::Triangles {
+            Primitives::Standard(GeometryPrims::Triangles {
                 positions: positions.clone(),
                 indices: kept,
-            }
+            })
         }
         Shape::Quad => {
             let quads: Vec<UVec4> = match array(&params, "primitive.index") {
@@ -411,10 +567,10 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
                 primitive_ids.push(i as u32);
                 vertex_indices.push(*q);
             }
-            GeometryPrims::Quads {
+            Primitives::Standard(GeometryPrims::Quads {
                 positions: positions.clone(),
                 indices: kept,
-            }
+            })
         }
         Shape::Sphere => {
             let radii = array(&params, "vertex.radius").and_then(|a| a.read_f32());
@@ -442,46 +598,122 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
                 primitive_ids.push(i as u32);
                 vertex_indices.push(UVec4::new(*v, 0, 0, 0));
             }
-            GeometryPrims::Spheres {
+            Primitives::Standard(GeometryPrims::Spheres {
                 centers,
                 radii: kept_radii,
-            }
+            })
         }
-        Shape::Cylinder => {
+        Shape::Cylinder | Shape::Cone => {
             let pairs: Vec<UVec2> = match array(&params, "primitive.index") {
                 Some(a) => grouped(a.read_indices(2), 2, |c| UVec2::new(c[0], c[1])),
                 None => (0..vertex_count as u32 / 2)
                     .map(|i| UVec2::new(2 * i, 2 * i + 1))
                     .collect(),
             };
-            let radii = array(&params, "primitive.radius").and_then(|a| a.read_f32());
-            let radius = params.get_f32("radius").unwrap_or(1.0);
-            let caps = params.get_string("caps").unwrap_or("none") != "none";
-            let (mut starts, mut ends, mut kept_radii) = (Vec::new(), Vec::new(), Vec::new());
-            for (i, p) in pairs.iter().enumerate() {
-                let r = radii
+            let caps = Caps::read(&params, &problems);
+            // Cylinders: one radius per primitive; cones: one per vertex.
+            let radii_name = if shape == Shape::Cone {
+                "vertex.radius"
+            } else {
+                "primitive.radius"
+            };
+            let radii = array(&params, radii_name).and_then(|a| a.read_f32());
+            let radius = if shape == Shape::Cone {
+                if radii.is_none() {
+                    problems.warn("has no 'vertex.radius'; every cone gets radius 1".into());
+                }
+                1.0
+            } else {
+                params.get_f32("radius").unwrap_or(1.0)
+            };
+            let radius_of = |index: usize| -> f32 {
+                radii
                     .as_ref()
-                    .map_or(Some(radius), |r| r.get(i).copied())
-                    .unwrap_or(f32::NAN);
-                if !valid_vertex(p.x) || !valid_vertex(p.y) || !r.is_finite() || r <= 0.0 {
-                    note_skip(
-                        i,
-                        "has an index out of range, a non-finite end point or a radius that is not positive",
-                    );
+                    .map_or(Some(radius), |r| r.get(index).copied())
+                    .unwrap_or(f32::NAN)
+            };
+            let mut segments = Vec::with_capacity(pairs.len());
+            for (i, p) in pairs.iter().enumerate() {
+                let (r0, r1) = if shape == Shape::Cone {
+                    (radius_of(p.x as usize), radius_of(p.y as usize))
+                } else {
+                    (radius_of(i), radius_of(i))
+                };
+                if !valid_vertex(p.x) || !valid_vertex(p.y) {
+                    note_skip(i, "has an index out of range or a non-finite end point");
                     continue;
                 }
-                starts.push(positions[p.x as usize]);
-                ends.push(positions[p.y as usize]);
-                kept_radii.push(r);
+                if positions[p.x as usize] == positions[p.y as usize] {
+                    note_skip(i, "has two equal end points");
+                    continue;
+                }
+                if !usable_radii(r0, r1) {
+                    note_skip(i, &bad_radius(radii.is_some(), radii_name));
+                    continue;
+                }
+                let Some((start_cap, end_cap)) = caps.of(*p) else {
+                    note_skip(i, "has an end point beyond the end of 'vertex.cap'");
+                    continue;
+                };
+                segments.push(TubeSegment {
+                    start: positions[p.x as usize],
+                    end: positions[p.y as usize],
+                    start_radius: r0,
+                    end_radius: r1,
+                    kind: TubeKind::Cone { start_cap, end_cap },
+                });
                 primitive_ids.push(i as u32);
                 vertex_indices.push(UVec4::new(p.x, p.y, 0, 0));
             }
-            GeometryPrims::Cylinders {
-                starts,
-                ends,
-                radii: kept_radii,
-                caps,
+            Primitives::Tubes(segments)
+        }
+        Shape::Curve => {
+            let starts: Vec<u32> = match array(&params, "primitive.index") {
+                Some(a) => a.read_indices(1).unwrap_or_default(),
+                None => (0..vertex_count.saturating_sub(1) as u32).collect(),
+            };
+            if vertex_count < 2 {
+                problems.report(format!(
+                    "has {vertex_count} vertex in 'vertex.position'; a curve needs at least 2"
+                ));
             }
+            let radii = array(&params, "vertex.radius").and_then(|a| a.read_f32());
+            let radius = params.get_f32("radius").unwrap_or(1.0);
+            let radius_of = |index: u32| -> f32 {
+                radii
+                    .as_ref()
+                    .map_or(Some(radius), |r| r.get(index as usize).copied())
+                    .unwrap_or(f32::NAN)
+            };
+            let mut segments = Vec::with_capacity(starts.len());
+            for (i, first) in starts.iter().enumerate() {
+                let Some(second) = first.checked_add(1) else {
+                    note_skip(i, "starts at an index out of range");
+                    continue;
+                };
+                if !valid_vertex(*first) || !valid_vertex(second) {
+                    note_skip(
+                        i,
+                        "starts at an index out of range (a segment ends at the next vertex) or has a non-finite vertex",
+                    );
+                    continue;
+                }
+                let (r0, r1) = (radius_of(*first), radius_of(second));
+                if !usable_radii(r0, r1) {
+                    note_skip(i, &bad_radius(radii.is_some(), "vertex.radius"));
+                    continue;
+                }
+                segments.push(TubeSegment {
+                    start: positions[*first as usize],
+                    end: positions[second as usize],
+                    start_radius: r0,
+                    end_radius: r1,
+                    kind: TubeKind::Round,
+                });
+                primitive_ids.push(i as u32);
+                vertex_indices.push(UVec4::new(*first, second, 0, 0));
+            }
+            Primitives::Tubes(segments)
         }
     };
     if skipped > 5 {
@@ -510,9 +742,13 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
             .any(|a| a.per_vertex.is_some() || a.per_corner.is_some());
     Some(Geometry {
         shape,
-        bvh: Arc::new(with_build_pool(device.requested_thread_count(), || {
-            GeometryBvh::build(prims)
-        })),
+        bvh: Arc::new(with_build_pool(
+            device.requested_thread_count(),
+            || match prims {
+                Primitives::Standard(prims) => GeometryBvh::build(prims),
+                Primitives::Tubes(segments) => GeometryBvh::build_tubes(&segments),
+            },
+        )),
         primitive_ids: (!identity).then_some(primitive_ids),
         // Only kept when something is interpolated, to keep big meshes small.
         vertex_indices: if needs_vertices {

@@ -9,7 +9,9 @@ pub mod instance;
 pub mod light;
 pub mod material;
 pub mod sampler;
+pub mod spatial_field;
 pub mod surface;
+pub mod volume;
 pub mod world;
 
 use std::sync::Arc;
@@ -24,15 +26,21 @@ pub const SPECS: &[ObjectSpec] = &[
     geometry::QUAD,
     geometry::SPHERE,
     geometry::CYLINDER,
+    geometry::CONE,
+    geometry::CURVE,
     material::MATTE,
     material::PHYSICALLY_BASED,
     sampler::IMAGE1D,
     sampler::IMAGE2D,
+    sampler::IMAGE3D,
+    sampler::PRIMITIVE,
     sampler::TRANSFORM,
     light::DIRECTIONAL,
     light::POINT,
     light::SPOT,
     surface::SURFACE,
+    spatial_field::STRUCTURED_REGULAR,
+    volume::TRANSFER_FUNCTION1D,
     group::GROUP,
     instance::TRANSFORM,
     world::WORLD,
@@ -51,6 +59,14 @@ pub fn commit(device: &Device, object: &Object) {
         ANARI_SAMPLER => {
             let sampler = sampler::commit(device, object);
             object.set_derived(sampler.map(|s| Arc::new(s) as _));
+        }
+        ANARI_SPATIAL_FIELD => {
+            let field = spatial_field::commit(device, object);
+            object.set_derived(field.map(|f| Arc::new(f) as _));
+        }
+        ANARI_VOLUME => {
+            let volume = volume::commit(device, object);
+            object.set_derived(volume.map(|v| Arc::new(v) as _));
         }
         ANARI_CAMERA => crate::camera::commit(device, object),
         ANARI_RENDERER | ANARI_FRAME => crate::render::commit(device, object),

@@ -1,15 +1,18 @@
-//! Samplers: image1D, image2D and transform. A sampler maps a geometry attribute through
-//! inTransform/inOffset, looks up the image (nearest or linear, per-axis wrap mode) and applies
-//! outTransform/outOffset.
+//! Samplers: image1D, image2D, image3D, primitive and transform. An image sampler maps a
+//! geometry attribute through inTransform/inOffset, looks the result up in its image (nearest or
+//! linear, per-axis wrap mode) and applies outTransform/outOffset; the primitive sampler reads
+//! one value per primitive; the transform sampler transforms the attribute itself.
 
-use glam::{Mat4, Vec4};
+use glam::{Mat4, Vec3, Vec4};
 
 use crate::device::Device;
 use crate::device::datatype::*;
 use crate::device::object::Object;
-use crate::device::spec::{ATTRIBUTE_ELEMENT_TYPES, ObjectSpec, ParamSpec, SpecValue};
+use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
-use crate::scene::attributes::{ATTRIBUTE_DEFAULT, attribute_slot};
+use crate::scene::attributes::{
+    ATTRIBUTE_DEFAULT, ATTRIBUTE_NAMES, VALUE_ELEMENT_TYPES, attribute_slot, read_values,
+};
 
 const IDENTITY: &[f32] = &[
     1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
@@ -59,6 +62,12 @@ const OUT_OFFSET: ParamSpec = ParamSpec::new(
 )
 .default(SpecValue::Floats(ZERO4));
 
+const fn wrap_mode(name: &'static str, description: &'static str) -> ParamSpec {
+    ParamSpec::new(name, &[ANARI_STRING], description)
+        .default(SpecValue::Str("clampToEdge"))
+        .values(WRAP)
+}
+
 pub const IMAGE1D: ObjectSpec = ObjectSpec::new(
     ANARI_SAMPLER,
     "image1D",
@@ -66,12 +75,10 @@ pub const IMAGE1D: ObjectSpec = ObjectSpec::new(
     &[
         ParamSpec::new("image", &[ANARI_ARRAY1D], "texel array")
             .required()
-            .elements(ATTRIBUTE_ELEMENT_TYPES),
+            .elements(VALUE_ELEMENT_TYPES),
         IN_ATTRIBUTE,
         FILTER,
-        ParamSpec::new("wrapMode", &[ANARI_STRING], "wrap mode")
-            .default(SpecValue::Str("clampToEdge"))
-            .values(WRAP),
+        wrap_mode("wrapMode", "wrap mode"),
         IN_TRANSFORM,
         IN_OFFSET,
         OUT_TRANSFORM,
@@ -87,23 +94,11 @@ pub const IMAGE2D: ObjectSpec = ObjectSpec::new(
     &[
         ParamSpec::new("image", &[ANARI_ARRAY2D], "texel array")
             .required()
-            .elements(ATTRIBUTE_ELEMENT_TYPES),
+            .elements(VALUE_ELEMENT_TYPES),
         IN_ATTRIBUTE,
         FILTER,
-        ParamSpec::new(
-            "wrapMode1",
-            &[ANARI_STRING],
-            "wrap mode along the first axis",
-        )
-        .default(SpecValue::Str("clampToEdge"))
-        .values(WRAP),
-        ParamSpec::new(
-            "wrapMode2",
-            &[ANARI_STRING],
-            "wrap mode along the second axis",
-        )
-        .default(SpecValue::Str("clampToEdge"))
-        .values(WRAP),
+        wrap_mode("wrapMode1", "wrap mode along the first axis"),
+        wrap_mode("wrapMode2", "wrap mode along the second axis"),
         IN_TRANSFORM,
         IN_OFFSET,
         OUT_TRANSFORM,
@@ -111,6 +106,45 @@ pub const IMAGE2D: ObjectSpec = ObjectSpec::new(
     ],
 )
 .extensions(&["ANARI_KHR_SAMPLER_IMAGE2D"]);
+
+pub const IMAGE3D: ObjectSpec = ObjectSpec::new(
+    ANARI_SAMPLER,
+    "image3D",
+    "3D texture lookup (trilinear with filter linear)",
+    &[
+        ParamSpec::new("image", &[ANARI_ARRAY3D], "texel array")
+            .required()
+            .elements(VALUE_ELEMENT_TYPES),
+        IN_ATTRIBUTE,
+        FILTER,
+        wrap_mode("wrapMode1", "wrap mode along the first axis"),
+        wrap_mode("wrapMode2", "wrap mode along the second axis"),
+        wrap_mode("wrapMode3", "wrap mode along the third axis"),
+        IN_TRANSFORM,
+        IN_OFFSET,
+        OUT_TRANSFORM,
+        OUT_OFFSET,
+    ],
+)
+.extensions(&["ANARI_KHR_SAMPLER_IMAGE3D"]);
+
+pub const PRIMITIVE: ObjectSpec = ObjectSpec::new(
+    ANARI_SAMPLER,
+    "primitive",
+    "one value per primitive: array[primitive index + inOffset]",
+    &[
+        ParamSpec::new("array", &[ANARI_ARRAY1D], "values indexed by primitive")
+            .required()
+            .elements(VALUE_ELEMENT_TYPES),
+        ParamSpec::new(
+            "inOffset",
+            &[ANARI_UINT64, ANARI_UINT32],
+            "offset added to the primitive index",
+        )
+        .default(SpecValue::UInt(0)),
+    ],
+)
+.extensions(&["ANARI_KHR_SAMPLER_PRIMITIVE"]);
 
 pub const TRANSFORM: ObjectSpec = ObjectSpec::new(
     ANARI_SAMPLER,
@@ -155,40 +189,117 @@ impl Wrap {
     }
 }
 
-#[derive(Debug)]
+/// The texels one axis of a lookup blends: `weight` of `upper`, 1 − `weight` of `lower`.
+#[derive(Clone, Copy, Debug)]
+struct AxisLookup {
+    lower: usize,
+    upper: usize,
+    weight: f32,
+}
+
+impl AxisLookup {
+    fn blends(&self) -> bool {
+        self.upper != self.lower && self.weight != 0.0
+    }
+}
+
+/// A 1D, 2D or 3D image (unused axes have size 1), stored x fastest, then y, then z.
+#[derive(Debug, PartialEq)]
 pub struct Image {
     pub texels: Vec<Vec4>,
-    pub width: usize,
-    pub height: usize,
+    pub size: [usize; 3],
     pub linear: bool,
-    pub wrap: [Wrap; 2],
+    pub wrap: [Wrap; 3],
 }
 
 impl Image {
-    fn fetch(&self, x: i64, y: i64) -> Vec4 {
-        let xi = self.wrap[0].texel(x, self.width);
-        let yi = self.wrap[1].texel(y, self.height);
-        self.texels[yi * self.width + xi]
+    /// An image of `size` texels; `None` when the texel count does not match or is zero.
+    pub fn new(
+        texels: Vec<Vec4>,
+        size: [usize; 3],
+        linear: bool,
+        wrap: [Wrap; 3],
+    ) -> Option<Image> {
+        let count = size.iter().try_fold(1usize, |n, s| n.checked_mul(*s))?;
+        (count > 0 && count == texels.len()).then_some(Image {
+            texels,
+            size,
+            linear,
+            wrap,
+        })
     }
 
-    /// Samples at normalised coordinates (texel centres at (i+½)/n).
-    pub fn sample(&self, u: f32, v: f32) -> Vec4 {
-        let x = u * self.width as f32;
-        let y = v * self.height as f32;
-        if !self.linear {
-            return self.fetch(x.floor() as i64, y.floor() as i64);
+    fn axis(&self, axis: usize, coordinate: f32) -> AxisLookup {
+        let n = self.size[axis];
+        let wrap = self.wrap[axis];
+        // Texel i covers [i/n, (i+1)/n); non-finite coordinates read texel 0.
+        let scaled = coordinate * n as f32;
+        let scaled = if scaled.is_finite() { scaled } else { 0.0 };
+        if !self.linear || n == 1 {
+            let i = wrap.texel(scaled.floor() as i64, n);
+            return AxisLookup {
+                lower: i,
+                upper: i,
+                weight: 0.0,
+            };
         }
-        let (fx, fy) = (x - 0.5, y - 0.5);
-        let (x0, y0) = (fx.floor(), fy.floor());
-        let (tx, ty) = (fx - x0, fy - y0);
-        let (x0, y0) = (x0 as i64, y0 as i64);
-        if self.height == 1 {
-            return self.fetch(x0, 0).lerp(self.fetch(x0 + 1, 0), tx);
+        // Linear: blend the two texels whose centres (i + ½)/n surround the coordinate.
+        let from_centre = scaled - 0.5;
+        let lower = from_centre.floor();
+        AxisLookup {
+            lower: wrap.texel(lower as i64, n),
+            upper: wrap.texel((lower as i64).saturating_add(1), n),
+            weight: from_centre - lower,
         }
-        let bottom = self.fetch(x0, y0).lerp(self.fetch(x0 + 1, y0), tx);
-        let top = self.fetch(x0, y0 + 1).lerp(self.fetch(x0 + 1, y0 + 1), tx);
-        bottom.lerp(top, ty)
     }
+
+    fn texel(&self, x: usize, y: usize, z: usize) -> Vec4 {
+        self.texels[(z * self.size[1] + y) * self.size[0] + x]
+    }
+
+    /// Samples at normalised coordinates (texel centres at (i+½)/n on each axis; coordinates of
+    /// axes the image does not have are ignored).
+    pub fn sample(&self, coordinate: Vec3) -> Vec4 {
+        let [x, y, z] = [
+            self.axis(0, coordinate.x),
+            self.axis(1, coordinate.y),
+            self.axis(2, coordinate.z),
+        ];
+        // Each axis blends two texels only when they differ, so 1D and 2D lookups stay cheap.
+        let row = |j: usize, k: usize| {
+            let low = self.texel(x.lower, j, k);
+            if x.blends() {
+                low.lerp(self.texel(x.upper, j, k), x.weight)
+            } else {
+                low
+            }
+        };
+        let slice = |k: usize| {
+            let low = row(y.lower, k);
+            if y.blends() {
+                low.lerp(row(y.upper, k), y.weight)
+            } else {
+                low
+            }
+        };
+        let low = slice(z.lower);
+        if z.blends() {
+            low.lerp(slice(z.upper), z.weight)
+        } else {
+            low
+        }
+    }
+}
+
+/// Where a sampler's value comes from.
+#[derive(Debug)]
+pub enum Lookup {
+    /// image1D/2D/3D: the transformed attribute is a texture coordinate into the image.
+    Image(Image),
+    /// transform: the attribute itself.
+    Transform,
+    /// primitive: `values[primitive index + offset]`.
+    Primitive { values: Vec<Vec4>, offset: u64 },
 }
 
 #[derive(Debug)]
@@ -199,81 +310,137 @@ pub struct Sampler {
     pub in_offset: Vec4,
     pub out_transform: Mat4,
     pub out_offset: Vec4,
-    /// None for the transform sampler.
-    pub image: Option<Image>,
+    pub lookup: Lookup,
 }
 
 impl Sampler {
-    /// Evaluates the sampler for the attribute values at a hit.
-    pub fn evaluate(&self, attributes: &[Option<Vec4>; 5]) -> Vec4 {
-        let input = attributes[self.input].unwrap_or(ATTRIBUTE_DEFAULT);
-        let value = match &self.image {
-            Some(image) => {
-                let coordinate = self.in_transform * input + self.in_offset;
-                image.sample(coordinate.x, coordinate.y)
+    /// Evaluates the sampler for the attribute values at a hit on ANARI primitive `primitive`.
+    pub fn evaluate_at(&self, attributes: &[Option<Vec4>; 5], primitive: u32) -> Vec4 {
+        let input = || attributes[self.input].unwrap_or(ATTRIBUTE_DEFAULT);
+        let value = match &self.lookup {
+            Lookup::Image(image) => {
+                let coordinate = self.in_transform * input() + self.in_offset;
+                image.sample(coordinate.truncate())
             }
-            None => input,
+            Lookup::Transform => input(),
+            // No transforms: the primitive sampler has none.
+            Lookup::Primitive { values, offset } => {
+                return usize::try_from(u64::from(primitive).saturating_add(*offset))
+                    .ok()
+                    .and_then(|i| values.get(i))
+                    .copied()
+                    .unwrap_or(ATTRIBUTE_DEFAULT);
+            }
         };
         self.out_transform * value + self.out_offset
+    }
+
+    /// Evaluates the sampler for the attribute values at a hit, as if on primitive 0: correct for
+    /// every sampler but `primitive`, which needs `evaluate_at`.
+    pub fn evaluate(&self, attributes: &[Option<Vec4>; 5]) -> Vec4 {
+        self.evaluate_at(attributes, 0)
+    }
+}
+
+/// The array object a sampler parameter refers to, read as values with its dimensions; reports
+/// (and returns `None`) when it is missing, unreadable or empty.
+fn read_array(
+    device: &Device,
+    object: &Object,
+    name: &str,
+    expected: ANARIDataType,
+) -> Option<(Vec<Vec4>, [usize; 3])> {
+    let params = object.committed();
+    let fail = |what: String| {
+        device.error(
+            ANARI_STATUS_INVALID_ARGUMENT,
+            Some(object),
+            format!(
+                "anariCommitParameters: {} parameter '{name}' {what}; the sampler is not used",
+                object.describe()
+            ),
+        );
+        None
+    };
+    let Some(array) = params.get_object(name) else {
+        return fail(format!("is not set (required: {})", type_name(expected)));
+    };
+    let Some(store) = array.array.as_ref().filter(|_| array.kind == expected) else {
+        return fail(format!(
+            "is a {}, expected {}",
+            array.describe(),
+            type_name(expected)
+        ));
+    };
+    let Some(values) = read_values(store) else {
+        return fail(format!(
+            "has elements of {}, which cannot be read as values",
+            type_name(store.element_type)
+        ));
+    };
+    if values.is_empty() {
+        return fail("is an empty array".into());
+    }
+    let size = store.dims.map(|d| d as usize);
+    Some((values, size))
+}
+
+/// `inOffset` of the primitive sampler (UINT64 or UINT32).
+fn primitive_offset(object: &Object) -> u64 {
+    match object.committed().get_raw("inOffset") {
+        Some((ANARI_UINT64, bytes)) => u64::from_ne_bytes(bytes.try_into().unwrap_or([0; 8])),
+        Some((ANARI_UINT32, bytes)) => {
+            u64::from(u32::from_ne_bytes(bytes.try_into().unwrap_or([0; 4])))
+        }
+        _ => 0,
     }
 }
 
 pub fn commit(device: &Device, object: &Object) -> Option<Sampler> {
     let params = object.committed();
-    let input =
-        attribute_slot(params.get_string("inAttribute").unwrap_or("attribute0")).unwrap_or(1);
-    let image = match object.subtype.as_str() {
-        "image1D" | "image2D" => {
-            let texels = params.get_object("image").and_then(|o| {
-                let store = o.array.as_ref()?;
-                Some((store.read_attribute()?, store.dims))
-            });
-            let Some((texels, dims)) = texels else {
-                device.error(
-                    ANARI_STATUS_INVALID_ARGUMENT,
-                    Some(object),
-                    format!(
-                        "anariCommitParameters: {} has no readable 'image' array; it samples nothing",
-                        object.describe()
-                    ),
-                );
-                return None;
-            };
-            if texels.is_empty() {
-                device.error(
-                    ANARI_STATUS_INVALID_ARGUMENT,
-                    Some(object),
-                    format!(
-                        "anariCommitParameters: {} has an empty 'image'",
-                        object.describe()
-                    ),
-                );
-                return None;
-            }
+    let input_name = params.get_string("inAttribute").unwrap_or("attribute0");
+    let input = attribute_slot(input_name).unwrap_or_else(|| {
+        device.warning(
+            Some(object),
+            format!(
+                "anariCommitParameters: {} parameter 'inAttribute' '{input_name}' is not one of \
+                 {}; attribute0 is used",
+                object.describe(),
+                ATTRIBUTE_NAMES.join(", ")
+            ),
+        );
+        1
+    });
+    let image_kind = match object.subtype.as_str() {
+        "image1D" => Some(ANARI_ARRAY1D),
+        "image2D" => Some(ANARI_ARRAY2D),
+        "image3D" => Some(ANARI_ARRAY3D),
+        _ => None,
+    };
+    let lookup = match (object.subtype.as_str(), image_kind) {
+        (_, Some(kind)) => {
+            let (texels, size) = read_array(device, object, "image", kind)?;
             let wrap = if object.subtype == "image1D" {
                 [
                     Wrap::parse(params.get_string("wrapMode")),
                     Wrap::ClampToEdge,
+                    Wrap::ClampToEdge,
                 ]
             } else {
-                [
-                    Wrap::parse(params.get_string("wrapMode1")),
-                    Wrap::parse(params.get_string("wrapMode2")),
-                ]
+                ["wrapMode1", "wrapMode2", "wrapMode3"]
+                    .map(|name| Wrap::parse(params.get_string(name)))
             };
-            Some(Image {
-                texels,
-                width: dims[0] as usize,
-                height: if object.subtype == "image1D" {
-                    1
-                } else {
-                    dims[1] as usize
-                },
-                linear: params.get_string("filter") != Some("nearest"),
-                wrap,
-            })
+            let linear = params.get_string("filter") != Some("nearest");
+            Lookup::Image(Image::new(texels, size, linear, wrap)?)
         }
-        "transform" => None,
+        ("primitive", None) => {
+            let (values, _) = read_array(device, object, "array", ANARI_ARRAY1D)?;
+            Lookup::Primitive {
+                values,
+                offset: primitive_offset(object),
+            }
+        }
+        ("transform", None) => Lookup::Transform,
         _ => return None,
     };
     Some(Sampler {
@@ -282,7 +449,7 @@ pub fn commit(device: &Device, object: &Object) -> Option<Sampler> {
         in_offset: params.get_vec4("inOffset").unwrap_or(Vec4::ZERO),
         out_transform: params.get_mat4("outTransform").unwrap_or(Mat4::IDENTITY),
         out_offset: params.get_vec4("outOffset").unwrap_or(Vec4::ZERO),
-        image,
+        lookup,
     })
 }
 
@@ -291,36 +458,97 @@ mod tests {
     use super::*;
 
     fn ramp(linear: bool, wrap: Wrap) -> Image {
-        Image {
-            texels: vec![
-                Vec4::splat(0.0),
-                Vec4::splat(1.0),
-                Vec4::splat(2.0),
-                Vec4::splat(3.0),
-            ],
-            width: 4,
-            height: 1,
+        Image::new(
+            (0..4).map(|i| Vec4::splat(i as f32)).collect(),
+            [4, 1, 1],
             linear,
-            wrap: [wrap, Wrap::ClampToEdge],
-        }
+            [wrap, Wrap::ClampToEdge, Wrap::ClampToEdge],
+        )
+        .unwrap()
+    }
+
+    fn at(image: &Image, u: f32) -> f32 {
+        image.sample(Vec3::new(u, 0.0, 0.0)).x
     }
 
     #[test]
     fn nearest_and_linear_lookups() {
         let nearest = ramp(false, Wrap::ClampToEdge);
-        assert_eq!(nearest.sample(0.1, 0.0).x, 0.0);
-        assert_eq!(nearest.sample(0.6, 0.0).x, 2.0);
+        assert_eq!(at(&nearest, 0.1), 0.0);
+        assert_eq!(at(&nearest, 0.6), 2.0);
         let linear = ramp(true, Wrap::ClampToEdge);
         // Halfway between texel centres 1 (0.375) and 2 (0.625).
-        assert!((linear.sample(0.5, 0.0).x - 1.5).abs() < 1e-6);
-        assert_eq!(linear.sample(0.0, 0.0).x, 0.0);
-        assert_eq!(linear.sample(1.0, 0.0).x, 3.0);
+        assert!((at(&linear, 0.5) - 1.5).abs() < 1e-6);
+        assert_eq!(at(&linear, 0.0), 0.0);
+        assert_eq!(at(&linear, 1.0), 3.0);
     }
 
     #[test]
     fn wrap_modes() {
-        assert_eq!(ramp(false, Wrap::Repeat).sample(1.1, 0.0).x, 0.0);
-        assert_eq!(ramp(false, Wrap::MirrorRepeat).sample(1.1, 0.0).x, 3.0);
-        assert_eq!(ramp(false, Wrap::ClampToEdge).sample(-3.0, 0.0).x, 0.0);
+        assert_eq!(at(&ramp(false, Wrap::Repeat), 1.1), 0.0);
+        assert_eq!(at(&ramp(false, Wrap::MirrorRepeat), 1.1), 3.0);
+        assert_eq!(at(&ramp(false, Wrap::ClampToEdge), -3.0), 0.0);
+        // Linear across the repeat seam: halfway between texel 3 and texel 0.
+        assert!((at(&ramp(true, Wrap::Repeat), 1.0) - 1.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn trilinear_blends_the_eight_surrounding_texels() {
+        // 2×2×2 image whose texel (i, j, k) holds i + 2j + 4k.
+        let texels = (0..8).map(|n| Vec4::splat(n as f32)).collect();
+        let clamp = [Wrap::ClampToEdge; 3];
+        let linear = Image::new(texels, [2, 2, 2], true, clamp).unwrap();
+        // Texel centres are at 0.25 and 0.75; (0.5, 0.5, 0.5) is the mean of all eight.
+        assert!((linear.sample(Vec3::splat(0.5)).x - 3.5).abs() < 1e-6);
+        // A quarter of the way from centre (0,0,0) to (1,1,1) on each axis: 0.25·(1+2+4).
+        assert!((linear.sample(Vec3::splat(0.375)).x - 1.75).abs() < 1e-6);
+        let texels = (0..8).map(|n| Vec4::splat(n as f32)).collect();
+        let nearest = Image::new(texels, [2, 2, 2], false, clamp).unwrap();
+        assert_eq!(nearest.sample(Vec3::new(0.9, 0.1, 0.6)).x, 5.0);
+    }
+
+    #[test]
+    fn odd_coordinates_and_sizes_do_not_panic() {
+        assert!(Image::new(vec![Vec4::ONE; 3], [2, 2, 1], true, [Wrap::Repeat; 3]).is_none());
+        assert!(Image::new(Vec::new(), [0, 1, 1], true, [Wrap::Repeat; 3]).is_none());
+        for wrap in [Wrap::ClampToEdge, Wrap::Repeat, Wrap::MirrorRepeat] {
+            for linear in [false, true] {
+                let image = ramp(linear, wrap);
+                for u in [
+                    f32::NAN,
+                    f32::INFINITY,
+                    -f32::INFINITY,
+                    1e30,
+                    -1e30,
+                    f32::MAX,
+                ] {
+                    let v = at(&image, u);
+                    assert!((0.0..=3.0).contains(&v), "{wrap:?} {linear} {u}: {v}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_primitive_sampler_indexes_by_primitive_plus_offset() {
+        let sampler = Sampler {
+            input: 1,
+            in_transform: Mat4::IDENTITY,
+            in_offset: Vec4::ZERO,
+            out_transform: Mat4::IDENTITY,
+            out_offset: Vec4::ZERO,
+            lookup: Lookup::Primitive {
+                values: vec![Vec4::X, Vec4::Y, Vec4::Z],
+                offset: 1,
+            },
+        };
+        let attributes = [None; 5];
+        assert_eq!(sampler.evaluate_at(&attributes, 0), Vec4::Y);
+        assert_eq!(sampler.evaluate_at(&attributes, 1), Vec4::Z);
+        assert_eq!(sampler.evaluate_at(&attributes, 2), ATTRIBUTE_DEFAULT);
+        assert_eq!(
+            sampler.evaluate_at(&attributes, u32::MAX),
+            ATTRIBUTE_DEFAULT
+        );
     }
 }

@@ -1,6 +1,7 @@
 //! The world, and the immutable snapshot of it that a frame renders. The snapshot is taken when
 //! a frame starts: it reuses every geometry's committed BVH and only builds the top level over
-//! instances, so moving an instance or the camera never rebuilds a mesh BVH.
+//! instances, so moving an instance or the camera never rebuilds a mesh BVH. Volumes are kept
+//! in a flat list beside the BVH (each ray tests every volume's box: meant for a handful).
 
 use std::sync::Arc;
 
@@ -18,6 +19,8 @@ use crate::scene::attributes::ATTRIBUTE_NAMES;
 use crate::scene::geometry::Geometry;
 use crate::scene::light::Light;
 use crate::scene::material::Material;
+use crate::scene::spatial_field::StructuredRegularField;
+use crate::scene::volume::{PlacedVolume, TransferFunction};
 
 pub const WORLD: ObjectSpec = ObjectSpec::new(
     ANARI_WORLD,
@@ -32,6 +35,12 @@ pub const WORLD: ObjectSpec = ObjectSpec::new(
             "array of surfaces placed as they are",
         )
         .elements(&[ANARI_SURFACE]),
+        ParamSpec::new(
+            "volume",
+            &[ANARI_ARRAY1D],
+            "array of volumes placed as they are",
+        )
+        .elements(&[ANARI_VOLUME]),
         ParamSpec::new(
             "light",
             &[ANARI_ARRAY1D],
@@ -68,6 +77,7 @@ pub struct SceneSnapshot {
     pub bvh: SceneBvh,
     pub instances: Vec<InstanceData>,
     pub lights: Vec<Light>,
+    pub volumes: Vec<PlacedVolume>,
 }
 
 impl SceneSnapshot {
@@ -76,12 +86,18 @@ impl SceneSnapshot {
             bvh: SceneBvh::build(Vec::new()),
             instances: Vec::new(),
             lights: Vec::new(),
+            volumes: Vec::new(),
         }
     }
 
-    /// Bounds as [min.x, min.y, min.z, max.x, max.y, max.z].
+    /// Bounds of surfaces and volumes as [min.x, min.y, min.z, max.x, max.y, max.z].
     pub fn bounds(&self) -> [f32; 6] {
-        let (lo, hi) = self.bvh.bounds();
+        let (mut lo, mut hi) = self.bvh.bounds();
+        for volume in &self.volumes {
+            let (a, b) = volume.world_bounds();
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
         [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z]
     }
 }
@@ -117,7 +133,32 @@ fn surface_data(device: &Device, surface: &Object) -> Option<SurfaceData> {
     })
 }
 
-fn group_contents(device: &Device, params: &ParamSet) -> (Vec<SurfaceData>, Vec<Light>) {
+/// A visible, committed volume whose field can be sampled.
+fn volume_data(volume: &Object) -> Option<VolumeParts> {
+    if volume.spec.is_none() || volume.commit_count() == 0 {
+        return None;
+    }
+    let params = volume.committed();
+    if params.get_bool("visible") == Some(false) {
+        return None;
+    }
+    let transfer = volume.derived_as::<TransferFunction>()?;
+    let field = params
+        .get_object("value")?
+        .derived_as::<StructuredRegularField>()?;
+    Some((transfer, field))
+}
+
+type VolumeParts = (Arc<TransferFunction>, Arc<StructuredRegularField>);
+
+/// What a group (or the world itself) holds.
+struct GroupContents {
+    surfaces: Vec<SurfaceData>,
+    lights: Vec<Light>,
+    volumes: Vec<VolumeParts>,
+}
+
+fn group_contents(device: &Device, params: &ParamSet) -> GroupContents {
     let surfaces = objects_of(params, "surface")
         .iter()
         .filter(|s| s.commit_count() > 0)
@@ -128,7 +169,28 @@ fn group_contents(device: &Device, params: &ParamSet) -> (Vec<SurfaceData>, Vec<
         .filter(|l| l.commit_count() > 0)
         .filter_map(|l| Light::build(l))
         .collect();
-    (surfaces, lights)
+    let volumes = objects_of(params, "volume")
+        .iter()
+        .filter_map(|v| volume_data(v))
+        .collect();
+    GroupContents {
+        surfaces,
+        lights,
+        volumes,
+    }
+}
+
+fn place_volumes(
+    placed: &mut Vec<PlacedVolume>,
+    volumes: Vec<VolumeParts>,
+    transform: Affine3A,
+    instance_id: u32,
+) {
+    placed.extend(
+        volumes
+            .into_iter()
+            .map(|(transfer, field)| PlacedVolume::new(transfer, field, transform, instance_id)),
+    );
 }
 
 fn instance_data(transform: Affine3A, surfaces: Vec<SurfaceData>, id: u32) -> InstanceData {
@@ -146,11 +208,22 @@ pub fn snapshot(device: &Device, world: &Object) -> SceneSnapshot {
     let params = world.committed();
     let mut instances = Vec::new();
     let mut lights = Vec::new();
+    let mut volumes = Vec::new();
 
-    let (surfaces, world_lights) = group_contents(device, &params);
-    lights.extend(world_lights);
-    if !surfaces.is_empty() {
-        instances.push(instance_data(Affine3A::IDENTITY, surfaces, u32::MAX));
+    let world_contents = group_contents(device, &params);
+    lights.extend(world_contents.lights);
+    place_volumes(
+        &mut volumes,
+        world_contents.volumes,
+        Affine3A::IDENTITY,
+        u32::MAX,
+    );
+    if !world_contents.surfaces.is_empty() {
+        instances.push(instance_data(
+            Affine3A::IDENTITY,
+            world_contents.surfaces,
+            u32::MAX,
+        ));
     }
 
     for instance in objects_of(&params, "instance") {
@@ -172,9 +245,11 @@ pub fn snapshot(device: &Device, world: &Object) -> SceneSnapshot {
             );
             continue;
         }
-        let (surfaces, group_lights) = group_contents(device, &group.committed());
-        lights.extend(group_lights.iter().map(|l| l.transformed(&transform)));
-        let mut data = instance_data(transform, surfaces, ip.get_u32("id").unwrap_or(u32::MAX));
+        let contents = group_contents(device, &group.committed());
+        lights.extend(contents.lights.iter().map(|l| l.transformed(&transform)));
+        let id = ip.get_u32("id").unwrap_or(u32::MAX);
+        place_volumes(&mut volumes, contents.volumes, transform, id);
+        let mut data = instance_data(transform, contents.surfaces, id);
         for (slot, name) in ATTRIBUTE_NAMES.iter().enumerate() {
             data.attributes[slot] = ip.get_vec4(name);
         }
@@ -196,16 +271,22 @@ pub fn snapshot(device: &Device, world: &Object) -> SceneSnapshot {
         bvh: with_build_pool(device.requested_thread_count(), || SceneBvh::build(descs)),
         instances,
         lights,
+        volumes,
     }
 }
 
-/// Bounds of a group's surfaces in its own space.
+/// Bounds of a group's surfaces and volumes in its own space.
 pub fn group_bounds(device: &Device, group: &Object) -> Option<[f32; 6]> {
-    let (surfaces, _) = group_contents(device, &group.committed());
+    let contents = group_contents(device, &group.committed());
     let mut lo = Vec3::splat(f32::INFINITY);
     let mut hi = Vec3::splat(f32::NEG_INFINITY);
-    for s in &surfaces {
+    for s in &contents.surfaces {
         let (a, b) = s.geometry.bvh.bounds();
+        lo = lo.min(a);
+        hi = hi.max(b);
+    }
+    for (_, field) in &contents.volumes {
+        let (a, b) = field.bounds();
         lo = lo.min(a);
         hi = hi.max(b);
     }
