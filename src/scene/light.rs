@@ -1,10 +1,17 @@
-//! Lights: directional, point and spot, evaluated in world space.
+//! Lights: directional, point and spot, evaluated in world space. A directional light with an
+//! `angularDiameter` and a point light with a `radius` have extent and cast soft shadows: they
+//! are sampled per pixel sample (see `LightSampling`).
 
-use glam::{Affine3A, Vec3};
+use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
+use glam::{Affine3A, Vec2, Vec3};
+
+use crate::device::Device;
 use crate::device::datatype::*;
 use crate::device::object::Object;
+use crate::device::params::ParamSet;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
+use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
 
 const COLOR: ParamSpec = ParamSpec::new("color", &[ANARI_FLOAT32_VEC3], "light colour")
     .default(SpecValue::Floats(&[1.0, 1.0, 1.0]))
@@ -13,10 +20,25 @@ const COLOR: ParamSpec = ParamSpec::new("color", &[ANARI_FLOAT32_VEC3], "light c
         SpecValue::Floats(&[1.0, 1.0, 1.0]),
     );
 
+const POWER: ParamSpec = ParamSpec::new(
+    "power",
+    &[ANARI_FLOAT32],
+    "total emitted power (W); overrides intensity",
+)
+.range(SpecValue::Float(0.0), SpecValue::None);
+
+const RADIANCE: ParamSpec = ParamSpec::new(
+    "radiance",
+    &[ANARI_FLOAT32],
+    "radiance of the light's surface (W/sr/m²); overrides the other strengths when the light \
+     has extent",
+)
+.range(SpecValue::Float(0.0), SpecValue::None);
+
 pub const DIRECTIONAL: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
     "directional",
-    "light from one direction, at infinity",
+    "light from one direction, at infinity; a disk of angularDiameter casts soft shadows",
     &[
         COLOR,
         ParamSpec::new(
@@ -30,20 +52,35 @@ pub const DIRECTIONAL: ObjectSpec = ObjectSpec::new(
             &[ANARI_FLOAT32],
             "power per area arriving at a surface facing the light",
         )
-        .default(SpecValue::Float(1.0)),
+        .default(SpecValue::Float(1.0))
+        .range(SpecValue::Float(0.0), SpecValue::None),
+        ParamSpec::new(
+            "angularDiameter",
+            &[ANARI_FLOAT32],
+            "apparent diameter of the light's disk (radians)",
+        )
+        .default(SpecValue::Float(0.0))
+        .range(SpecValue::Float(0.0), SpecValue::Float(PI)),
+        RADIANCE,
     ],
 );
 
 pub const POINT: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
     "point",
-    "point light",
+    "point light; a radius makes it a sphere light with soft shadows",
     &[
         COLOR,
         ParamSpec::new("position", &[ANARI_FLOAT32_VEC3], "light position")
             .default(SpecValue::Floats(&[0.0, 0.0, 0.0])),
         ParamSpec::new("intensity", &[ANARI_FLOAT32], "radiant intensity (W/sr)")
-            .default(SpecValue::Float(1.0)),
+            .default(SpecValue::Float(1.0))
+            .range(SpecValue::Float(0.0), SpecValue::None),
+        POWER,
+        ParamSpec::new("radius", &[ANARI_FLOAT32], "radius of the sphere light")
+            .default(SpecValue::Float(0.0))
+            .range(SpecValue::Float(0.0), SpecValue::None),
+        RADIANCE,
     ],
 );
 
@@ -66,7 +103,7 @@ pub const SPOT: ObjectSpec = ObjectSpec::new(
             &[ANARI_FLOAT32],
             "full opening angle of the cone (radians)",
         )
-        .default(SpecValue::Float(std::f32::consts::PI)),
+        .default(SpecValue::Float(PI)),
         ParamSpec::new(
             "falloffAngle",
             &[ANARI_FLOAT32],
@@ -74,20 +111,26 @@ pub const SPOT: ObjectSpec = ObjectSpec::new(
         )
         .default(SpecValue::Float(0.1)),
         ParamSpec::new("intensity", &[ANARI_FLOAT32], "radiant intensity (W/sr)")
-            .default(SpecValue::Float(1.0)),
+            .default(SpecValue::Float(1.0))
+            .range(SpecValue::Float(0.0), SpecValue::None),
+        POWER,
     ],
 );
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Light {
-    /// `direction` is where the light travels (unit); radiance arriving = color × irradiance.
+    /// `direction` is where the light travels (unit). `irradiance` (colour included) arrives at
+    /// a surface facing the light. `cos_half_angle` < 1 makes it a disk of that angular radius.
     Directional {
         direction: Vec3,
-        radiance: Vec3,
+        irradiance: Vec3,
+        cos_half_angle: f32,
     },
+    /// `radius` > 0 makes it a sphere light of the same intensity seen from afar.
     Point {
         position: Vec3,
         intensity: Vec3,
+        radius: f32,
     },
     Spot {
         position: Vec3,
@@ -100,15 +143,183 @@ pub enum Light {
 }
 
 /// What one light contributes at a point: direction towards the light, distance and radiance.
+/// For a light with extent, one sample of it: `radiance` is the estimate (radiance over the
+/// sample's probability), so `radiance × cos` averages to the irradiance.
 pub struct Incoming {
     pub to_light: Vec3,
     pub distance: f32,
     pub radiance: Vec3,
 }
 
+/// Which point of a light with extent one shading sample uses: a 2D Halton point (bases 11
+/// and 13, independent of the pixel and lens sequences) for the pixel sample index, rotated by
+/// a per-pixel offset so neighbouring pixels do not share shadow patterns. Successive samples
+/// and accumulated frames cover the light evenly, so soft shadows converge.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LightSampling {
+    pub index: u32,
+    pub scramble: Vec2,
+}
+
+impl LightSampling {
+    /// The sampling for sample `index` of pixel (`x`, `y`).
+    pub fn for_pixel(index: u32, x: u32, y: u32) -> LightSampling {
+        let hash = mix(x.wrapping_mul(0x9E37_79B9) ^ mix(y.wrapping_add(0x7F4A_7C15)));
+        let unit = |bits: u32| (bits >> 8) as f32 * (1.0 / (1u32 << 24) as f32);
+        LightSampling {
+            index,
+            scramble: Vec2::new(unit(hash), unit(mix(hash ^ 0x68E3_1DA4))),
+        }
+    }
+
+    /// The point in [0,1)² for this sample.
+    pub fn point(&self) -> Vec2 {
+        let halton = Vec2::new(
+            radical_inverse(self.index, 11),
+            radical_inverse(self.index, 13),
+        );
+        let p = (halton + self.scramble).fract();
+        // fract can round up to 1.0 for tiny negative offsets; keep the half-open range.
+        p.min(Vec2::splat(1.0 - f32::EPSILON))
+    }
+}
+
+impl Default for LightSampling {
+    /// Sample 0 with no scramble: the centre-weighted first Halton point.
+    fn default() -> LightSampling {
+        LightSampling {
+            index: 0,
+            scramble: Vec2::splat(0.5),
+        }
+    }
+}
+
+/// A 32-bit integer hash (lowbias32), good enough to decorrelate pixels.
+fn mix(mut v: u32) -> u32 {
+    v ^= v >> 16;
+    v = v.wrapping_mul(0x7FEB_352D);
+    v ^= v >> 15;
+    v = v.wrapping_mul(0x846C_A68B);
+    v ^ (v >> 16)
+}
+
+fn radical_inverse(mut i: u32, base: u32) -> f32 {
+    let inverse = 1.0 / base as f64;
+    let mut scale = inverse;
+    let mut value = 0.0f64;
+    while i > 0 {
+        value += (i % base) as f64 * scale;
+        i /= base;
+        scale *= inverse;
+    }
+    value as f32
+}
+
+/// A direction in the cone of half-angle acos(`cos_max`) around unit `axis`, uniform in solid
+/// angle, for `u` in [0,1)².
+fn sample_cone(axis: Vec3, cos_max: f32, u: Vec2) -> Vec3 {
+    let cos_theta = 1.0 - u.x * (1.0 - cos_max);
+    let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
+    let phi = TAU * u.y;
+    let (tangent, bitangent) = axis.any_orthonormal_pair();
+    (tangent * (sin_theta * phi.cos()) + bitangent * (sin_theta * phi.sin()) + axis * cos_theta)
+        .normalize()
+}
+
+/// A parameter that must be finite and within [0, `maximum`]: `Err` names what was wrong.
+fn checked(
+    params: &ParamSet,
+    name: &str,
+    maximum: Option<(f32, &str)>,
+) -> Result<Option<f32>, String> {
+    let Some(value) = params.get_f32(name) else {
+        return Ok(None);
+    };
+    if !value.is_finite() || value < 0.0 {
+        return Err(format!(
+            "parameter '{name}' is {value}, expected a finite value ≥ 0"
+        ));
+    }
+    if let Some((max, max_name)) = maximum
+        && value > max
+    {
+        return Err(format!(
+            "parameter '{name}' is {value}, expected at most {max_name}"
+        ));
+    }
+    Ok(Some(value))
+}
+
+/// The non-negative scalar parameters each light subtype checks, with their upper bounds.
+fn checked_params(subtype: &str) -> &'static [(&'static str, Option<(f32, &'static str)>)] {
+    match subtype {
+        "directional" => &[
+            ("irradiance", None),
+            ("angularDiameter", Some((PI, "π"))),
+            ("radiance", None),
+        ],
+        "point" => &[
+            ("intensity", None),
+            ("power", None),
+            ("radius", None),
+            ("radiance", None),
+        ],
+        "spot" => &[("intensity", None), ("power", None)],
+        _ => &[],
+    }
+}
+
+/// A checked parameter's value, or `None` when unset or invalid (invalid values are ignored;
+/// `commit` reports them).
+fn valid(params: &ParamSet, name: &str, subtype: &str) -> Option<f32> {
+    let maximum = checked_params(subtype)
+        .iter()
+        .find(|(n, _)| *n == name)
+        .and_then(|(_, m)| *m);
+    checked(params, name, maximum).ok().flatten()
+}
+
+/// Reports light parameters that will be ignored: negative, NaN or infinite strengths and
+/// sizes, and a radiance on a light without extent.
+pub fn commit(device: &Device, object: &Object) {
+    let params = object.committed();
+    let subtype = object.subtype.as_str();
+    for (name, maximum) in checked_params(subtype) {
+        if let Err(what) = checked(&params, name, *maximum) {
+            device.error(
+                ANARI_STATUS_INVALID_ARGUMENT,
+                Some(object),
+                format!(
+                    "anariCommitParameters: {} {what}; it is ignored",
+                    object.describe()
+                ),
+            );
+        }
+    }
+    let extent = match subtype {
+        "directional" => "angularDiameter",
+        "point" => "radius",
+        _ => return,
+    };
+    if valid(&params, "radiance", subtype).is_some()
+        && valid(&params, extent, subtype).unwrap_or(0.0) == 0.0
+    {
+        device.warning(
+            Some(object),
+            format!(
+                "anariCommitParameters: {} parameter 'radiance' needs '{extent}' > 0 (a light \
+                 without extent emits no radiance); it is ignored",
+                object.describe()
+            ),
+        );
+    }
+}
+
 impl Light {
     pub fn build(object: &Object) -> Option<Light> {
         let p = object.committed();
+        let subtype = object.subtype.as_str();
+        let valid = |name: &str| valid(&p, name, subtype);
         let color = p.get_vec3("color").unwrap_or(Vec3::ONE);
         let direction = p
             .get_vec3("direction")
@@ -116,49 +327,89 @@ impl Light {
             .try_normalize()
             .unwrap_or(Vec3::NEG_Z);
         let position = p.get_vec3("position").unwrap_or(Vec3::ZERO);
-        let intensity = color * p.get_f32("intensity").unwrap_or(1.0);
-        Some(match object.subtype.as_str() {
-            "directional" => Light::Directional {
-                direction,
-                radiance: color * p.get_f32("irradiance").unwrap_or(1.0),
-            },
-            "point" => Light::Point {
-                position,
-                intensity,
-            },
+        let intensity = valid("intensity").unwrap_or(1.0);
+        Some(match subtype {
+            "directional" => {
+                let half_angle = 0.5 * valid("angularDiameter").unwrap_or(0.0);
+                let sin_half = half_angle.sin();
+                // A disk of radiance L seen under half-angle θ gives a facing surface the
+                // irradiance L·π·sin²θ (its projected solid angle).
+                let irradiance = match valid("radiance") {
+                    Some(radiance) if half_angle > 0.0 => radiance * PI * sin_half * sin_half,
+                    _ => valid("irradiance").unwrap_or(1.0),
+                };
+                Light::Directional {
+                    direction,
+                    irradiance: color * irradiance,
+                    cos_half_angle: if half_angle > 0.0 {
+                        half_angle.cos()
+                    } else {
+                        1.0
+                    },
+                }
+            }
+            "point" => {
+                let radius = valid("radius").unwrap_or(0.0);
+                // A sphere of radiance L has the intensity L·π·r² in every direction.
+                let intensity = match (valid("radiance"), valid("power")) {
+                    (Some(radiance), _) if radius > 0.0 => radiance * PI * radius * radius,
+                    (_, Some(power)) => power / (2.0 * TAU),
+                    _ => intensity,
+                };
+                Light::Point {
+                    position,
+                    intensity: color * intensity,
+                    radius,
+                }
+            }
             "spot" => {
-                let half = 0.5 * p.get_f32("openingAngle").unwrap_or(std::f32::consts::PI);
+                let half = 0.5 * p.get_f32("openingAngle").unwrap_or(PI);
                 let falloff = p.get_f32("falloffAngle").unwrap_or(0.1).max(0.0);
+                let cos_outer = half.cos();
+                let cos_inner = (half - falloff).max(0.0).cos();
+                // The cone's solid angle weighted by the smoothstep falloff (smooth in cos θ,
+                // so its integral over the falloff band is half the band).
+                let solid_angle = TAU * (1.0 - 0.5 * (cos_inner + cos_outer));
+                let intensity = match valid("power") {
+                    Some(power) if solid_angle > 0.0 => power / solid_angle,
+                    Some(_) => 0.0,
+                    None => intensity,
+                };
                 Light::Spot {
                     position,
                     direction,
-                    intensity,
-                    cos_outer: half.cos(),
-                    cos_inner: (half - falloff).max(0.0).cos(),
+                    intensity: color * intensity,
+                    cos_outer,
+                    cos_inner,
                 }
             }
             _ => return None,
         })
     }
 
-    /// The light moved into world space by an instance transform.
+    /// The light moved into world space by an instance transform. A sphere light keeps its
+    /// radius (as its intensity is kept): transforms place lights, they do not resize them.
     pub fn transformed(&self, transform: &Affine3A) -> Light {
         match *self {
             Light::Directional {
                 direction,
-                radiance,
+                irradiance,
+                cos_half_angle,
             } => Light::Directional {
                 direction: transform
                     .transform_vector3(direction)
                     .normalize_or(direction),
-                radiance,
+                irradiance,
+                cos_half_angle,
             },
             Light::Point {
                 position,
                 intensity,
+                radius,
             } => Light::Point {
                 position: transform.transform_point3(position),
                 intensity,
+                radius,
             },
             Light::Spot {
                 position,
@@ -178,20 +429,79 @@ impl Light {
         }
     }
 
-    /// Light arriving at `point`, before visibility.
+    /// Whether the light has extent (and so needs samples for its soft shadows).
+    pub fn has_extent(&self) -> bool {
+        match *self {
+            Light::Directional { cos_half_angle, .. } => cos_half_angle < 1.0,
+            Light::Point { radius, .. } => radius > 0.0,
+            Light::Spot { .. } => false,
+        }
+    }
+
+    /// Light arriving at `point`, before visibility. Lights with extent are sampled at
+    /// `sampling`'s point; lights without ignore it.
+    pub fn incoming_sampled(&self, point: Vec3, sampling: &LightSampling) -> Option<Incoming> {
+        match *self {
+            Light::Directional {
+                direction,
+                irradiance,
+                cos_half_angle,
+            } if cos_half_angle < 1.0 => {
+                // Radiance E/(π sin²θ) over the pdf 1/(2π(1−cos θ)) is 2E/(1+cos θ).
+                Some(Incoming {
+                    to_light: sample_cone(-direction, cos_half_angle, sampling.point()),
+                    distance: f32::INFINITY,
+                    radiance: irradiance * (2.0 / (1.0 + cos_half_angle)),
+                })
+            }
+            Light::Point {
+                position,
+                intensity,
+                radius,
+            } if radius > 0.0 => {
+                let axis = position - point;
+                let centre_distance = axis.length();
+                // Inside the sphere there is no surface facing in; nothing is lit.
+                if centre_distance <= radius {
+                    return None;
+                }
+                let axis = axis / centre_distance;
+                let sin2_max = (radius / centre_distance).powi(2);
+                let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
+                let to_light = sample_cone(axis, cos_max, sampling.point());
+                // Distance to the near side of the sphere along the sampled direction.
+                let along = centre_distance * to_light.dot(axis);
+                let across2 = (centre_distance * centre_distance - along * along).max(0.0);
+                let distance = along - (radius * radius - across2).max(0.0).sqrt();
+                let sphere_radiance = intensity * (FRAC_1_PI / (radius * radius));
+                // 1 − cos θ written so that tiny spheres do not cancel to zero.
+                let solid_angle = TAU * sin2_max / (1.0 + cos_max);
+                Some(Incoming {
+                    to_light,
+                    distance: distance.max(0.0),
+                    radiance: sphere_radiance * solid_angle,
+                })
+            }
+            _ => self.incoming(point),
+        }
+    }
+
+    /// Light arriving at `point` from the light's centre, before visibility.
     pub fn incoming(&self, point: Vec3) -> Option<Incoming> {
         match *self {
             Light::Directional {
                 direction,
-                radiance,
+                irradiance,
+                ..
             } => Some(Incoming {
                 to_light: -direction,
                 distance: f32::INFINITY,
-                radiance,
+                radiance: irradiance,
             }),
             Light::Point {
                 position,
                 intensity,
+                ..
             } => {
                 let d = position - point;
                 let distance = d.length();
@@ -243,6 +553,7 @@ mod tests {
         let light = Light::Point {
             position: Vec3::new(0.0, 2.0, 0.0),
             intensity: Vec3::splat(4.0),
+            radius: 0.0,
         };
         let i = light.incoming(Vec3::ZERO).unwrap();
         assert_eq!(i.to_light, Vec3::Y);
@@ -262,5 +573,70 @@ mod tests {
         assert!(light.incoming(Vec3::ZERO).is_some());
         // 45° off axis is outside a half-angle of 0.5 rad.
         assert!(light.incoming(Vec3::new(1.0, 0.0, 0.0)).is_none());
+    }
+
+    /// Mean of radiance × cos over many samples at a point facing the light.
+    fn mean_irradiance(light: &Light, point: Vec3, normal: Vec3, samples: u32) -> f32 {
+        let sum: f32 = (0..samples)
+            .map(|index| {
+                let sampling = LightSampling {
+                    index,
+                    scramble: Vec2::new(0.3, 0.7),
+                };
+                let i = light.incoming_sampled(point, &sampling).unwrap();
+                i.radiance.x * normal.dot(i.to_light).max(0.0)
+            })
+            .sum();
+        sum / samples as f32
+    }
+
+    #[test]
+    fn a_disk_light_gives_its_irradiance_on_average() {
+        let light = Light::Directional {
+            direction: Vec3::NEG_Z,
+            irradiance: Vec3::splat(2.0),
+            cos_half_angle: 0.3f32.cos(),
+        };
+        let e = mean_irradiance(&light, Vec3::ZERO, Vec3::Z, 4096);
+        assert!((e - 2.0).abs() < 2e-3, "{e}");
+        // Tilted by 45°, with the whole disk above the horizon: E·cos 45°.
+        let tilted = Vec3::new(1.0, 0.0, 1.0).normalize();
+        let e = mean_irradiance(&light, Vec3::ZERO, tilted, 4096);
+        assert!((e - 2.0 * 0.5f32.sqrt()).abs() < 2e-3, "{e}");
+    }
+
+    #[test]
+    fn a_sphere_light_matches_a_point_light_of_the_same_intensity() {
+        let light = Light::Point {
+            position: Vec3::new(0.0, 0.0, 2.0),
+            intensity: Vec3::splat(4.0),
+            radius: 0.5,
+        };
+        let e = mean_irradiance(&light, Vec3::ZERO, Vec3::Z, 4096);
+        assert!((e - 1.0).abs() < 1e-3, "{e}");
+        let i = light
+            .incoming_sampled(Vec3::ZERO, &LightSampling::default())
+            .unwrap();
+        // Samples end on the sphere's near surface.
+        let end = i.to_light * i.distance;
+        assert!(((end - Vec3::new(0.0, 0.0, 2.0)).length() - 0.5).abs() < 1e-5);
+        assert!(i.distance < 2.0);
+        assert!(
+            light
+                .incoming_sampled(Vec3::new(0.0, 0.0, 1.8), &LightSampling::default())
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn light_samples_stay_in_the_unit_square_and_differ_between_pixels() {
+        for index in 0..256 {
+            let p = LightSampling::for_pixel(index, 5, 9).point();
+            assert!(p.cmpge(Vec2::ZERO).all() && p.cmplt(Vec2::ONE).all(), "{p}");
+        }
+        assert_ne!(
+            LightSampling::for_pixel(0, 0, 0).scramble,
+            LightSampling::for_pixel(0, 1, 0).scramble
+        );
     }
 }
