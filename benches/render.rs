@@ -2,6 +2,7 @@
 //!
 //!     cargo bench --bench render            (full size: 1M triangles at 1600×1600)
 //!     CAVETRACE_BENCH_QUICK=1 cargo bench --bench render   (small, for a smoke run)
+//!     cargo bench --bench render -- fast    (only (a) and the same-rays comparison)
 //!
 //! Scenes: a height field of ~1M triangles seen by a tracked head (the camera moves every
 //! frame), rendered (a) by the "fast" renderer and (b) by the "default" renderer with one
@@ -365,6 +366,9 @@ fn main() {
         return;
     }
     let quick = std::env::var_os("CAVETRACE_BENCH_QUICK").is_some();
+    // `cargo bench --bench render -- fast` stops after (a) and the same-rays comparison (for
+    // profiling the fast path alone).
+    let fast_only = std::env::args().skip(1).any(|a| a == "fast");
     let (cells, size, spheres, frames) = if quick {
         (100, 256, 5_000, 3)
     } else {
@@ -399,6 +403,12 @@ fn main() {
     same_rays(&fast, geometry, &triangle_list, size, frames);
     drop(triangle_list);
     release(fast);
+    if fast_only {
+        anariRelease(dev, geometry);
+        anariRelease(dev, dev);
+        anariUnloadLibrary(lib);
+        return;
+    }
     let shaded = setup(dev, geometry, "default", size);
     track_head(&shaded, 0);
     run(
