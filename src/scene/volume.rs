@@ -14,31 +14,9 @@ use crate::device::params::ParamValue;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
 use crate::scene::array::ArrayStore;
+use crate::scene::attributes::{VALUE_ELEMENT_TYPES, read_values};
 use crate::scene::spatial_field::StructuredRegularField;
 
-/// Element types a `color` array may hold (the specification's Color types).
-pub const COLOR_ELEMENT_TYPES: &[ANARIDataType] = &[
-    ANARI_UFIXED8,
-    ANARI_UFIXED8_VEC2,
-    ANARI_UFIXED8_VEC3,
-    ANARI_UFIXED8_VEC4,
-    ANARI_UFIXED8_R_SRGB,
-    ANARI_UFIXED8_RA_SRGB,
-    ANARI_UFIXED8_RGB_SRGB,
-    ANARI_UFIXED8_RGBA_SRGB,
-    ANARI_UFIXED16,
-    ANARI_UFIXED16_VEC2,
-    ANARI_UFIXED16_VEC3,
-    ANARI_UFIXED16_VEC4,
-    ANARI_UFIXED32,
-    ANARI_UFIXED32_VEC2,
-    ANARI_UFIXED32_VEC3,
-    ANARI_UFIXED32_VEC4,
-    ANARI_FLOAT32,
-    ANARI_FLOAT32_VEC2,
-    ANARI_FLOAT32_VEC3,
-    ANARI_FLOAT32_VEC4,
-];
 
 pub const TRANSFER_FUNCTION1D: ObjectSpec = ObjectSpec::new(
     ANARI_VOLUME,
@@ -65,7 +43,7 @@ pub const TRANSFER_FUNCTION1D: ObjectSpec = ObjectSpec::new(
             "colour (uniform, or a table over valueRange); alpha multiplies the opacity",
         )
         .default(SpecValue::Floats(&[1.0, 1.0, 1.0, 1.0]))
-        .elements(COLOR_ELEMENT_TYPES),
+        .elements(VALUE_ELEMENT_TYPES),
         ParamSpec::new(
             "opacity",
             &[ANARI_FLOAT32, ANARI_ARRAY1D],
@@ -178,50 +156,15 @@ impl TransferFunction {
 }
 
 /// Reads a `color` array of any Color element type as linear RGBA (missing components: 0 for
-/// green and blue, 1 for alpha).
+/// green and blue, 1 for alpha; the second component of red–alpha colours is alpha).
 fn read_colors(store: &ArrayStore) -> Option<Vec<Vec4>> {
-    if let Some(colors) = store.read_attribute() {
-        return Some(colors);
+    let mut colors = read_values(store)?;
+    if store.element_type == ANARI_UFIXED8_RA_SRGB {
+        for color in &mut colors {
+            (color.y, color.w) = (0.0, color.y);
+        }
     }
-    let t = store.element_type;
-    // (components, bytes per component, red sRGB-encoded, second component is alpha)
-    let (n, width, srgb, red_alpha) = match t {
-        ANARI_UFIXED8_R_SRGB => (1, 1, true, false),
-        ANARI_UFIXED8_RA_SRGB => (2, 1, true, true),
-        ANARI_UFIXED32 => (1, 4, false, false),
-        ANARI_UFIXED32_VEC2 => (2, 4, false, false),
-        ANARI_UFIXED32_VEC3 => (3, 4, false, false),
-        ANARI_UFIXED32_VEC4 => (4, 4, false, false),
-        _ => return None,
-    };
-    let values: Vec<f32> = store.with_bytes(|bytes| {
-        bytes
-            .chunks_exact(width)
-            .map(|c| match width {
-                1 => c[0] as f32 / 255.0,
-                _ => (u32::from_ne_bytes(c.try_into().unwrap()) as f64 / u32::MAX as f64) as f32,
-            })
-            .collect()
-    });
-    Some(
-        values
-            .chunks_exact(n)
-            .map(|c| {
-                let mut v = Vec4::new(0.0, 0.0, 0.0, 1.0);
-                for (i, x) in c.iter().enumerate() {
-                    v[i] = *x;
-                }
-                if srgb {
-                    v.x = crate::render::color::srgb_to_linear(v.x);
-                }
-                if red_alpha {
-                    v.w = v.y;
-                    v.y = 0.0;
-                }
-                v
-            })
-            .collect(),
-    )
+    Some(colors)
 }
 
 /// Builds the transfer function from the committed parameters; reports and returns `None` when
