@@ -17,7 +17,6 @@ use crate::scene::array::ArrayStore;
 use crate::scene::attributes::{VALUE_ELEMENT_TYPES, read_values};
 use crate::scene::spatial_field::StructuredRegularField;
 
-
 pub const TRANSFER_FUNCTION1D: ObjectSpec = ObjectSpec::new(
     ANARI_VOLUME,
     "transferFunction1D",
