@@ -63,7 +63,8 @@ pub const DIRECTIONAL: ObjectSpec = ObjectSpec::new(
         .range(SpecValue::Float(0.0), SpecValue::Float(PI)),
         RADIANCE,
     ],
-);
+)
+.extensions(&["ANARI_KHR_LIGHT_DIRECTIONAL"]);
 
 pub const POINT: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
@@ -82,7 +83,8 @@ pub const POINT: ObjectSpec = ObjectSpec::new(
             .range(SpecValue::Float(0.0), SpecValue::None),
         RADIANCE,
     ],
-);
+)
+.extensions(&["ANARI_KHR_LIGHT_POINT"]);
 
 pub const SPOT: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
@@ -115,7 +117,8 @@ pub const SPOT: ObjectSpec = ObjectSpec::new(
             .range(SpecValue::Float(0.0), SpecValue::None),
         POWER,
     ],
-);
+)
+.extensions(&["ANARI_KHR_LIGHT_SPOT"]);
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Light {
@@ -638,5 +641,80 @@ mod tests {
             LightSampling::for_pixel(0, 0, 0).scramble,
             LightSampling::for_pixel(0, 1, 0).scramble
         );
+    }
+
+    static REPORTED: std::sync::Mutex<Vec<(i32, String)>> = std::sync::Mutex::new(Vec::new());
+
+    unsafe extern "C" fn remember(
+        _: *const std::ffi::c_void,
+        _: *mut std::ffi::c_void,
+        _: *mut std::ffi::c_void,
+        _: ANARIDataType,
+        _: crate::device::status::ANARIStatusSeverity,
+        code: crate::device::status::ANARIStatusCode,
+        message: *const std::ffi::c_char,
+    ) {
+        // SAFETY: the device passes a valid C string.
+        let text = unsafe { std::ffi::CStr::from_ptr(message) }.to_string_lossy();
+        REPORTED.lock().unwrap().push((code, text.into_owned()));
+    }
+
+    #[test]
+    fn commit_reports_bad_values_and_build_ignores_them() {
+        use crate::device::IncomingValue;
+        let device = Device::new(Some(remember), 0);
+        let handle = device.new_object("anariNewLight", ANARI_LIGHT, "point");
+        let set = |name: &str, value: f32| {
+            let bytes = value.to_ne_bytes().to_vec();
+            device.set_parameter(
+                "anariSetParameter",
+                handle,
+                name,
+                ANARI_FLOAT32,
+                IncomingValue::Data(bytes),
+            );
+        };
+        set("power", -2.0);
+        set("radius", f32::NAN);
+        set("radiance", 3.0);
+        device.commit("anariCommitParameters", handle);
+        let object = device.lookup(handle).unwrap();
+        REPORTED.lock().unwrap().clear();
+        commit(&device, &object);
+        let reported = std::mem::take(&mut *REPORTED.lock().unwrap());
+        let has = |code: i32, words: &[&str]| {
+            reported
+                .iter()
+                .any(|(c, t)| *c == code && words.iter().all(|w| t.contains(w)))
+        };
+        assert!(
+            has(
+                ANARI_STATUS_INVALID_ARGUMENT,
+                &["light 'point'", "'power'", "-2"]
+            ),
+            "{reported:?}"
+        );
+        assert!(
+            has(ANARI_STATUS_INVALID_ARGUMENT, &["'radius'", "NaN"]),
+            "{reported:?}"
+        );
+        // The radius is invalid, so the light has no extent and its radiance is unused.
+        assert!(
+            has(
+                crate::device::status::ANARI_STATUS_NO_ERROR,
+                &["'radiance'", "'radius' > 0"]
+            ),
+            "{reported:?}"
+        );
+        assert_eq!(reported.len(), 3, "{reported:?}");
+        assert_eq!(
+            Light::build(&object),
+            Some(Light::Point {
+                position: Vec3::ZERO,
+                intensity: Vec3::ONE,
+                radius: 0.0,
+            })
+        );
+        device.release("anariRelease", handle);
     }
 }

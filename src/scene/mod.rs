@@ -68,6 +68,7 @@ pub fn commit(device: &Device, object: &Object) {
             let volume = volume::commit(device, object);
             object.set_derived(volume.map(|v| Arc::new(v) as _));
         }
+        ANARI_LIGHT => light::commit(device, object),
         ANARI_CAMERA => crate::camera::commit(device, object),
         ANARI_RENDERER | ANARI_FRAME => crate::render::commit(device, object),
         _ => {}

@@ -1,0 +1,509 @@
+//! KHR_LIGHT_DIRECTIONAL / POINT / SPOT: power and radiance as alternative strengths, soft
+//! shadows from a directional light's angularDiameter and a point light's radius, and bad
+//! values ignored. Scenes are seen from straight above by an orthographic camera, so pixel
+//! (i, j) of the 32×32 frame sees the floor point x = −1 + (i+½)/16, z = 1 − (j+½)/16.
+mod common;
+use common::*;
+use std::f32::consts::PI;
+
+const SIZE: u32 = 32;
+
+fn release_all(dev: ANARIDevice, objects: &[ANARIObject]) {
+    for o in objects {
+        anariRelease(dev, *o);
+    }
+}
+
+fn quad(dev: ANARIDevice, half: f32, y: f32) -> ANARIGeometry {
+    let g = anariNewGeometry(dev, c("triangle").as_ptr());
+    let positions = [
+        [-half, y, -half],
+        [half, y, half],
+        [half, y, -half],
+        [-half, y, -half],
+        [-half, y, half],
+        [half, y, half],
+    ];
+    let a = array1d(dev, ANARI_FLOAT32_VEC3, &positions);
+    set_object(dev, g, "vertex.position", ANARI_ARRAY1D, a);
+    commit(dev, g);
+    anariRelease(dev, a);
+    g
+}
+
+/// A device with a white floor (y = 0) and, optionally, a black square blocker of half-size
+/// 0.25 at y = 1 (seen from above, it covers the floor pixels under it, which are umbra).
+struct Scene {
+    lib: ANARILibrary,
+    dev: ANARIDevice,
+    world: ANARIWorld,
+    objects: Vec<ANARIObject>,
+}
+
+impl Scene {
+    fn new(log: &Log, blocker: bool) -> Scene {
+        let (lib, dev) = device_with_log(log);
+        let floor = quad(dev, 2.0, 0.0);
+        let floor_surface = matte_surface(dev, floor, [1.0, 1.0, 1.0]);
+        let mut objects = vec![floor, floor_surface];
+        let mut surfaces = vec![floor_surface];
+        if blocker {
+            let square = quad(dev, 0.25, 1.0);
+            let surface = matte_surface(dev, square, [1.0, 1.0, 1.0]);
+            // The blocker is seen from above; make it black so only the floor shows light.
+            let material = anariNewMaterial(dev, c("matte").as_ptr());
+            set(
+                dev,
+                material,
+                "color",
+                ANARI_FLOAT32_VEC3,
+                &[0.0f32, 0.0, 0.0],
+            );
+            commit(dev, material);
+            set_object(dev, surface, "material", ANARI_MATERIAL, material);
+            commit(dev, surface);
+            objects.extend([square, surface, material]);
+            surfaces.push(surface);
+        }
+        let world = world_of(dev, &surfaces);
+        Scene {
+            lib,
+            dev,
+            world,
+            objects,
+        }
+    }
+
+    fn light(
+        &self,
+        subtype: &str,
+        floats: &[(&str, f32)],
+        vectors: &[(&str, [f32; 3])],
+    ) -> ANARILight {
+        let dev = self.dev;
+        let light = anariNewLight(dev, c(subtype).as_ptr());
+        for (name, value) in floats {
+            set(dev, light, name, ANARI_FLOAT32, value);
+        }
+        for (name, value) in vectors {
+            set(dev, light, name, ANARI_FLOAT32_VEC3, value);
+        }
+        commit(dev, light);
+        light
+    }
+
+    /// Renders the world lit by `light` `frames` times with accumulation; the red channel.
+    fn render(&self, light: ANARILight, frames: u32, pixel_samples: i32) -> Vec<f32> {
+        let dev = self.dev;
+        let lights = object_array(dev, ANARI_LIGHT, &[light]);
+        set_object(dev, self.world, "light", ANARI_ARRAY1D, lights);
+        commit(dev, self.world);
+        let camera = anariNewCamera(dev, c("orthographic").as_ptr());
+        set(
+            dev,
+            camera,
+            "position",
+            ANARI_FLOAT32_VEC3,
+            &[0.0f32, 3.0, 0.0],
+        );
+        set(
+            dev,
+            camera,
+            "direction",
+            ANARI_FLOAT32_VEC3,
+            &[0.0f32, -1.0, 0.0],
+        );
+        set(dev, camera, "up", ANARI_FLOAT32_VEC3, &[0.0f32, 0.0, -1.0]);
+        set(dev, camera, "height", ANARI_FLOAT32, &2.0f32);
+        set(dev, camera, "aspect", ANARI_FLOAT32, &1.0f32);
+        commit(dev, camera);
+        let renderer = anariNewRenderer(dev, c("default").as_ptr());
+        set(dev, renderer, "ambientRadiance", ANARI_FLOAT32, &0.0f32);
+        set(dev, renderer, "pixelSamples", ANARI_INT32, &pixel_samples);
+        commit(dev, renderer);
+        let frame = frame_for(dev, self.world, camera, renderer, [SIZE, SIZE]);
+        set(dev, frame, "accumulation", ANARI_BOOL, &1u8);
+        commit(dev, frame);
+        let mut color = Vec::new();
+        for _ in 0..frames {
+            color = render_channel::<[f32; 4]>(dev, frame, "channel.color").0;
+        }
+        release_all(dev, &[lights, camera, renderer, frame]);
+        color.iter().map(|p| p[0]).collect()
+    }
+
+    fn finish(self, log: &Log) {
+        release_all(self.dev, &self.objects);
+        anariRelease(self.dev, self.world);
+        anariRelease(self.dev, self.dev);
+        anariUnloadLibrary(self.lib);
+        let errors = log.errors();
+        assert!(errors.is_empty(), "{errors:?}");
+    }
+}
+
+/// The floor point pixel (i, j) sees.
+fn floor_point(i: u32, j: u32) -> (f32, f32) {
+    let x = -1.0 + (i as f32 + 0.5) / 16.0;
+    let z = 1.0 - (j as f32 + 0.5) / 16.0;
+    (x, z)
+}
+
+fn pixel(image: &[f32], i: u32, j: u32) -> f32 {
+    image[(j * SIZE + i) as usize]
+}
+
+/// Bit-identical images (reported by the first differing pixel, not the whole image).
+fn assert_same(a: &[f32], b: &[f32], what: &str) {
+    assert_eq!(a.len(), b.len());
+    if let Some(k) = (0..a.len()).find(|&k| a[k].to_bits() != b[k].to_bits()) {
+        let differing = (0..a.len()).filter(|&k| a[k] != b[k]).count();
+        panic!(
+            "{what}: {differing} pixels differ, first {k}: {} vs {}",
+            a[k], b[k]
+        );
+    }
+}
+
+fn assert_close(a: &[f32], b: &[f32], tolerance: f32) {
+    for (k, (x, y)) in a.iter().zip(b).enumerate() {
+        assert!(
+            (x - y).abs() <= tolerance * y.abs().max(1e-3),
+            "pixel {k}: {x} vs {y}"
+        );
+    }
+}
+
+const DOWN: [f32; 3] = [0.0, -1.0, 0.0];
+
+#[test]
+fn point_power_and_spot_power_light_like_the_matching_intensity() {
+    let log = Log::new();
+    let scene = Scene::new(&log, false);
+    let position = ("position", [0.3f32, 1.5, -0.2]);
+    let by_intensity = scene.light("point", &[("intensity", 2.0)], &[position]);
+    let by_power = scene.light("point", &[("power", 8.0 * PI)], &[position]);
+    // power overrides intensity.
+    let both = scene.light(
+        "point",
+        &[("intensity", 5.0), ("power", 8.0 * PI)],
+        &[position],
+    );
+    let reference = scene.render(by_intensity, 1, 1);
+    assert!(pixel(&reference, 16, 16) > 0.1);
+    assert_close(&scene.render(by_power, 1, 1), &reference, 1e-5);
+    assert_close(&scene.render(both, 1, 1), &reference, 1e-5);
+
+    // Spot: power spreads over the cone, weighted by the smooth falloff (smooth in cos θ, so
+    // the falloff band counts half): Ω = 2π(1 − (cos inner + cos outer)/2).
+    let (opening, falloff) = (1.2f32, 0.3f32);
+    let cos_outer = (opening as f64 / 2.0).cos();
+    let cos_inner = (opening as f64 / 2.0 - falloff as f64).cos();
+    let solid_angle = 2.0 * std::f64::consts::PI * (1.0 - 0.5 * (cos_inner + cos_outer));
+    let spot = |strength: (&str, f32)| {
+        scene.light(
+            "spot",
+            &[
+                ("openingAngle", opening),
+                ("falloffAngle", falloff),
+                strength,
+            ],
+            &[("position", [0.0, 1.5, 0.0]), ("direction", DOWN)],
+        )
+    };
+    let by_intensity = spot(("intensity", 3.0));
+    let by_power = spot(("power", (3.0 * solid_angle) as f32));
+    let reference = scene.render(by_intensity, 1, 1);
+    // Lit under the spot, dark outside its cone (tan 0.6 × 1.5 ≈ 1.03 from the axis).
+    assert!(pixel(&reference, 16, 16) > 0.1);
+    assert_eq!(pixel(&reference, 0, 0), 0.0);
+    assert_close(&scene.render(by_power, 1, 1), &reference, 1e-5);
+    release_all(scene.dev, &[by_intensity, by_power, both]);
+    scene.finish(&log);
+}
+
+#[test]
+fn directional_radiance_is_irradiance_over_the_disks_projected_solid_angle() {
+    let log = Log::new();
+    let scene = Scene::new(&log, false);
+    let diameter = 0.2f32;
+    let radiance = 50.0f32;
+    // A disk of radiance L and angular radius θ gives a facing surface L·π·sin²θ.
+    let irradiance = radiance * PI * (diameter / 2.0).sin().powi(2);
+    let direction = [0.0f32, -1.0, -0.3];
+    let by_irradiance = scene.light(
+        "directional",
+        &[("angularDiameter", diameter), ("irradiance", irradiance)],
+        &[("direction", direction)],
+    );
+    let by_radiance = scene.light(
+        "directional",
+        &[
+            ("angularDiameter", diameter),
+            ("radiance", radiance),
+            ("irradiance", 7.0),
+        ],
+        &[("direction", direction)],
+    );
+    let reference = scene.render(by_irradiance, 16, 16);
+    assert_close(&scene.render(by_radiance, 16, 16), &reference, 1e-5);
+    // And it is that irradiance: albedo 1/π × E × cos(light, normal), up to sampling noise.
+    let cos = 1.0 / (1.0f32 + 0.09).sqrt();
+    let expected = irradiance / PI * cos;
+    assert!(
+        (pixel(&reference, 16, 16) - expected).abs() < 1e-3 * expected,
+        "{} vs {expected}",
+        pixel(&reference, 16, 16)
+    );
+    release_all(scene.dev, &[by_irradiance, by_radiance]);
+    scene.finish(&log);
+}
+
+/// Checks a soft shadow against the hard one: deep inside the umbra dark, in the penumbra
+/// strictly between, and lit pixels as lit as with the hard shadow.
+fn check_penumbra(
+    soft: &[f32],
+    hard: &[f32],
+    umbra: impl Fn(f32, f32) -> bool,
+    penumbra: impl Fn(f32, f32) -> bool,
+    lit: impl Fn(f32, f32) -> bool,
+    tolerance: f32,
+) -> (u32, u32, u32) {
+    let mut counts = (0, 0, 0);
+    for j in 0..SIZE {
+        for i in 0..SIZE {
+            let (x, z) = floor_point(i, j);
+            let (s, h) = (pixel(soft, i, j), pixel(hard, i, j));
+            if umbra(x, z) {
+                counts.0 += 1;
+                assert_eq!(s, 0.0, "umbra pixel {i},{j} at {x},{z}");
+            } else if penumbra(x, z) {
+                counts.1 += 1;
+                assert!(
+                    s > 0.02 * h && s < 0.98 * h,
+                    "penumbra pixel {i},{j} at {x},{z}: {s} (lit {h})"
+                );
+            } else if lit(x, z) {
+                counts.2 += 1;
+                assert!(
+                    h > 0.0,
+                    "lit pixel {i},{j} at {x},{z} is dark with a hard shadow"
+                );
+                assert!(
+                    (s - h).abs() <= tolerance * h,
+                    "lit pixel {i},{j} at {x},{z}: {s} vs hard {h}"
+                );
+            }
+        }
+    }
+    counts
+}
+
+#[test]
+fn a_directional_disk_light_casts_a_penumbra_that_converges() {
+    let log = Log::new();
+    let scene = Scene::new(&log, true);
+    let light = |diameter: Option<f32>| {
+        let mut floats = vec![("irradiance", PI)];
+        floats.extend(diameter.map(|d| ("angularDiameter", d)));
+        scene.light("directional", &floats, &[("direction", DOWN)])
+    };
+    let (unset, zero, soft) = (light(None), light(Some(0.0)), light(Some(0.3)));
+    // angularDiameter 0 is the hard shadow, bit for bit, for one sample and accumulated.
+    assert_same(
+        &scene.render(zero, 1, 1),
+        &scene.render(unset, 1, 1),
+        "1 sample",
+    );
+    let hard = scene.render(unset, 16, 4);
+    assert_same(&scene.render(zero, 16, 4), &hard, "accumulated");
+    // The blocker (half-size 0.25, 1 above the floor) shadows |x|,|z| < 0.25 with a hard
+    // light; a disk of angular radius 0.15 widens that edge by ±tan 0.15 ≈ 0.151. Pixels are
+    // 1/16 wide, so a margin of more than half a pixel keeps whole pixels inside a region.
+    let soft_image = scene.render(soft, 16, 4);
+    let margin = 0.1511 + 0.04;
+    let counts = check_penumbra(
+        &soft_image,
+        &hard,
+        |x, z| x.abs().max(z.abs()) < 0.25 - margin,
+        // Just outside the blocker's footprint along an axis: part of the disk is hidden.
+        |x, z| z.abs() < 0.1 && (x.abs() - 0.28).abs() < 0.05,
+        |x, z| x.abs().max(z.abs()) > 0.25 + margin,
+        1e-3,
+    );
+    assert!(
+        counts.0 >= 4 && counts.1 >= 8 && counts.2 > 500,
+        "{counts:?}"
+    );
+    // Hard lit pixels are 1 (albedo 1 × irradiance π / π).
+    assert_eq!(pixel(&hard, 31, 31), 1.0);
+    release_all(scene.dev, &[unset, zero, soft]);
+    scene.finish(&log);
+}
+
+#[test]
+fn a_sphere_light_casts_a_penumbra_and_radius_zero_is_the_point_light() {
+    let log = Log::new();
+    let scene = Scene::new(&log, true);
+    let light = |radius: Option<f32>| {
+        let mut floats = vec![("intensity", 4.0)];
+        floats.extend(radius.map(|r| ("radius", r)));
+        scene.light("point", &floats, &[("position", [0.0, 2.0, 0.0])])
+    };
+    let (unset, zero, soft) = (light(None), light(Some(0.0)), light(Some(0.3)));
+    assert_same(
+        &scene.render(zero, 1, 1),
+        &scene.render(unset, 1, 1),
+        "1 sample",
+    );
+    let hard = scene.render(unset, 16, 4);
+    assert_same(&scene.render(zero, 16, 4), &hard, "accumulated");
+    // From (0, 2, 0) the blocker's edge at 0.25 projects to 0.5 on the floor; a sphere of
+    // radius 0.3 blurs that over about 0.5 ± 0.33 (its silhouette seen past the edge).
+    let soft_image = scene.render(soft, 16, 4);
+    let counts = check_penumbra(
+        &soft_image,
+        &hard,
+        |x, z| x.abs().max(z.abs()) < 0.1,
+        |x, z| z.abs() < 0.1 && (x.abs() - 0.55).abs() < 0.06,
+        |x, z| x.abs().max(z.abs()) > 0.9,
+        5e-3,
+    );
+    assert!(
+        counts.0 >= 4 && counts.1 >= 4 && counts.2 > 50,
+        "{counts:?}"
+    );
+    // A sphere light's radiance sets its intensity: I = L·π·r².
+    let by_radiance = scene.light(
+        "point",
+        &[
+            ("radius", 0.3),
+            ("radiance", 4.0 / (PI * 0.09)),
+            ("intensity", 9.0),
+        ],
+        &[("position", [0.0, 2.0, 0.0])],
+    );
+    assert_close(&scene.render(by_radiance, 16, 4), &soft_image, 1e-4);
+    release_all(scene.dev, &[unset, zero, soft, by_radiance]);
+    scene.finish(&log);
+}
+
+#[test]
+fn bad_strengths_and_sizes_are_ignored() {
+    let log = Log::new();
+    let scene = Scene::new(&log, true);
+    let position = ("position", [0.0f32, 2.0, 0.0]);
+    let good = scene.light("point", &[("intensity", 4.0)], &[position]);
+    let reference = scene.render(good, 1, 1);
+    for (name, value) in [
+        ("power", -1.0),
+        ("power", f32::NAN),
+        ("radius", -0.5),
+        ("radius", f32::NAN),
+        ("radius", f32::INFINITY),
+    ] {
+        let bad = scene.light("point", &[("intensity", 4.0), (name, value)], &[position]);
+        assert_same(
+            &scene.render(bad, 1, 1),
+            &reference,
+            &format!("point {name} {value}"),
+        );
+        anariRelease(scene.dev, bad);
+    }
+    let good = scene.light("directional", &[], &[("direction", DOWN)]);
+    let reference = scene.render(good, 1, 1);
+    for value in [-0.1, f32::NAN, 4.0] {
+        let bad = scene.light(
+            "directional",
+            &[("angularDiameter", value)],
+            &[("direction", DOWN)],
+        );
+        assert_eq!(
+            scene.render(bad, 1, 1),
+            reference,
+            "angularDiameter {value}"
+        );
+        anariRelease(scene.dev, bad);
+    }
+    let good = scene.light(
+        "spot",
+        &[],
+        &[("position", [0.0, 2.0, 0.0]), ("direction", DOWN)],
+    );
+    let reference = scene.render(good, 1, 1);
+    let bad = scene.light(
+        "spot",
+        &[("power", -3.0)],
+        &[("position", [0.0, 2.0, 0.0]), ("direction", DOWN)],
+    );
+    assert_same(&scene.render(bad, 1, 1), &reference, "spot power");
+    release_all(scene.dev, &[good, bad]);
+    // What commit reports for them is checked in the test below.
+    log.take();
+    scene.finish(&log);
+}
+
+/// Bad values reach the application through the status callback at commit.
+#[test]
+fn bad_values_are_reported_through_the_status_callback() {
+    let log = Log::new();
+    let scene = Scene::new(&log, false);
+    let bad = scene.light(
+        "point",
+        &[("power", -1.0), ("radius", f32::NAN)],
+        &[("position", [0.0, 2.0, 0.0])],
+    );
+    let errors = log.errors();
+    for name in ["'power'", "'radius'"] {
+        assert!(
+            errors
+                .iter()
+                .any(|(code, text)| *code == ANARI_STATUS_INVALID_ARGUMENT
+                    && text.contains("light 'point'")
+                    && text.contains(name)),
+            "{name}: {errors:?}"
+        );
+    }
+    anariRelease(scene.dev, bad);
+    scene.finish(&log);
+}
+
+#[test]
+fn the_light_extensions_are_advertised() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let mut list: *const *const std::ffi::c_char = std::ptr::null();
+    assert_eq!(
+        anariGetProperty(
+            dev,
+            dev,
+            c("extension").as_ptr(),
+            ANARI_STRING_LIST,
+            &mut list as *mut _ as _,
+            8,
+            ANARI_WAIT
+        ),
+        1
+    );
+    let mut extensions = Vec::new();
+    // SAFETY: the device returns a NULL-terminated list of C strings.
+    unsafe {
+        let mut p = list;
+        while !p.is_null() && !(*p).is_null() {
+            extensions.push(std::ffi::CStr::from_ptr(*p).to_string_lossy().into_owned());
+            p = p.add(1);
+        }
+    }
+    for name in [
+        "ANARI_KHR_LIGHT_DIRECTIONAL",
+        "ANARI_KHR_LIGHT_POINT",
+        "ANARI_KHR_LIGHT_SPOT",
+    ] {
+        assert!(
+            extensions.iter().any(|e| e == name),
+            "{name} in {extensions:?}"
+        );
+    }
+    anariRelease(dev, dev);
+    anariUnloadLibrary(lib);
+}
