@@ -1,6 +1,6 @@
-//! Renderers. "default": direct lighting from directional, point and spot lights with hard
-//! shadows, ambient light, mirror reflections and transparency. "fast": primary rays only with
-//! eye-light shading, for head-tracked interactivity.
+//! Renderers. "default": direct lighting from directional, point and spot lights with shadows
+//! (soft from lights with extent), ambient light, mirror reflections and transparency. "fast":
+//! primary rays only with eye-light shading, for head-tracked interactivity.
 
 use std::sync::Arc;
 
@@ -52,7 +52,8 @@ const PIXEL_SAMPLES: ParamSpec = ParamSpec::new(
 pub const DEFAULT: ObjectSpec = ObjectSpec::new(
     ANARI_RENDERER,
     "default",
-    "direct lighting with hard shadows, ambient light, mirror reflections and transparency",
+    "direct lighting with shadows (soft from lights with extent), ambient light, mirror \
+     reflections and transparency",
     &[
         BACKGROUND,
         AMBIENT_COLOR,
@@ -65,7 +66,7 @@ pub const DEFAULT: ObjectSpec = ObjectSpec::new(
         )
         .default(SpecValue::Int(5))
         .range(SpecValue::Int(0), SpecValue::Int(64)),
-        ParamSpec::new("shadows", &[ANARI_BOOL], "whether lights cast hard shadows")
+        ParamSpec::new("shadows", &[ANARI_BOOL], "whether lights cast shadows")
             .default(SpecValue::Bool(true)),
     ],
 )
@@ -382,7 +383,8 @@ fn shade(
 ) -> Vec3 {
     let diffuse_weight = 1.0 - sp.metallic;
     // Ambient light is radiance from every direction: it arrives as irradiance π·L.
-    let light = direct_light(scene, settings, sp, sampling) + settings.ambient * std::f32::consts::PI;
+    let light =
+        direct_light(scene, settings, sp, sampling) + settings.ambient * std::f32::consts::PI;
     // Lambertian: albedo/π × irradiance.
     let mut color = sp.base_color * std::f32::consts::FRAC_1_PI * light * diffuse_weight;
     color += sp.emissive;
