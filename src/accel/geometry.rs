@@ -5,8 +5,7 @@ use crate::accel::packet::{
     triangle_packet,
 };
 use crate::accel::primitives::{
-    CylinderPart, PackedCylinder, PackedSphere, PackedTriangle, cylinder_hit, cylinder_surface,
-    sphere_surface, sphere_t, triangle_t, triangle_t_uv,
+    PackedSphere, PackedTriangle, sphere_surface, sphere_t, triangle_t, triangle_t_uv,
 };
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
 use crate::accel::wide_bvh::{TraversalRay, build_wide_bvh, prefetch, traverse};
@@ -38,10 +37,6 @@ enum PrimitiveData {
     Triangles(Vec<PackedTriangle>),
     Quads(Vec<PackedTriangle>),
     Spheres(Vec<PackedSphere>),
-    Cylinders {
-        cylinders: Vec<PackedCylinder>,
-        caps: bool,
-    },
     Tubes(Vec<PackedTube>),
 }
 
@@ -209,34 +204,6 @@ impl GeometryBvh {
                     skipped_primitive_count: centers.len() - accepted,
                 }
             }
-            GeometryPrims::Cylinders {
-                starts,
-                ends,
-                radii,
-                caps,
-            } => {
-                let mut collected = Collected::with_capacity(starts.len());
-                for (id, start) in starts.iter().enumerate().take(u32::MAX as usize) {
-                    let cylinder = match (ends.get(id), radii.get(id)) {
-                        (Some(&end), Some(&radius)) => PackedCylinder::new(*start, end, radius),
-                        _ => None,
-                    };
-                    if let Some(cylinder) = cylinder {
-                        collected.push(cylinder, id as u32);
-                    }
-                }
-                let accepted = collected.primitives.len();
-                let (nodes, cylinders, source_ids, bounds) =
-                    order_for_bvh(collected, PackedCylinder::bounds);
-                GeometryBvh {
-                    nodes,
-                    primitives: PrimitiveData::Cylinders { cylinders, caps },
-                    source_ids,
-                    bounds,
-                    primitive_count: accepted,
-                    skipped_primitive_count: starts.len() - accepted,
-                }
-            }
         }
     }
 
@@ -335,9 +302,6 @@ impl GeometryBvh {
                 triangles.capacity() * size_of::<PackedTriangle>()
             }
             PrimitiveData::Spheres(spheres) => spheres.capacity() * size_of::<PackedSphere>(),
-            PrimitiveData::Cylinders { cylinders, .. } => {
-                cylinders.capacity() * size_of::<PackedCylinder>()
-            }
             PrimitiveData::Tubes(tubes) => tubes.capacity() * size_of::<PackedTube>(),
         };
         self.nodes.capacity() * size_of::<CwBvhNode>()
@@ -370,16 +334,6 @@ impl GeometryBvh {
                 traverse::<false, _>(&self.nodes, ray, |slot, ray| {
                     let hit = sphere_t(&spheres[slot as usize], ray);
                     if let Some(t) = hit {
-                        ray.t_max = t;
-                        closest = Some((slot, Vec2::ZERO));
-                    }
-                    hit.is_some()
-                });
-            }
-            PrimitiveData::Cylinders { cylinders, caps } => {
-                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
-                    let hit = cylinder_hit(&cylinders[slot as usize], *caps, ray);
-                    if let Some((t, _)) = hit {
                         ray.t_max = t;
                         closest = Some((slot, Vec2::ZERO));
                     }
@@ -461,11 +415,6 @@ impl GeometryBvh {
                     prefetch(sphere);
                 }
             }
-            PrimitiveData::Cylinders { cylinders, .. } => {
-                if let Some(cylinder) = cylinders.get(slot) {
-                    prefetch(cylinder);
-                }
-            }
             PrimitiveData::Tubes(tubes) => {
                 if let Some(tube) = tubes.get(slot) {
                     prefetch(tube);
@@ -476,7 +425,7 @@ impl GeometryBvh {
 
     /// Tests the primitive slots `first..first + count` against the packet's `lanes`; lanes
     /// that hit get their `t_max` shrunk and their slot written to `closest`. Spheres and
-    /// cylinders are tested lane by lane with the single-ray routines.
+    /// tubes are tested lane by lane with the single-ray routines.
     #[inline(always)]
     fn test_leaf_packet(
         &self,
@@ -513,12 +462,6 @@ impl GeometryBvh {
                     let sphere = &spheres[slot as usize];
                     per_lane(packet, closest, slot, &|ray| sphere_t(sphere, ray));
                 }
-                PrimitiveData::Cylinders { cylinders, caps } => {
-                    let cylinder = &cylinders[slot as usize];
-                    per_lane(packet, closest, slot, &|ray| {
-                        cylinder_hit(cylinder, *caps, ray).map(|hit| hit.0)
-                    });
-                }
                 PrimitiveData::Tubes(tubes) => {
                     let tube = &tubes[slot as usize];
                     per_lane(packet, closest, slot, &|ray| {
@@ -541,11 +484,6 @@ impl GeometryBvh {
             PrimitiveData::Spheres(spheres) => {
                 traverse::<true, _>(&self.nodes, ray, |slot, ray| {
                     sphere_t(&spheres[slot as usize], ray).is_some()
-                })
-            }
-            PrimitiveData::Cylinders { cylinders, caps } => {
-                traverse::<true, _>(&self.nodes, ray, |slot, ray| {
-                    cylinder_hit(&cylinders[slot as usize], *caps, ray).is_some()
                 })
             }
             PrimitiveData::Tubes(tubes) => traverse::<true, _>(&self.nodes, ray, |slot, ray| {
@@ -575,7 +513,7 @@ impl GeometryBvh {
 
     /// The hit record of a triangle or quad slot from the `t` and barycentrics its packet test
     /// produced (bit-identical to what [`Self::hit_details`] recomputes); `None` for spheres
-    /// and cylinders.
+    /// and tubes.
     pub(crate) fn triangle_hit_from_uv(&self, slot: u32, t: f32, bary: Vec2) -> Option<PrimHit> {
         let source_id = self.source_ids[slot as usize];
         match &self.primitives {
@@ -591,9 +529,7 @@ impl GeometryBvh {
                 uv: quad_coordinates(bary, source_id),
                 normal: triangles[slot as usize].normal(),
             }),
-            PrimitiveData::Spheres(_)
-            | PrimitiveData::Cylinders { .. }
-            | PrimitiveData::Tubes(_) => None,
+            PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) => None,
         }
     }
 
@@ -640,18 +576,6 @@ impl GeometryBvh {
                     return miss();
                 };
                 let (normal, uv) = sphere_surface(sphere, ray, t);
-                PrimHit {
-                    t,
-                    primitive: source_id,
-                    uv,
-                    normal,
-                }
-            }
-            PrimitiveData::Cylinders { cylinders, caps } => {
-                let cylinder = &cylinders[slot];
-                let (t, part) =
-                    cylinder_hit(cylinder, *caps, ray).unwrap_or((ray.t_max, CylinderPart::Body));
-                let (normal, uv) = cylinder_surface(cylinder, ray, t, part);
                 PrimHit {
                     t,
                     primitive: source_id,

@@ -16,18 +16,18 @@
 //!   Start secondary rays at the hit point with `t_min = surface_epsilon(hit_point)` (shadow rays
 //!   may also end at `t_max = distance_to_light - surface_epsilon(light_position)`). The epsilon is
 //!   relative to the magnitude of the coordinates because float rounding of the hit point is.
-//!   Sphere and cylinder tests run in f64, so rays leaving such a surface at 0.6 degrees or more
+//!   Sphere and tube tests run in f64, so rays leaving such a surface at 0.6 degrees or more
 //!   above the tangent plane do not re-hit it (tested); more grazing ones may.
 //! * **Normals** are geometric, unit length and not flipped towards the ray: triangles use
-//!   `(v1 - v0) x (v2 - v0)`, quads the normal of the half that was hit, spheres and cylinder
-//!   bodies point outwards, cylinder caps point away from the cylinder along its axis.
+//!   `(v1 - v0) x (v2 - v0)`, quads the normal of the half that was hit, spheres and the sides
+//!   and end balls of tubes point outwards, tube caps point away from the tube along its axis.
 //! * **Empty boxes.** Bounds of empty geometries and scenes are [`EMPTY_BOUNDS`]: `min = +inf`,
 //!   `max = -inf`, so that a union with any other box yields that box.
 //! * **Skipped primitives.** Primitives with non-finite data, coordinates beyond
-//!   [`MAX_COORDINATE`], out-of-range indices, zero area, or non-positive radius / zero length are
-//!   left out of the BVH and can never be hit; they are counted by
-//!   [`GeometryBvh::skipped_primitive_count`]. Instances whose transform is not finite or not
-//!   invertible are left out of the scene.
+//!   [`MAX_COORDINATE`], out-of-range indices, zero area, a non-positive sphere radius, tube
+//!   radii that are negative or both zero, or cones of zero length are left out of the BVH and
+//!   can never be hit; they are counted by [`GeometryBvh::skipped_primitive_count`]. Instances
+//!   whose transform is not finite or not invertible are left out of the scene.
 //! * **Threads.** Builds are parallel through rayon (obvhs' `parallel` feature for the binary
 //!   BVH, rayon iterators for packing and collapsing) and use the pool of the calling thread:
 //!   call them inside the device pool's `ThreadPool::install`, or they fall back to rayon's
@@ -79,8 +79,10 @@ impl Ray {
     }
 }
 
-/// Primitives of one ANARI geometry, already validated by the scene layer. Anything still invalid
-/// is skipped during the build (see the module documentation).
+/// Primitives of one ANARI triangle, quad or sphere geometry, already validated by the scene
+/// layer, for [`GeometryBvh::build`]; cylinders, cones and curves are [`TubeSegment`]s for
+/// [`GeometryBvh::build_tubes`]. Anything still invalid is skipped during the build (see the
+/// module documentation).
 #[derive(Clone, Debug)]
 pub enum GeometryPrims {
     Triangles {
@@ -97,13 +99,6 @@ pub enum GeometryPrims {
         centers: Vec<Vec3>,
         radii: Vec<f32>,
     },
-    /// Cylinders between two points; `caps` = flat end caps.
-    Cylinders {
-        starts: Vec<Vec3>,
-        ends: Vec<Vec3>,
-        radii: Vec<f32>,
-        caps: bool,
-    },
 }
 
 /// Closest hit against one geometry, in the geometry's object space.
@@ -115,8 +110,8 @@ pub struct PrimHit {
     /// Triangles: barycentrics `(b1, b2)` of `v1` and `v2`. Quads: local coordinates with
     /// `v0 = (0,0)`, `v1 = (1,0)`, `v2 = (1,1)`, `v3 = (0,1)` (exact for parallelograms).
     /// Spheres: `(longitude / 2pi in [0,1), colatitude / pi in [0,1])` of the object normal
-    /// around +z. Cylinders: `(axial position / length in [0,1], 0)` on the body; caps give
-    /// `(0 or 1, distance from axis / radius)`.
+    /// around +z. Tubes (cylinders, cones, curve segments): `(axial position / length in [0,1],
+    /// 0)` on the side and end balls; caps give `(0 or 1, distance from axis / radius)`.
     pub uv: Vec2,
     /// Geometric normal in object space, unit length, not faced towards the ray.
     pub normal: Vec3,

@@ -1,9 +1,8 @@
 //! Tests of the public acceleration API against analytic answers and brute force.
 
 use crate::accel::geometry::BUILDS_ON_THIS_THREAD;
-use crate::accel::primitives::{
-    PackedCylinder, PackedSphere, PackedTriangle, cylinder_hit, sphere_t, triangle_t,
-};
+use crate::accel::primitives::{PackedSphere, PackedTriangle, sphere_t, triangle_t};
+use crate::accel::tube::{PackedTube, tube_hit};
 use crate::accel::wide_bvh::TraversalRay;
 use crate::accel::*;
 use glam::{Affine3A, Quat, UVec3, UVec4, Vec3, Vec3A, vec3};
@@ -86,14 +85,49 @@ fn identity_instance(geometries: Vec<Arc<GeometryBvh>>) -> InstanceDesc {
 // ---------------------------------------------------------------------------------------------
 // Brute force references: every primitive tested with the same primitive routines, no BVH.
 
-/// Closest `(t, primitive id)` over all primitives of `prims`.
-fn brute_force(prims: &GeometryPrims, ray: &TraversalRay) -> Option<(f32, u32)> {
+/// One test geometry: primitives for [`GeometryBvh::build`], or tube segments (cylinders,
+/// cones, curve segments) for [`GeometryBvh::build_tubes`], as the scene layer builds them.
+#[derive(Clone, Debug)]
+enum TestGeometry {
+    Prims(GeometryPrims),
+    Tubes(Vec<TubeSegment>),
+}
+
+impl TestGeometry {
+    fn build(&self) -> GeometryBvh {
+        match self {
+            TestGeometry::Prims(prims) => GeometryBvh::build(prims.clone()),
+            TestGeometry::Tubes(segments) => GeometryBvh::build_tubes(segments),
+        }
+    }
+}
+
+impl From<GeometryPrims> for TestGeometry {
+    fn from(prims: GeometryPrims) -> TestGeometry {
+        TestGeometry::Prims(prims)
+    }
+}
+
+/// Closest `(t, primitive id)` over all primitives of `geometry`.
+fn brute_force(geometry: &TestGeometry, ray: &TraversalRay) -> Option<(f32, u32)> {
     let mut ray = *ray;
     let mut best = None;
     let mut offer = |hit: Option<f32>, id: u32, ray: &mut TraversalRay| {
         if let Some(t) = hit {
             ray.t_max = t;
             best = Some((t, id));
+        }
+    };
+    let prims = match geometry {
+        TestGeometry::Prims(prims) => prims,
+        TestGeometry::Tubes(segments) => {
+            for (id, segment) in segments.iter().enumerate() {
+                if let Some(tube) = PackedTube::new(segment) {
+                    let hit = tube_hit(&tube, &ray).map(|(t, _)| t);
+                    offer(hit, id as u32, &mut ray);
+                }
+            }
+            return best;
         }
     };
     match prims {
@@ -129,19 +163,6 @@ fn brute_force(prims: &GeometryPrims, ray: &TraversalRay) -> Option<(f32, u32)> 
                 }
             }
         }
-        GeometryPrims::Cylinders {
-            starts,
-            ends,
-            radii,
-            caps,
-        } => {
-            for id in 0..starts.len() {
-                if let Some(cylinder) = PackedCylinder::new(starts[id], ends[id], radii[id]) {
-                    let hit = cylinder_hit(&cylinder, *caps, &ray).map(|(t, _)| t);
-                    offer(hit, id as u32, &mut ray);
-                }
-            }
-        }
     }
     best
 }
@@ -159,7 +180,7 @@ fn traversal_ray(ray: &Ray) -> TraversalRay {
 /// Checks a BVH answer against the brute-force answer: equal `t`, and the same primitive
 /// unless another primitive is hit at exactly the same `t`.
 fn check_against_brute_force(
-    prims: &GeometryPrims,
+    prims: &TestGeometry,
     found: Option<(f32, u32)>,
     ray: &TraversalRay,
     context: &str,
@@ -187,9 +208,13 @@ fn check_against_brute_force(
 }
 
 /// The primitive `id` alone (ids of the result restart at 0).
-fn single_primitive(prims: &GeometryPrims, id: u32) -> GeometryPrims {
+fn single_primitive(geometry: &TestGeometry, id: u32) -> TestGeometry {
     let i = id as usize;
-    match prims {
+    let prims = match geometry {
+        TestGeometry::Prims(prims) => prims,
+        TestGeometry::Tubes(segments) => return TestGeometry::Tubes(vec![segments[i]]),
+    };
+    let single = match prims {
         GeometryPrims::Triangles { positions, indices } => GeometryPrims::Triangles {
             positions: positions.clone(),
             indices: vec![indices[i]],
@@ -202,18 +227,8 @@ fn single_primitive(prims: &GeometryPrims, id: u32) -> GeometryPrims {
             centers: vec![centers[i]],
             radii: vec![radii[i]],
         },
-        GeometryPrims::Cylinders {
-            starts,
-            ends,
-            radii,
-            caps,
-        } => GeometryPrims::Cylinders {
-            starts: vec![starts[i]],
-            ends: vec![ends[i]],
-            radii: vec![radii[i]],
-            caps: *caps,
-        },
-    }
+    };
+    single.into()
 }
 
 fn random_triangles(rng: &mut Rng, count: usize, extent: f32, size: f32) -> GeometryPrims {
@@ -251,20 +266,31 @@ fn random_spheres(rng: &mut Rng, count: usize, extent: f32, size: f32) -> Geomet
     }
 }
 
-fn random_cylinders(rng: &mut Rng, count: usize, extent: f32, size: f32) -> GeometryPrims {
-    let starts: Vec<Vec3> = (0..count).map(|_| rng.point(-extent, extent)).collect();
-    let ends = starts
-        .iter()
-        .map(|start| *start + rng.point(-size, size))
+/// Capped cylinders, open cylinders, cones capped at their start (some with a pointed end)
+/// and round curve segments, in turn.
+fn random_tubes(rng: &mut Rng, count: usize, extent: f32, size: f32) -> TestGeometry {
+    let segments = (0..count)
+        .map(|i| {
+            let start = rng.point(-extent, extent);
+            let end = start + rng.point(-size, size);
+            let start_radius = rng.range(0.02 * size, 0.3 * size);
+            let cone = |start_cap, end_cap| TubeKind::Cone { start_cap, end_cap };
+            let (end_radius, kind) = match i % 4 {
+                0 => (start_radius, cone(true, true)),
+                1 => (start_radius, cone(false, false)),
+                2 => (rng.range(0.0, 0.3 * size), cone(true, false)),
+                _ => (rng.range(0.02 * size, 0.3 * size), TubeKind::Round),
+            };
+            TubeSegment {
+                start,
+                end,
+                start_radius,
+                end_radius,
+                kind,
+            }
+        })
         .collect();
-    GeometryPrims::Cylinders {
-        starts,
-        ends,
-        radii: (0..count)
-            .map(|_| rng.range(0.02 * size, 0.3 * size))
-            .collect(),
-        caps: count.is_multiple_of(2),
-    }
+    TestGeometry::Tubes(segments)
 }
 
 /// Rays from outside and inside the primitive cloud, some with finite windows.
@@ -289,8 +315,8 @@ fn random_rays(rng: &mut Rng, count: usize, extent: f32) -> Vec<Ray> {
         .collect()
 }
 
-fn compare_geometry_with_brute_force(prims: GeometryPrims, rays: &[Ray], name: &str) {
-    let bvh = GeometryBvh::build(prims.clone());
+fn compare_geometry_with_brute_force(prims: TestGeometry, rays: &[Ray], name: &str) {
+    let bvh = prims.build();
     let mut hits = 0;
     for (i, ray) in rays.iter().enumerate() {
         let found = bvh.intersect(ray).map(|hit| (hit.t, hit.primitive));
@@ -467,7 +493,8 @@ fn nearly_axis_parallel_rays_through_box_corners_are_not_culled() {
     // Regression: this ray meets a grid vertex where three box faces meet while running almost
     // parallel to x; slab rounding amplified by 1/dx once culled the box.
     let (positions, prims) = bumpy_grid(16);
-    let bvh = GeometryBvh::build(prims.clone());
+    let prims = TestGeometry::from(prims);
+    let bvh = prims.build();
     let origin = vec3(14.014053, 3.7264585, 10.0);
     let test_ray = ray(origin, vec3(14.0, 9.0, 0.0) - origin);
     let expected = brute_force(&prims, &traversal_ray(&test_ray));
@@ -665,15 +692,19 @@ fn rays_leaving_a_sphere_surface_do_not_hit_it_again() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Cylinders
+// Tubes (the cylinders, cones and curve segments of the scene layer)
 
 fn one_cylinder(caps: bool) -> GeometryBvh {
-    GeometryBvh::build(GeometryPrims::Cylinders {
-        starts: vec![vec3(0.0, 0.0, 0.0)],
-        ends: vec![vec3(0.0, 0.0, 4.0)],
-        radii: vec![1.0],
-        caps,
-    })
+    GeometryBvh::build_tubes(&[TubeSegment {
+        start: vec3(0.0, 0.0, 0.0),
+        end: vec3(0.0, 0.0, 4.0),
+        start_radius: 1.0,
+        end_radius: 1.0,
+        kind: TubeKind::Cone {
+            start_cap: caps,
+            end_cap: caps,
+        },
+    }])
 }
 
 #[test]
@@ -727,14 +758,28 @@ fn cylinder_caps_close_the_tube() {
 }
 
 #[test]
-fn rays_leaving_a_cylinder_do_not_hit_it_again() {
+fn rays_leaving_a_tube_do_not_hit_it_again() {
     let mut rng = Rng::new(5);
-    let bvh = GeometryBvh::build(GeometryPrims::Cylinders {
-        starts: vec![vec3(100.0, 20.0, -30.0)],
-        ends: vec![vec3(110.0, 28.0, -20.0)],
-        radii: vec![2.0],
-        caps: true,
-    });
+    let capped = TubeKind::Cone {
+        start_cap: true,
+        end_cap: true,
+    };
+    // A capped cylinder, a capped cone and a round curve segment.
+    for (end_radius, kind) in [(2.0, capped), (0.5, capped), (1.0, TubeKind::Round)] {
+        let bvh = GeometryBvh::build_tubes(&[TubeSegment {
+            start: vec3(100.0, 20.0, -30.0),
+            end: vec3(110.0, 28.0, -20.0),
+            start_radius: 2.0,
+            end_radius,
+            kind,
+        }]);
+        assert_rays_leaving_do_not_hit_again(&bvh, &mut rng);
+    }
+}
+
+/// Shadow rays from hit points on the only primitive of `bvh`, at least 0.6 degrees above the
+/// tangent plane, must not hit it again.
+fn assert_rays_leaving_do_not_hit_again(bvh: &GeometryBvh, rng: &mut Rng) {
     let (min, max) = bvh.bounds();
     let mut tested = 0;
     for _ in 0..2000 {
@@ -769,7 +814,7 @@ fn random_triangles_match_brute_force() {
     let mut rng = Rng::new(1);
     let prims = random_triangles(&mut rng, 3000, 10.0, 1.5);
     let rays = random_rays(&mut rng, 3000, 10.0);
-    compare_geometry_with_brute_force(prims, &rays, "triangles");
+    compare_geometry_with_brute_force(prims.into(), &rays, "triangles");
 }
 
 #[test]
@@ -777,7 +822,7 @@ fn random_quads_match_brute_force() {
     let mut rng = Rng::new(2);
     let prims = random_quads(&mut rng, 1500, 10.0, 1.5);
     let rays = random_rays(&mut rng, 2000, 10.0);
-    compare_geometry_with_brute_force(prims, &rays, "quads");
+    compare_geometry_with_brute_force(prims.into(), &rays, "quads");
 }
 
 #[test]
@@ -785,17 +830,16 @@ fn random_spheres_match_brute_force() {
     let mut rng = Rng::new(3);
     let prims = random_spheres(&mut rng, 2000, 10.0, 0.6);
     let rays = random_rays(&mut rng, 3000, 10.0);
-    compare_geometry_with_brute_force(prims, &rays, "spheres");
+    compare_geometry_with_brute_force(prims.into(), &rays, "spheres");
 }
 
 #[test]
-fn random_cylinders_match_brute_force() {
+fn random_tubes_match_brute_force() {
     let mut rng = Rng::new(4);
     for count in [1500, 1501] {
-        // Even count: capped, odd: open.
-        let prims = random_cylinders(&mut rng, count, 10.0, 2.0);
+        let prims = random_tubes(&mut rng, count, 10.0, 2.0);
         let rays = random_rays(&mut rng, 2000, 10.0);
-        compare_geometry_with_brute_force(prims, &rays, "cylinders");
+        compare_geometry_with_brute_force(prims, &rays, "tubes");
     }
 }
 
@@ -944,19 +988,35 @@ fn invalid_primitives_are_skipped_without_affecting_others() {
         );
     }
 
-    let cylinders = GeometryBvh::build(GeometryPrims::Cylinders {
-        starts: vec![Vec3::ZERO, vec3(5.0, 0.0, 0.0), vec3(nan, 0.0, 0.0)],
-        ends: vec![vec3(0.0, 0.0, 1.0), vec3(5.0, 0.0, 0.0)],
-        radii: vec![0.5, 0.5, 0.5],
-        caps: true,
-    });
-    assert_eq!(cylinders.primitive_count(), 1);
-    assert_eq!(cylinders.skipped_primitive_count(), 2);
-    assert!(
-        cylinders
-            .intersect(&ray(vec3(5.0, 0.0, 3.0), -Vec3::Z))
-            .is_none()
+    let cylinder = |start: Vec3, end: Vec3, radius: f32| TubeSegment {
+        start,
+        end,
+        start_radius: radius,
+        end_radius: radius,
+        kind: TubeKind::Cone {
+            start_cap: true,
+            end_cap: true,
+        },
+    };
+    let tubes = GeometryBvh::build_tubes(&[
+        cylinder(Vec3::ZERO, vec3(0.0, 0.0, 1.0), 0.5),
+        // Zero length, non-finite end point, negative and NaN radius.
+        cylinder(vec3(5.0, 0.0, 0.0), vec3(5.0, 0.0, 0.0), 0.5),
+        cylinder(vec3(nan, 0.0, 0.0), vec3(10.0, 0.0, 1.0), 0.5),
+        cylinder(vec3(15.0, 0.0, 0.0), vec3(15.0, 0.0, 1.0), -0.5),
+        cylinder(vec3(20.0, 0.0, 0.0), vec3(20.0, 0.0, 1.0), nan),
+    ]);
+    assert_eq!(tubes.primitive_count(), 1);
+    assert_eq!(tubes.skipped_primitive_count(), 4);
+    assert_eq!(
+        tubes
+            .intersect(&ray(vec3(0.0, 0.0, 3.0), -Vec3::Z))
+            .map(|hit| (hit.t, hit.primitive)),
+        Some((2.0, 0))
     );
+    for x in [5.0, 10.0, 15.0, 20.0] {
+        assert!(tubes.intersect(&ray(vec3(x, 0.0, 3.0), -Vec3::Z)).is_none());
+    }
 }
 
 #[test]
@@ -1173,16 +1233,14 @@ fn sheared_triangle_instance_normal_matches_transformed_triangle() {
 #[test]
 fn multiple_instances_match_brute_force() {
     let mut rng = Rng::new(12);
-    let shapes = [
-        random_triangles(&mut rng, 300, 2.0, 0.8),
-        random_spheres(&mut rng, 200, 2.0, 0.3),
-        random_cylinders(&mut rng, 200, 2.0, 0.8),
-        random_quads(&mut rng, 200, 2.0, 0.8),
+    let shapes: [TestGeometry; 4] = [
+        random_triangles(&mut rng, 300, 2.0, 0.8).into(),
+        random_spheres(&mut rng, 200, 2.0, 0.3).into(),
+        random_tubes(&mut rng, 200, 2.0, 0.8),
+        random_quads(&mut rng, 200, 2.0, 0.8).into(),
     ];
-    let geometries: Vec<Arc<GeometryBvh>> = shapes
-        .iter()
-        .map(|prims| Arc::new(GeometryBvh::build(prims.clone())))
-        .collect();
+    let geometries: Vec<Arc<GeometryBvh>> =
+        shapes.iter().map(|prims| Arc::new(prims.build())).collect();
     let mut instances = Vec::new();
     for i in 0..40 {
         let transform = Affine3A::from_scale_rotation_translation(
@@ -1503,14 +1561,14 @@ fn packet_rays(rng: &mut Rng, groups: usize, extent: f32) -> Vec<Ray> {
 #[test]
 fn geometry_packets_match_single_rays() {
     let mut rng = Rng::new(31);
-    let shapes = [
-        random_triangles(&mut rng, 3000, 10.0, 1.5),
-        random_quads(&mut rng, 1000, 10.0, 1.5),
-        random_spheres(&mut rng, 1500, 10.0, 0.6),
-        random_cylinders(&mut rng, 1000, 10.0, 2.0),
+    let shapes: [TestGeometry; 4] = [
+        random_triangles(&mut rng, 3000, 10.0, 1.5).into(),
+        random_quads(&mut rng, 1000, 10.0, 1.5).into(),
+        random_spheres(&mut rng, 1500, 10.0, 0.6).into(),
+        random_tubes(&mut rng, 1000, 10.0, 2.0),
     ];
     for prims in shapes {
-        let bvh = GeometryBvh::build(prims.clone());
+        let bvh = prims.build();
         let rays = packet_rays(&mut rng, 1500, 10.0);
         let mut hits = vec![None; rays.len()];
         bvh.intersect_packet(&rays, &mut hits);
@@ -1546,12 +1604,12 @@ fn geometry_packets_match_single_rays() {
 fn scene_packets_match_single_rays() {
     let mut rng = Rng::new(32);
     let geometries: Vec<Arc<GeometryBvh>> = [
-        random_triangles(&mut rng, 500, 2.0, 0.8),
-        random_spheres(&mut rng, 300, 2.0, 0.3),
-        random_cylinders(&mut rng, 300, 2.0, 0.8),
+        random_triangles(&mut rng, 500, 2.0, 0.8).into(),
+        random_spheres(&mut rng, 300, 2.0, 0.3).into(),
+        random_tubes(&mut rng, 300, 2.0, 0.8),
     ]
-    .into_iter()
-    .map(|prims| Arc::new(GeometryBvh::build(prims)))
+    .iter()
+    .map(|prims: &TestGeometry| Arc::new(prims.build()))
     .collect();
     let mut instances = vec![identity_instance(geometries.clone())];
     for i in 0..30 {
@@ -1725,11 +1783,11 @@ fn assert_same_closest_t(singles: &[Option<f32>], packets: &[Option<f32>], rays:
 #[test]
 fn frustum_packets_match_single_rays() {
     let mut rng = Rng::new(51);
-    let shapes = [
-        random_triangles(&mut rng, 4000, 10.0, 1.5),
-        random_quads(&mut rng, 1500, 10.0, 1.5),
-        random_spheres(&mut rng, 2000, 10.0, 0.6),
-        random_cylinders(&mut rng, 1500, 10.0, 2.0),
+    let shapes: [TestGeometry; 4] = [
+        random_triangles(&mut rng, 4000, 10.0, 1.5).into(),
+        random_quads(&mut rng, 1500, 10.0, 1.5).into(),
+        random_spheres(&mut rng, 2000, 10.0, 0.6).into(),
+        random_tubes(&mut rng, 1500, 10.0, 2.0),
     ];
     // Off-axis views (whole tiles share an octant) and an axis-aligned view (tiles straddle
     // octants and fall back to smaller packets or single rays).
@@ -1739,7 +1797,7 @@ fn frustum_packets_match_single_rays() {
         (vec3(0.0, -30.0, 0.0), Vec3::ZERO),
     ];
     for prims in shapes {
-        let bvh = GeometryBvh::build(prims);
+        let bvh = prims.build();
         for (eye, target) in views {
             let rays = camera_tiles(&mut rng, eye, target, 48);
             let mut hits = vec![None; rays.len()];

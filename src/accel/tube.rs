@@ -5,8 +5,7 @@
 //! * The lateral surface is solved in the tube's axis frame: with the axial coordinate
 //!   `s(t)` and the part `perp(t)` perpendicular to the axis, `|perp(t)|^2 = r(s(t))^2` is a
 //!   quadratic in `t`, solved in f64 with a discriminant written as a difference of two squares
-//!   (for equal radii: the distance between the ray line and the axis, as in the cylinder test
-//!   of `primitives`). Roots outside the axial range are dropped, which also drops the mirrored
+//!   (for equal radii: the distance between the ray line and the axis). Roots outside the axial range are dropped, which also drops the mirrored
 //!   nappe.
 //! * A round cone is the union of its two balls and of the frustum between the circles where
 //!   the cone tangent to both balls touches them, so a hit on a ball counts only beyond that
@@ -217,7 +216,7 @@ fn side_roots(frame: &AxisFrame, side: &Side, mut consider: impl FnMut(f64)) {
     }
     // b^2 - a c rewritten as a difference of two squares that are computed directly: exact
     // for rays through the axis (the apex seen head-on), and for equal radii the distance
-    // between the axis and the ray line, as in the cylinder test.
+    // between the axis and the ray line.
     let disc = (frame.direction_perp * radius_at_origin - frame.origin_perp * radius_rate)
         .length_squared()
         - frame
