@@ -36,17 +36,10 @@ fn scene(dev: ANARIDevice) -> ANARIWorld {
     set_object(dev, geometry, "vertex.position", ANARI_ARRAY1D, p);
     set_object(dev, geometry, "vertex.color", ANARI_ARRAY1D, col);
     commit(dev, geometry);
-    let material = anariNewMaterial(dev, c("matte").as_ptr());
-    set_string(dev, material, "color", "color");
-    commit(dev, material);
-    let surface = anariNewSurface(dev);
-    set_object(dev, surface, "geometry", ANARI_GEOMETRY, geometry);
-    set_object(dev, surface, "material", ANARI_MATERIAL, material);
-    commit(dev, surface);
+    let material = matte_colored_by(dev, "color");
+    let surface = surface_of(dev, geometry, material);
     let world = world_of(dev, &[surface]);
-    for o in [geometry, p, col, material, surface] {
-        anariRelease(dev, o);
-    }
+    release_all(dev, &[geometry, p, col, material, surface]);
     world
 }
 
@@ -56,17 +49,9 @@ struct Rendered {
 }
 
 fn render(dev: ANARIDevice, world: ANARIWorld, camera: ANARICamera, size: [u32; 2]) -> Rendered {
-    let renderer = anariNewRenderer(dev, c("fast").as_ptr());
-    commit(dev, renderer);
+    let renderer = plain_renderer(dev, "fast");
     let frame = frame_for(dev, world, camera, renderer, size);
-    set(
-        dev,
-        frame,
-        "channel.windowDepth",
-        ANARI_DATA_TYPE,
-        &ANARI_FLOAT32,
-    );
-    commit(dev, frame);
+    add_channel(dev, frame, "channel.windowDepth", ANARI_FLOAT32);
     let (ids, w, h) = render_channel::<u32>(dev, frame, "channel.primitiveId");
     assert_eq!([w, h], size);
     let (color, _, _) = read_channel::<[f32; 4]>(dev, frame, "channel.color");
@@ -109,7 +94,7 @@ struct Fit {
     region: [f32; 4],
 }
 
-fn perspective_camera(dev: ANARIDevice, fit: &Fit) -> ANARICamera {
+fn fitted_camera(dev: ANARIDevice, fit: &Fit) -> ANARICamera {
     let camera = anariNewCamera(dev, c("perspective").as_ptr());
     set(dev, camera, "position", ANARI_FLOAT32_VEC3, &fit.position);
     set(dev, camera, "direction", ANARI_FLOAT32_VEC3, &fit.direction);
@@ -191,7 +176,7 @@ fn the_three_strategies_and_the_off_axis_camera_render_the_same_image() {
         ),
         ANARI_STATUS_NO_ERROR
     );
-    let camera = perspective_camera(dev, &fit);
+    let camera = fitted_camera(dev, &fit);
     let by_perspective = render(dev, world, camera, SIZE);
     anariRelease(dev, camera);
 
@@ -212,7 +197,7 @@ fn the_three_strategies_and_the_off_axis_camera_render_the_same_image() {
     for (got, want) in recovered.position.iter().zip(EYE) {
         assert!((got - want).abs() < 1e-4, "{:?}", recovered.position);
     }
-    let camera = perspective_camera(dev, &recovered);
+    let camera = fitted_camera(dev, &recovered);
     let by_recovery = render(dev, world, camera, SIZE);
     anariRelease(dev, camera);
 
@@ -232,8 +217,7 @@ fn the_three_strategies_and_the_off_axis_camera_render_the_same_image() {
     );
     assert_same_image(&by_matrix, &by_off_axis, "matrix vs offAxis");
     anariRelease(dev, world);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     let errors = log.errors();
     assert!(errors.is_empty(), "{errors:?}");
 }
@@ -246,17 +230,9 @@ fn window_depth_is_what_opengl_writes() {
     let (near, far) = (0.1, 20.0);
     let (view, proj) = matrices(near, far);
     let camera = matrix_camera(dev, &view, &proj);
-    let renderer = anariNewRenderer(dev, c("fast").as_ptr());
-    commit(dev, renderer);
+    let renderer = plain_renderer(dev, "fast");
     let frame = frame_for(dev, world, camera, renderer, SIZE);
-    set(
-        dev,
-        frame,
-        "channel.windowDepth",
-        ANARI_DATA_TYPE,
-        &ANARI_FLOAT32,
-    );
-    commit(dev, frame);
+    add_channel(dev, frame, "channel.windowDepth", ANARI_FLOAT32);
     let (depth, _, _) = render_channel::<f32>(dev, frame, "channel.depth");
     let (window, _, _) = read_channel::<f32>(dev, frame, "channel.windowDepth");
     let view_m = glam::Mat4::from_cols_array(&view);
@@ -287,11 +263,8 @@ fn window_depth_is_what_opengl_writes() {
         }
     }
     assert!(checked > 100);
-    for o in [camera, renderer, frame, world] {
-        anariRelease(dev, o);
-    }
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_all(dev, &[camera, renderer, frame, world]);
+    release_device(lib, dev);
 }
 
 #[test]
@@ -354,8 +327,7 @@ fn side_by_side_equals_the_eyes_rendered_separately_and_regions_crop() {
     }
     anariRelease(dev, camera);
     anariRelease(dev, world);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     let errors = log.errors();
     assert!(errors.is_empty(), "{errors:?}");
 }
@@ -459,6 +431,5 @@ fn invalid_cameras_are_reported_at_commit_and_render_background() {
         ANARI_STATUS_INVALID_ARGUMENT
     );
     anariRelease(dev, world);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
 }

@@ -6,11 +6,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 fn triangle_scene(dev: ANARIDevice, z: f32) -> (ANARIGeometry, ANARISurface, ANARIWorld) {
     let positions: [[f32; 3]; 3] = [[-1.0, -1.0, z], [1.0, -1.0, z], [0.0, 1.0, z]];
-    let geometry = anariNewGeometry(dev, c("triangle").as_ptr());
-    let array = array1d(dev, ANARI_FLOAT32_VEC3, &positions);
-    set_object(dev, geometry, "vertex.position", ANARI_ARRAY1D, array);
-    anariRelease(dev, array);
-    commit(dev, geometry);
+    let geometry = triangle_geometry(dev, &positions);
     let surface = matte_surface(dev, geometry, [1.0, 1.0, 1.0]);
     let world = world_of(dev, &[surface]);
     (geometry, surface, world)
@@ -19,8 +15,7 @@ fn triangle_scene(dev: ANARIDevice, z: f32) -> (ANARIGeometry, ANARISurface, ANA
 fn basic_frame(dev: ANARIDevice, world: ANARIWorld, size: [u32; 2]) -> ANARIFrame {
     let camera = anariNewCamera(dev, c("perspective").as_ptr());
     commit(dev, camera);
-    let renderer = anariNewRenderer(dev, c("default").as_ptr());
-    commit(dev, renderer);
+    let renderer = plain_renderer(dev, "default");
     let frame = frame_for(dev, world, camera, renderer, size);
     anariRelease(dev, camera);
     anariRelease(dev, renderer);
@@ -53,8 +48,7 @@ fn objects_used_by_others_outlive_their_application_release() {
         errors[0].1.contains("anariCommitParameters") && errors[0].1.contains("not a live object")
     );
     anariRelease(dev, frame);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
 }
 
 static DELETES: AtomicUsize = AtomicUsize::new(0);
@@ -94,8 +88,7 @@ fn captured_memory_is_deleted_once_when_the_last_user_lets_go() {
     );
     anariRelease(dev, geometry);
     assert_eq!(DELETES.load(Ordering::SeqCst), before + 1);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert_eq!(DELETES.load(Ordering::SeqCst), before + 1, "exactly once");
     assert!(log.errors().is_empty());
 }
@@ -124,11 +117,8 @@ fn parameters_take_effect_only_at_commit() {
         errors.iter().any(|(_, t)| t.contains("vertex.position")),
         "{errors:?}"
     );
-    for o in [array, geometry, surface, world, frame] {
-        anariRelease(dev, o);
-    }
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_all(dev, &[array, geometry, surface, world, frame]);
+    release_device(lib, dev);
 }
 
 #[test]
@@ -201,15 +191,7 @@ fn misuse_is_reported_with_the_right_code_and_has_no_effect() {
     );
 
     // Sizes that overflow, or cannot be allocated, are OUT_OF_MEMORY and return NULL.
-    let huge = anariNewArray2D(
-        dev,
-        std::ptr::null(),
-        None,
-        std::ptr::null(),
-        ANARI_FLOAT32_VEC4,
-        u64::MAX / 8,
-        8,
-    );
+    let huge = unfilled_array2d(dev, ANARI_FLOAT32_VEC4, [u64::MAX / 8, 8]);
     assert!(huge.is_null());
     let too_big = anariNewArray1D(
         dev,
@@ -239,11 +221,8 @@ fn misuse_is_reported_with_the_right_code_and_has_no_effect() {
     commit(dev, unknown);
     assert!(log.errors().is_empty());
 
-    for o in [geometry, material, surface, array, unknown] {
-        anariRelease(dev, o);
-    }
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_all(dev, &[geometry, material, surface, array, unknown]);
+    release_device(lib, dev);
 }
 
 #[test]
@@ -305,15 +284,7 @@ fn properties_are_typed_and_never_written_past_size() {
         ),
         1
     );
-    let mut names = Vec::new();
-    // SAFETY: the device returns a NULL-terminated list of C strings.
-    unsafe {
-        let mut p = list;
-        while !(*p).is_null() {
-            names.push(CStr::from_ptr(*p).to_string_lossy().into_owned());
-            p = p.add(1);
-        }
-    }
+    let names = c_strings(list);
     assert!(
         names.contains(&"ANARI_KHR_GEOMETRY_TRIANGLE".to_string()),
         "{names:?}"
@@ -353,37 +324,21 @@ fn properties_are_typed_and_never_written_past_size() {
         1
     );
     assert!((0.0..10.0).contains(&duration));
-    for o in [geometry, surface, world, frame] {
-        anariRelease(dev, o);
-    }
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_all(dev, &[geometry, surface, world, frame]);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
-}
-
-fn strings(list: *const *const std::ffi::c_char) -> Vec<String> {
-    let mut out = Vec::new();
-    // SAFETY: introspection returns NULL-terminated lists of C strings.
-    unsafe {
-        let mut p = list;
-        while !p.is_null() && !(*p).is_null() {
-            out.push(CStr::from_ptr(*p).to_string_lossy().into_owned());
-            p = p.add(1);
-        }
-    }
-    out
 }
 
 #[test]
 fn introspection_comes_from_the_tables() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
-    let geometries = strings(anariGetObjectSubtypes(dev, ANARI_GEOMETRY));
+    let geometries = c_strings(anariGetObjectSubtypes(dev, ANARI_GEOMETRY));
     assert_eq!(
         geometries,
         ["triangle", "quad", "sphere", "cylinder", "cone", "curve"]
     );
-    let renderers = strings(anariGetObjectSubtypes(dev, ANARI_RENDERER));
+    let renderers = c_strings(anariGetObjectSubtypes(dev, ANARI_RENDERER));
     assert_eq!(renderers[0], "default");
     let description = anariGetObjectInfo(
         dev,
@@ -435,7 +390,7 @@ fn introspection_comes_from_the_tables() {
     ) as *const u8;
     // SAFETY: "required" is one ANARI_BOOL byte.
     assert_eq!(unsafe { *required }, 1);
-    let channels = strings(anariGetObjectInfo(
+    let channels = c_strings(anariGetObjectInfo(
         dev,
         ANARI_FRAME,
         std::ptr::null(),
@@ -453,8 +408,7 @@ fn introspection_comes_from_the_tables() {
         ANARI_FLOAT32,
     );
     assert!(missing.is_null());
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
 }
 
 #[test]
@@ -476,7 +430,7 @@ fn library_names_and_device_subtypes() {
     anariLoadModule(lib, c("extra").as_ptr());
     assert!(log.errors()[0].1.contains("no loadable modules"));
     assert_eq!(
-        strings(anariGetDeviceSubtypes(lib)),
+        c_strings(anariGetDeviceSubtypes(lib)),
         ["default", "cavetrace"]
     );
     anariUnloadLibrary(lib);
@@ -489,9 +443,7 @@ fn releasing_the_device_mid_render_is_safe() {
     let (geometry, surface, world) = triangle_scene(dev, -2.0);
     let frame = basic_frame(dev, world, [512, 512]);
     anariRenderFrame(dev, frame);
-    for o in [geometry, surface, world, frame] {
-        anariRelease(dev, o);
-    }
+    release_all(dev, &[geometry, surface, world, frame]);
     assert!(cavetrace::device::registry::device(dev as usize).is_some());
     anariRelease(dev, dev);
     assert!(cavetrace::device::registry::device(dev as usize).is_none());
@@ -528,11 +480,8 @@ fn parameters_set_during_a_render_affect_only_the_next_frame() {
     let (depth, _, _) = read_channel::<f32>(dev, frame, "channel.depth");
     assert!((depth[128 * 256 + 128] - 2.0).abs() < 1e-3);
     assert!((centre_depth(dev, frame, [256, 256]) - 7.0).abs() < 1e-3);
-    for o in [geometry, surface, world, frame] {
-        anariRelease(dev, o);
-    }
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_all(dev, &[geometry, surface, world, frame]);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -586,10 +535,7 @@ fn a_released_shared_array_is_copied_before_the_application_frees_it() {
         ),
         0
     );
-    for o in [geometry, surface, world, empty] {
-        anariRelease(dev, o);
-    }
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_all(dev, &[geometry, surface, world, empty]);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }

@@ -6,8 +6,6 @@
 //! [−1.5, 1.5]², so pixel (x, y) of the SIZE×SIZE frame is the ray from (px, py, 5) along −z
 //! (see `pixel_point`) and its depth is 5 − z of the hit.
 mod common;
-use std::ffi::CStr;
-
 use common::*;
 
 const SIZE: u32 = 64;
@@ -64,74 +62,30 @@ impl Scene {
     /// (white where it has none), then releases it.
     fn render(&self, geometry: ANARIGeometry) -> Rendered {
         let dev = self.dev;
-        let material = anariNewMaterial(dev, c("matte").as_ptr());
-        set_string(dev, material, "color", "color");
-        commit(dev, material);
-        let surface = anariNewSurface(dev);
-        set_object(dev, surface, "geometry", ANARI_GEOMETRY, geometry);
-        set_object(dev, surface, "material", ANARI_MATERIAL, material);
-        commit(dev, surface);
+        let material = matte_colored_by(dev, "color");
+        let surface = surface_of(dev, geometry, material);
         let world = world_of(dev, &[surface]);
-        let camera = anariNewCamera(dev, c("orthographic").as_ptr());
-        set(
-            dev,
-            camera,
-            "position",
-            ANARI_FLOAT32_VEC3,
-            &[0.0f32, 0.0, EYE_Z],
-        );
-        set(
-            dev,
-            camera,
-            "direction",
-            ANARI_FLOAT32_VEC3,
-            &[0.0f32, 0.0, -1.0],
-        );
-        set(dev, camera, "up", ANARI_FLOAT32_VEC3, &[0.0f32, 1.0, 0.0]);
-        set(dev, camera, "height", ANARI_FLOAT32, &VIEW_HEIGHT);
-        set(dev, camera, "aspect", ANARI_FLOAT32, &1.0f32);
-        commit(dev, camera);
-        let renderer = anariNewRenderer(dev, c("default").as_ptr());
-        commit(dev, renderer);
+        let camera = orthographic_camera(dev, [0.0, 0.0, EYE_Z], VIEW_HEIGHT);
+        let renderer = plain_renderer(dev, "default");
         let frame = frame_for(dev, world, camera, renderer, [SIZE, SIZE]);
-        set(
-            dev,
-            frame,
-            "channel.albedo",
-            ANARI_DATA_TYPE,
-            &ANARI_FLOAT32_VEC3,
-        );
-        commit(dev, frame);
-        anariRenderFrame(dev, frame);
-        anariFrameReady(dev, frame, ANARI_WAIT);
+        add_channel(dev, frame, "channel.albedo", ANARI_FLOAT32_VEC3);
+        render_and_wait(dev, frame);
         let (depth, w, h) = read_channel::<f32>(dev, frame, "channel.depth");
         assert_eq!((w, h), (SIZE, SIZE));
         let (ids, _, _) = read_channel::<u32>(dev, frame, "channel.primitiveId");
         let (albedo, _, _) = read_channel::<[f32; 3]>(dev, frame, "channel.albedo");
-        for o in [geometry, material, surface, world, camera, renderer, frame] {
-            anariRelease(dev, o);
-        }
+        release_all(
+            dev,
+            &[geometry, material, surface, world, camera, renderer, frame],
+        );
         Rendered { depth, ids, albedo }
     }
 }
 
 impl Drop for Scene {
     fn drop(&mut self) {
-        anariRelease(self.dev, self.dev);
-        anariUnloadLibrary(self.lib);
+        release_device(self.lib, self.dev);
     }
-}
-
-fn set_array<T: Copy>(
-    dev: ANARIDevice,
-    object: ANARIObject,
-    name: &str,
-    ty: ANARIDataType,
-    data: &[T],
-) {
-    let array = array1d(dev, ty, data);
-    set_object(dev, object, name, ANARI_ARRAY1D, array);
-    anariRelease(dev, array);
 }
 
 fn positions(dev: ANARIDevice, geometry: ANARIGeometry, points: &[[f32; 3]]) {
@@ -735,31 +689,7 @@ fn the_three_extensions_and_subtypes_are_advertised() {
     let log = Log::new();
     let scene = Scene::new(&log);
     let dev = scene.dev;
-    let mut list: *const *const std::ffi::c_char = std::ptr::null();
-    assert_eq!(
-        anariGetProperty(
-            dev,
-            dev,
-            c("extension").as_ptr(),
-            ANARI_STRING_LIST,
-            &mut list as *mut _ as _,
-            8,
-            ANARI_WAIT
-        ),
-        1
-    );
-    let strings = |mut p: *const *const std::ffi::c_char| {
-        let mut names = Vec::new();
-        // SAFETY: the device returns NULL-terminated lists of C strings.
-        unsafe {
-            while !p.is_null() && !(*p).is_null() {
-                names.push(CStr::from_ptr(*p).to_string_lossy().into_owned());
-                p = p.add(1);
-            }
-        }
-        names
-    };
-    let extensions = strings(list);
+    let extensions = device_extensions(dev);
     for name in [
         "ANARI_KHR_GEOMETRY_CYLINDER",
         "ANARI_KHR_GEOMETRY_CONE",
@@ -770,7 +700,7 @@ fn the_three_extensions_and_subtypes_are_advertised() {
             "{name} missing from {extensions:?}"
         );
     }
-    let subtypes = strings(anariGetObjectSubtypes(dev, ANARI_GEOMETRY));
+    let subtypes = c_strings(anariGetObjectSubtypes(dev, ANARI_GEOMETRY));
     for name in ["cylinder", "cone", "curve"] {
         assert!(subtypes.iter().any(|s| s == name), "{subtypes:?}");
     }
@@ -784,6 +714,6 @@ fn the_three_extensions_and_subtypes_are_advertised() {
         c("value").as_ptr(),
         ANARI_STRING_LIST,
     ) as *const *const std::ffi::c_char;
-    assert_eq!(strings(values), ["none", "first", "second", "both"]);
+    assert_eq!(c_strings(values), ["none", "first", "second", "both"]);
     assert!(log.errors().is_empty());
 }

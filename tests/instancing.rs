@@ -3,34 +3,11 @@
 mod common;
 use common::*;
 
-fn perspective(
-    dev: ANARIDevice,
-    position: [f32; 3],
-    direction: [f32; 3],
-    fovy: f32,
-) -> ANARICamera {
-    let camera = anariNewCamera(dev, c("perspective").as_ptr());
-    set(dev, camera, "position", ANARI_FLOAT32_VEC3, &position);
-    set(dev, camera, "direction", ANARI_FLOAT32_VEC3, &direction);
-    set(dev, camera, "fovy", ANARI_FLOAT32, &fovy);
-    commit(dev, camera);
-    camera
-}
-
-fn triangles(dev: ANARIDevice, positions: &[[f32; 3]]) -> ANARIGeometry {
-    let g = anariNewGeometry(dev, c("triangle").as_ptr());
-    let a = array1d(dev, ANARI_FLOAT32_VEC3, positions);
-    set_object(dev, g, "vertex.position", ANARI_ARRAY1D, a);
-    commit(dev, g);
-    anariRelease(dev, a);
-    g
-}
-
 #[test]
 fn instances_move_without_rebuilding_geometry_and_report_ids() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
-    let g = triangles(dev, &[[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0], [0.0, 0.5, 0.0]]);
+    let g = triangle_geometry(dev, &[[-0.5, -0.5, 0.0], [0.5, -0.5, 0.0], [0.0, 0.5, 0.0]]);
     let s = matte_surface(dev, g, [1.0, 1.0, 1.0]);
     set(dev, s, "id", ANARI_UINT32, &11u32);
     commit(dev, s);
@@ -52,9 +29,8 @@ fn instances_move_without_rebuilding_geometry_and_report_ids() {
     let instances = object_array(dev, ANARI_INSTANCE, &[instance]);
     set_object(dev, world, "instance", ANARI_ARRAY1D, instances);
     commit(dev, world);
-    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
-    let r = anariNewRenderer(dev, c("fast").as_ptr());
-    commit(dev, r);
+    let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
+    let r = plain_renderer(dev, "fast");
     let frame = frame_for(dev, world, camera, r, [32, 32]);
     let builds = cavetrace::accel::geometry_build_count();
     let (ids, _, _) = render_channel::<u32>(dev, frame, "channel.instanceId");
@@ -83,23 +59,14 @@ fn instances_move_without_rebuilding_geometry_and_report_ids() {
         "moving things must not rebuild BVHs"
     );
     // World bounds follow the instance.
-    let mut bounds = [0f32; 6];
-    anariGetProperty(
-        dev,
-        world,
-        c("bounds").as_ptr(),
-        ANARI_FLOAT32_BOX3,
-        bounds.as_mut_ptr() as _,
-        24,
-        ANARI_WAIT,
-    );
+    let bounds = bounds_of(dev, world);
     assert_eq!(bounds, [4.5, -0.5, -3.0, 5.5, 0.5, -3.0]);
-    for o in [
-        g, s, group, surfaces, instance, world, instances, camera, r, frame,
-    ] {
-        anariRelease(dev, o);
-    }
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_all(
+        dev,
+        &[
+            g, s, group, surfaces, instance, world, instances, camera, r, frame,
+        ],
+    );
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }

@@ -3,20 +3,6 @@ mod common;
 use common::*;
 use glam::Vec3;
 
-fn perspective(
-    dev: ANARIDevice,
-    position: [f32; 3],
-    direction: [f32; 3],
-    fovy: f32,
-) -> ANARICamera {
-    let camera = anariNewCamera(dev, c("perspective").as_ptr());
-    set(dev, camera, "position", ANARI_FLOAT32_VEC3, &position);
-    set(dev, camera, "direction", ANARI_FLOAT32_VEC3, &direction);
-    set(dev, camera, "fovy", ANARI_FLOAT32, &fovy);
-    commit(dev, camera);
-    camera
-}
-
 fn renderer(dev: ANARIDevice, subtype: &str, ambient: f32) -> ANARIRenderer {
     let r = anariNewRenderer(dev, c(subtype).as_ptr());
     if subtype == "default" {
@@ -33,25 +19,6 @@ fn renderer(dev: ANARIDevice, subtype: &str, ambient: f32) -> ANARIRenderer {
     r
 }
 
-fn triangles(dev: ANARIDevice, positions: &[[f32; 3]]) -> ANARIGeometry {
-    let g = anariNewGeometry(dev, c("triangle").as_ptr());
-    let a = array1d(dev, ANARI_FLOAT32_VEC3, positions);
-    set_object(dev, g, "vertex.position", ANARI_ARRAY1D, a);
-    commit(dev, g);
-    anariRelease(dev, a);
-    g
-}
-
-fn spheres(dev: ANARIDevice, centers: &[[f32; 3]], radius: f32) -> ANARIGeometry {
-    let g = anariNewGeometry(dev, c("sphere").as_ptr());
-    let a = array1d(dev, ANARI_FLOAT32_VEC3, centers);
-    set_object(dev, g, "vertex.position", ANARI_ARRAY1D, a);
-    set(dev, g, "radius", ANARI_FLOAT32, &radius);
-    commit(dev, g);
-    anariRelease(dev, a);
-    g
-}
-
 /// Ray direction through pixel centre (x+½, y+½) of a w×h perspective frame looking down −z.
 fn pixel_ray(x: u32, y: u32, w: u32, h: u32, fovy: f32) -> Vec3 {
     let t = (fovy / 2.0).tan();
@@ -61,22 +28,16 @@ fn pixel_ray(x: u32, y: u32, w: u32, h: u32, fovy: f32) -> Vec3 {
     Vec3::new(u, v, -1.0).normalize()
 }
 
-fn release_all(dev: ANARIDevice, objects: &[ANARIObject]) {
-    for o in objects {
-        anariRelease(dev, *o);
-    }
-}
-
 #[test]
 fn a_triangle_covers_exactly_the_pixels_its_projection_covers_at_the_analytic_depth() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     let tri = [[-0.7f32, -0.4, -2.0], [0.9, -0.6, -2.5], [0.1, 0.8, -1.8]];
-    let g = triangles(dev, &tri);
+    let g = triangle_geometry(dev, &tri);
     let s = matte_surface(dev, g, [1.0, 1.0, 1.0]);
     let world = world_of(dev, &[s]);
     let fovy = 1.0f32;
-    let camera = perspective(dev, [0.0, 0.0, 0.0], [0.0, 0.0, -1.0], fovy);
+    let camera = perspective_camera(dev, [0.0, 0.0, 0.0], [0.0, 0.0, -1.0], fovy);
     let r = renderer(dev, "fast", 0.0);
     let (w, h) = (80u32, 60u32);
     let frame = frame_for(dev, world, camera, r, [w, h]);
@@ -124,8 +85,7 @@ fn a_triangle_covers_exactly_the_pixels_its_projection_covers_at_the_analytic_de
     }
     assert!(covered > 300, "{covered}");
     release_all(dev, &[g, s, world, camera, r, frame]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -135,11 +95,11 @@ fn a_spheres_silhouette_is_the_analytic_circle() {
     let (lib, dev) = device_with_log(&log);
     let center = Vec3::new(0.3, -0.2, -4.0);
     let radius = 0.9;
-    let g = spheres(dev, &[center.to_array()], radius);
+    let g = sphere_geometry(dev, &[center.to_array()], radius);
     let s = matte_surface(dev, g, [1.0, 1.0, 1.0]);
     let world = world_of(dev, &[s]);
     let fovy = 0.8;
-    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], fovy);
+    let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], fovy);
     let r = renderer(dev, "fast", 0.0);
     let (w, h) = (64u32, 64u32);
     let frame = frame_for(dev, world, camera, r, [w, h]);
@@ -167,8 +127,7 @@ fn a_spheres_silhouette_is_the_analytic_circle() {
     }
     assert!(inside_count > 200);
     release_all(dev, &[g, s, world, camera, r, frame]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -178,7 +137,7 @@ fn a_shadow_falls_where_the_geometry_says() {
     let (lib, dev) = device_with_log(&log);
     // Floor at y = 0 seen from above; a small occluding square at y = 1 over x,z ∈ [-0.25, 0.25];
     // the light shines straight down, so the shadow is the square's footprint.
-    let floor = triangles(
+    let floor = triangle_geometry(
         dev,
         &[
             [-2.0, 0.0, -2.0],
@@ -189,7 +148,7 @@ fn a_shadow_falls_where_the_geometry_says() {
             [2.0, 0.0, 2.0],
         ],
     );
-    let blocker = triangles(
+    let blocker = triangle_geometry(
         dev,
         &[
             [-0.25, 1.0, -0.25],
@@ -226,7 +185,7 @@ fn a_shadow_falls_where_the_geometry_says() {
     commit(dev, world);
     // Camera above, looking down at the floor from off to the side so the blocker does not hide
     // its own shadow completely.
-    let camera = perspective(dev, [1.2, 3.0, 0.0], [-0.4, -1.0, 0.0], 1.2);
+    let camera = perspective_camera(dev, [1.2, 3.0, 0.0], [-0.4, -1.0, 0.0], 1.2);
     set(dev, camera, "up", ANARI_FLOAT32_VEC3, &[0.0f32, 0.0, -1.0]);
     commit(dev, camera);
     let r = renderer(dev, "default", 0.0);
@@ -283,8 +242,7 @@ fn a_shadow_falls_where_the_geometry_says() {
             floor, blocker, s1, s2, world, light, lights, camera, r, frame,
         ],
     );
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -293,7 +251,7 @@ fn a_mirror_sphere_shows_the_reflected_object() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     // Camera at the origin looks at a mirror sphere; behind the camera a big green triangle.
-    let mirror = spheres(dev, &[[0.0, 0.0, -3.0]], 1.0);
+    let mirror = sphere_geometry(dev, &[[0.0, 0.0, -3.0]], 1.0);
     let material = anariNewMaterial(dev, c("physicallyBased").as_ptr());
     set(
         dev,
@@ -305,17 +263,14 @@ fn a_mirror_sphere_shows_the_reflected_object() {
     set(dev, material, "metallic", ANARI_FLOAT32, &1.0f32);
     set(dev, material, "roughness", ANARI_FLOAT32, &0.0f32);
     commit(dev, material);
-    let s1 = anariNewSurface(dev);
-    set_object(dev, s1, "geometry", ANARI_GEOMETRY, mirror);
-    set_object(dev, s1, "material", ANARI_MATERIAL, material);
-    commit(dev, s1);
-    let wall = triangles(
+    let s1 = surface_of(dev, mirror, material);
+    let wall = triangle_geometry(
         dev,
         &[[-20.0, -20.0, 5.0], [20.0, -20.0, 5.0], [0.0, 20.0, 5.0]],
     );
     let s2 = matte_surface(dev, wall, [0.0, 1.0, 0.0]);
     let world = world_of(dev, &[s1, s2]);
-    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], 0.6);
+    let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], 0.6);
     // Ambient light only, so the wall's colour is ambient × albedo/π = (0, 1, 0) × π/π.
     let r = renderer(dev, "default", std::f32::consts::PI);
     let frame = frame_for(dev, world, camera, r, [32, 32]);
@@ -334,8 +289,7 @@ fn a_mirror_sphere_shows_the_reflected_object() {
         dev,
         &[mirror, material, s1, wall, s2, world, camera, r, frame],
     );
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -380,22 +334,12 @@ fn sampler_colours_spheres_by_a_vertex_attribute_as_in_the_demo() {
     let material = anariNewMaterial(dev, c("matte").as_ptr());
     set_object(dev, material, "color", ANARI_SAMPLER, sampler);
     commit(dev, material);
-    let s = anariNewSurface(dev);
-    set_object(dev, s, "geometry", ANARI_GEOMETRY, g);
-    set_object(dev, s, "material", ANARI_MATERIAL, material);
-    commit(dev, s);
+    let s = surface_of(dev, g, material);
     let world = world_of(dev, &[s]);
-    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], 0.8);
+    let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], 0.8);
     let r = renderer(dev, "default", std::f32::consts::PI);
     let frame = frame_for(dev, world, camera, r, [96, 32]);
-    set(
-        dev,
-        frame,
-        "channel.albedo",
-        ANARI_DATA_TYPE,
-        &ANARI_FLOAT32_VEC3,
-    );
-    commit(dev, frame);
+    add_channel(dev, frame, "channel.albedo", ANARI_FLOAT32_VEC3);
     anariRenderFrame(dev, frame);
     let (albedo, w, h) = read_channel::<[f32; 3]>(dev, frame, "channel.albedo");
     let (ids, _, _) = read_channel::<u32>(dev, frame, "channel.primitiveId");
@@ -428,8 +372,7 @@ fn sampler_colours_spheres_by_a_vertex_attribute_as_in_the_demo() {
             g, centers, attribute, texels, sampler, material, s, world, camera, r, frame,
         ],
     );
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -439,7 +382,7 @@ fn srgb_channel_encodes_known_linear_values() {
     let (lib, dev) = device_with_log(&log);
     let world = anariNewWorld(dev);
     commit(dev, world);
-    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
+    let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
     let r = anariNewRenderer(dev, c("default").as_ptr());
     set(
         dev,
@@ -475,8 +418,7 @@ fn srgb_channel_encodes_known_linear_values() {
     let (linear, _, _) = render_channel::<[u8; 4]>(dev, frame, "channel.color");
     assert_eq!(linear[0], [128, 55, 0, 255]);
     release_all(dev, &[world, camera, r, frame]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -484,10 +426,10 @@ fn srgb_channel_encodes_known_linear_values() {
 fn frames_poll_wait_discard_and_accumulate() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
-    let g = spheres(dev, &[[0.0, 0.0, -3.0]], 1.0);
+    let g = sphere_geometry(dev, &[[0.0, 0.0, -3.0]], 1.0);
     let s = matte_surface(dev, g, [1.0, 1.0, 1.0]);
     let world = world_of(dev, &[s]);
-    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
+    let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
     let r = renderer(dev, "default", 1.0);
     let frame = frame_for(dev, world, camera, r, [800, 800]);
     anariRenderFrame(dev, frame);
@@ -545,8 +487,7 @@ fn frames_poll_wait_discard_and_accumulate() {
         "a commit restarts accumulation"
     );
     release_all(dev, &[g, s, world, camera, r, frame]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     let e = log.errors();
     assert!(e.is_empty(), "{e:?}");
 }
@@ -577,19 +518,18 @@ fn bad_primitives_are_reported_and_skipped() {
     let e = log.errors();
     assert_eq!(e.len(), 2, "{e:?}");
     assert!(e[0].1.contains("primitive 1") && e[1].1.contains("primitive 2"));
-    let sg = spheres(dev, &[[0.0, 0.0, -3.0], [0.0, 0.0, -3.0]], -1.0);
+    let sg = sphere_geometry(dev, &[[0.0, 0.0, -3.0], [0.0, 0.0, -3.0]], -1.0);
     assert!(log.errors().len() == 2);
     let s = matte_surface(dev, g, [1.0, 1.0, 1.0]);
     let s2 = matte_surface(dev, sg, [1.0, 1.0, 1.0]);
     let world = world_of(dev, &[s, s2]);
-    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
+    let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
     let r = renderer(dev, "fast", 0.0);
     let frame = frame_for(dev, world, camera, r, [16, 16]);
     let (ids, _, _) = render_channel::<u32>(dev, frame, "channel.primitiveId");
     assert_eq!(ids[8 * 16 + 8], 0, "the good triangle keeps its id");
     release_all(dev, &[g, p, index, sg, s, s2, world, camera, r, frame]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
 }
 
 static CALLBACK_DONE: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
@@ -614,7 +554,7 @@ fn the_completion_callback_finishes_before_the_frame_is_ready() {
     let (lib, dev) = device_with_log(&log);
     let world = anariNewWorld(dev);
     commit(dev, world);
-    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
+    let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
     let r = renderer(dev, "fast", 0.0);
     let frame = frame_for(dev, world, camera, r, [8, 8]);
     let callback: unsafe extern "C" fn(
@@ -658,18 +598,17 @@ fn the_completion_callback_finishes_before_the_frame_is_ready() {
     anariUnmapFrame(dev, frame, name.as_ptr());
     assert_eq!(log.errors().len(), 1, "a third unmap has nothing to unmap");
     release_all(dev, &[world, camera, r, frame]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
 }
 
 #[test]
 fn ambient_radiance_times_albedo_is_the_colour_of_a_matte_surface() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
-    let g = spheres(dev, &[[0.0, 0.0, -3.0]], 1.0);
+    let g = sphere_geometry(dev, &[[0.0, 0.0, -3.0]], 1.0);
     let s = matte_surface(dev, g, [0.7, 0.7, 0.7]);
     let world = world_of(dev, &[s]);
-    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
+    let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], 1.0);
     let r = renderer(dev, "default", 0.5);
     let frame = frame_for(dev, world, camera, r, [8, 8]);
     let (color, _, _) = render_channel::<[f32; 4]>(dev, frame, "channel.color");
@@ -680,18 +619,17 @@ fn ambient_radiance_times_albedo_is_the_colour_of_a_matte_surface() {
         color[4 * 8 + 4]
     );
     release_all(dev, &[g, s, world, camera, r, frame]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
 }
 
 #[test]
 fn rendering_again_rewrites_every_pixel_and_leaves_mapped_pixels_alone() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
-    let g = spheres(dev, &[[0.0, 0.0, -4.0]], 1.0);
+    let g = sphere_geometry(dev, &[[0.0, 0.0, -4.0]], 1.0);
     let s = matte_surface(dev, g, [1.0, 1.0, 1.0]);
     let world = world_of(dev, &[s]);
-    let camera = perspective(dev, [0.0; 3], [0.0, 0.0, -1.0], 0.8);
+    let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], 0.8);
     let r = renderer(dev, "fast", 0.0);
     let frame = frame_for(dev, world, camera, r, [32, 32]);
     let (sphere_ids, _, _) = render_channel::<u32>(dev, frame, "channel.primitiveId");
@@ -731,7 +669,6 @@ fn rendering_again_rewrites_every_pixel_and_leaves_mapped_pixels_alone() {
         assert!(color.iter().all(|c| *c == [0.0, 0.0, 0.0, 1.0]));
     }
     release_all(dev, &[g, s, world, camera, r, frame]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }

@@ -2,8 +2,6 @@
 //! texel values read back through the albedo channel, and bad input reported by the status
 //! callback.
 mod common;
-use std::ffi::CStr;
-
 use common::*;
 
 /// A unit quad [0,1]² at z = 0 seen head-on by an orthographic camera that frames it exactly, so
@@ -34,9 +32,7 @@ impl QuadScene {
         set_object(dev, geometry, "primitive.index", ANARI_ARRAY1D, indices);
         set_object(dev, geometry, "vertex.attribute0", ANARI_ARRAY1D, attribute);
         commit(dev, geometry);
-        for a in [positions, indices, attribute] {
-            anariRelease(dev, a);
-        }
+        release_all(dev, &[positions, indices, attribute]);
         QuadScene { lib, dev, geometry }
     }
 
@@ -47,50 +43,18 @@ impl QuadScene {
         let material = anariNewMaterial(dev, c("matte").as_ptr());
         set_object(dev, material, "color", ANARI_SAMPLER, sampler);
         commit(dev, material);
-        let surface = anariNewSurface(dev);
-        set_object(dev, surface, "geometry", ANARI_GEOMETRY, self.geometry);
-        set_object(dev, surface, "material", ANARI_MATERIAL, material);
-        commit(dev, surface);
+        let surface = surface_of(dev, self.geometry, material);
         let world = world_of(dev, &[surface]);
-        let camera = anariNewCamera(dev, c("orthographic").as_ptr());
-        set(
-            dev,
-            camera,
-            "position",
-            ANARI_FLOAT32_VEC3,
-            &[0.5f32, 0.5, 1.0],
-        );
-        set(
-            dev,
-            camera,
-            "direction",
-            ANARI_FLOAT32_VEC3,
-            &[0.0f32, 0.0, -1.0],
-        );
-        set(dev, camera, "up", ANARI_FLOAT32_VEC3, &[0.0f32, 1.0, 0.0]);
-        set(dev, camera, "height", ANARI_FLOAT32, &1.0f32);
-        // The 1×1 view stretches over any frame size, so pixels need not be square.
-        set(dev, camera, "aspect", ANARI_FLOAT32, &1.0f32);
-        commit(dev, camera);
-        let renderer = anariNewRenderer(dev, c("default").as_ptr());
-        commit(dev, renderer);
+        // The 1×1 view (aspect 1) stretches over any frame size, so pixels need not be square.
+        let camera = orthographic_camera(dev, [0.5, 0.5, 1.0], 1.0);
+        let renderer = plain_renderer(dev, "default");
         let frame = frame_for(dev, world, camera, renderer, size);
-        set(
-            dev,
-            frame,
-            "channel.albedo",
-            ANARI_DATA_TYPE,
-            &ANARI_FLOAT32_VEC3,
-        );
-        commit(dev, frame);
-        anariRenderFrame(dev, frame);
-        anariFrameReady(dev, frame, ANARI_WAIT);
+        add_channel(dev, frame, "channel.albedo", ANARI_FLOAT32_VEC3);
+        render_and_wait(dev, frame);
         let (albedo, w, h) = read_channel::<[f32; 3]>(dev, frame, "channel.albedo");
         let (ids, _, _) = read_channel::<u32>(dev, frame, "channel.primitiveId");
         assert_eq!((w, h), (size[0], size[1]));
-        for o in [material, surface, world, camera, renderer, frame] {
-            anariRelease(dev, o);
-        }
+        release_all(dev, &[material, surface, world, camera, renderer, frame]);
         (albedo, ids)
     }
 }
@@ -98,38 +62,8 @@ impl QuadScene {
 impl Drop for QuadScene {
     fn drop(&mut self) {
         anariRelease(self.dev, self.geometry);
-        anariRelease(self.dev, self.dev);
-        anariUnloadLibrary(self.lib);
+        release_device(self.lib, self.dev);
     }
-}
-
-fn assert_near(actual: [f32; 3], expected: [f32; 3], what: &str) {
-    for k in 0..3 {
-        assert!(
-            (actual[k] - expected[k]).abs() < 1e-4,
-            "{what}: {actual:?}, expected {expected:?}"
-        );
-    }
-}
-
-/// A managed 3D array of `FLOAT32_VEC3` texels, x fastest.
-fn array3d(dev: ANARIDevice, texels: &[[f32; 3]], size: [u64; 3]) -> ANARIArray3D {
-    assert_eq!(texels.len() as u64, size[0] * size[1] * size[2]);
-    let a = anariNewArray3D(
-        dev,
-        std::ptr::null(),
-        None,
-        std::ptr::null(),
-        ANARI_FLOAT32_VEC3,
-        size[0],
-        size[1],
-        size[2],
-    );
-    let p = anariMapArray(dev, a) as *mut [f32; 3];
-    // SAFETY: the managed array holds size[0]·size[1]·size[2] FLOAT32_VEC3 elements.
-    unsafe { std::ptr::copy_nonoverlapping(texels.as_ptr(), p, texels.len()) };
-    anariUnmapArray(dev, a);
-    a
 }
 
 /// The 2×2×2 texture whose texel (i, j, k) is (i·j·k, j, k): trilinear filtering makes the red
@@ -143,7 +77,7 @@ fn product_texture(dev: ANARIDevice) -> ANARIArray3D {
             }
         }
     }
-    array3d(dev, &texels, [2, 2, 2])
+    array3d(dev, ANARI_FLOAT32_VEC3, &texels, [2, 2, 2])
 }
 
 fn image3d(dev: ANARIDevice, image: ANARIArray3D, filter: &str) -> ANARISampler {
@@ -190,9 +124,7 @@ fn image3d_filters_trilinearly_or_to_the_nearest_texel() {
             );
         }
     }
-    for o in [image, linear, nearest] {
-        anariRelease(dev, o);
-    }
+    release_all(dev, &[image, linear, nearest]);
     assert!(log.errors().is_empty());
 }
 
@@ -217,7 +149,7 @@ fn image3d_wraps_each_axis_by_its_own_mode() {
         let mut size = [1u64; 3];
         size[axis] = 4;
         let texels: Vec<[f32; 3]> = (0..4).map(|t| [t as f32 / 3.0, 0.0, 1.0]).collect();
-        let image = array3d(dev, &texels, size);
+        let image = array3d(dev, ANARI_FLOAT32_VEC3, &texels, size);
         for (mode, texel) in expected {
             let sampler = image3d(dev, image, "nearest");
             // The other two axes get the other modes: with one texel they must not matter.
@@ -281,9 +213,7 @@ fn image3d_applies_input_and_output_transforms() {
         let expected = [0.5 * k + 0.25, 0.5, 0.5 * k + 0.1];
         assert_near(albedo[12 + x], expected, &format!("column {x}"));
     }
-    for o in [image, sampler] {
-        anariRelease(dev, o);
-    }
+    release_all(dev, &[image, sampler]);
     assert!(log.errors().is_empty());
 }
 
@@ -334,9 +264,7 @@ fn the_primitive_sampler_colours_each_primitive_from_its_offset_index() {
     let (albedo, _) = scene.render(sampler, [4, 4]);
     assert_near(albedo[0], [0.5, 0.0, 0.0], "UINT32 offset, primitive 0");
     assert_near(albedo[15], [0.75, 0.0, 0.0], "UINT32 offset, primitive 1");
-    for o in [values, scalars, sampler] {
-        anariRelease(dev, o);
-    }
+    release_all(dev, &[values, scalars, sampler]);
     assert!(log.errors().is_empty());
 }
 
@@ -358,15 +286,7 @@ fn bad_sampler_input_is_reported_and_the_material_falls_back() {
     let scene = QuadScene::new(&log, planar_coordinates(0.5));
     let dev = scene.dev;
     // A 2D array where image3D needs a 3D one: refused at anariSetParameter.
-    let flat = anariNewArray2D(
-        dev,
-        std::ptr::null(),
-        None,
-        std::ptr::null(),
-        ANARI_FLOAT32_VEC3,
-        2,
-        2,
-    );
+    let flat = unfilled_array2d(dev, ANARI_FLOAT32_VEC3, [2, 2]);
     let sampler = anariNewSampler(dev, c("image3D").as_ptr());
     set_object(dev, sampler, "image", ANARI_ARRAY2D, flat);
     expect_error(&log, &["anariSetParameter", "'image'", "ANARI_ARRAY3D"]);
@@ -394,38 +314,7 @@ fn bad_sampler_input_is_reported_and_the_material_falls_back() {
     expect_error(&log, &["anariCommitParameters", "primitive", "'array'"]);
     let (albedo, _) = scene.render(primitive, [2, 2]);
     assert_near(albedo[0], [0.8; 3], "primitive sampler without array");
-    for o in [flat, sampler, integers, primitive] {
-        anariRelease(dev, o);
-    }
-}
-
-/// The strings of a NULL-terminated list the device returned.
-fn c_strings(mut p: *const *const std::ffi::c_char) -> Vec<String> {
-    let mut out = Vec::new();
-    // SAFETY: the device returns NULL-terminated lists of C strings that outlive these reads.
-    unsafe {
-        while !p.is_null() && !(*p).is_null() {
-            out.push(CStr::from_ptr(*p).to_string_lossy().into_owned());
-            p = p.add(1);
-        }
-    }
-    out
-}
-
-/// The device's "extension" property.
-fn device_extensions(dev: ANARIDevice) -> Vec<String> {
-    let mut list: *const *const std::ffi::c_char = std::ptr::null();
-    let found = anariGetProperty(
-        dev,
-        dev,
-        c("extension").as_ptr(),
-        ANARI_STRING_LIST,
-        &mut list as *mut _ as _,
-        std::mem::size_of::<usize>() as u64,
-        ANARI_WAIT,
-    );
-    assert_eq!(found, 1);
-    c_strings(list)
+    release_all(dev, &[flat, sampler, integers, primitive]);
 }
 
 #[test]
@@ -440,27 +329,7 @@ fn the_new_samplers_and_their_extensions_are_advertised() {
     for extension in ["ANARI_KHR_SAMPLER_IMAGE3D", "ANARI_KHR_SAMPLER_PRIMITIVE"] {
         assert!(extensions.iter().any(|e| e == extension), "{extensions:?}");
     }
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
-}
-
-/// A managed 2D array of `FLOAT32_VEC4` texels, first row first.
-fn array2d(dev: ANARIDevice, texels: &[[f32; 4]], size: [u64; 2]) -> ANARIArray2D {
-    assert_eq!(texels.len() as u64, size[0] * size[1]);
-    let a = anariNewArray2D(
-        dev,
-        std::ptr::null(),
-        None,
-        std::ptr::null(),
-        ANARI_FLOAT32_VEC4,
-        size[0],
-        size[1],
-    );
-    let p = anariMapArray(dev, a) as *mut [f32; 4];
-    // SAFETY: the managed array holds size[0]·size[1] FLOAT32_VEC4 elements.
-    unsafe { std::ptr::copy_nonoverlapping(texels.as_ptr(), p, texels.len()) };
-    anariUnmapArray(dev, a);
-    a
+    release_device(lib, dev);
 }
 
 const RED: [f32; 4] = [1.0, 0.0, 0.0, 1.0];
@@ -476,43 +345,21 @@ fn render_over_background(
     world: Option<ANARIWorld>,
     size: [u32; 2],
 ) -> Vec<[f32; 4]> {
-    let image = array2d(dev, &[RED, GREEN, BLUE, HALF_WHITE], [2, 2]);
+    let image = array2d(
+        dev,
+        ANARI_FLOAT32_VEC4,
+        &[RED, GREEN, BLUE, HALF_WHITE],
+        [2, 2],
+    );
     let renderer = anariNewRenderer(dev, c("default").as_ptr());
     set_object(dev, renderer, "background", ANARI_ARRAY2D, image);
     commit(dev, renderer);
     let world = world.unwrap_or_else(|| world_of(dev, &[]));
-    let camera = anariNewCamera(dev, c("orthographic").as_ptr());
-    set(
-        dev,
-        camera,
-        "position",
-        ANARI_FLOAT32_VEC3,
-        &[0.5f32, 0.5, 1.0],
-    );
-    set(
-        dev,
-        camera,
-        "direction",
-        ANARI_FLOAT32_VEC3,
-        &[0.0f32, 0.0, -1.0],
-    );
-    set(dev, camera, "aspect", ANARI_FLOAT32, &1.0f32);
-    commit(dev, camera);
+    let camera = orthographic_camera(dev, [0.5, 0.5, 1.0], 1.0);
     let frame = frame_for(dev, world, camera, renderer, size);
     let (color, _, _) = render_channel::<[f32; 4]>(dev, frame, "channel.color");
-    for o in [image, renderer, world, camera, frame] {
-        anariRelease(dev, o);
-    }
+    release_all(dev, &[image, renderer, world, camera, frame]);
     color
-}
-
-fn assert_near4(actual: [f32; 4], expected: [f32; 4], what: &str) {
-    for k in 0..4 {
-        assert!(
-            (actual[k] - expected[k]).abs() < 1e-4,
-            "{what}: {actual:?}, expected {expected:?}"
-        );
-    }
 }
 
 #[test]
@@ -522,15 +369,14 @@ fn a_background_image_stretches_over_the_frame() {
     // 5×5 pixels over 2×2 texels: the corner pixels lie outside the texel centres (clamped),
     // the centre pixel is the mean of all four texels.
     let color = render_over_background(dev, None, [5, 5]);
-    assert_near4(color[0], RED, "bottom left");
-    assert_near4(color[4], GREEN, "bottom right");
-    assert_near4(color[20], BLUE, "top left");
-    assert_near4(color[24], HALF_WHITE, "top right");
-    assert_near4(color[12], [0.5, 0.5, 0.5, 0.875], "centre");
+    assert_near(color[0], RED, "bottom left");
+    assert_near(color[4], GREEN, "bottom right");
+    assert_near(color[20], BLUE, "top left");
+    assert_near(color[24], HALF_WHITE, "top right");
+    assert_near(color[12], [0.5, 0.5, 0.5, 0.875], "centre");
     // Pixel (1, 2): x = 0.3 lies 0.1 texel past the first texel centre, y = 0.5 halfway.
-    assert_near4(color[11], [0.5, 0.1, 0.5, 0.975], "pixel (1, 2)");
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    assert_near(color[11], [0.5, 0.1, 0.5, 0.975], "pixel (1, 2)");
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -558,15 +404,12 @@ fn a_see_through_surface_shows_the_background_image_behind_it() {
     let world = world_of(dev, &[surface]);
     let color = render_over_background(dev, Some(world), [5, 5]);
     let half = |c: [f32; 4]| [c[0] * 0.5, c[1] * 0.5, c[2] * 0.5, 1.0];
-    assert_near4(color[0], half(RED), "bottom left");
-    assert_near4(color[4], half(GREEN), "bottom right");
-    assert_near4(color[20], half(BLUE), "top left");
-    assert_near4(color[12], [0.25, 0.25, 0.25, 1.0], "centre");
-    for o in [geometry, positions, indices, material, surface] {
-        anariRelease(dev, o);
-    }
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    assert_near(color[0], half(RED), "bottom left");
+    assert_near(color[4], half(GREEN), "bottom right");
+    assert_near(color[20], half(BLUE), "top left");
+    assert_near(color[12], [0.25, 0.25, 0.25, 1.0], "centre");
+    release_all(dev, &[geometry, positions, indices, material, surface]);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -578,37 +421,18 @@ fn bad_background_images_are_reported() {
     let row = array1d(dev, ANARI_FLOAT32_VEC4, &[RED, GREEN]);
     set_object(dev, renderer, "background", ANARI_ARRAY1D, row);
     expect_error(&log, &["'background'", "ANARI_ARRAY1D", "ANARI_ARRAY2D"]);
-    let integers = anariNewArray2D(
-        dev,
-        std::ptr::null(),
-        None,
-        std::ptr::null(),
-        ANARI_INT32,
-        2,
-        2,
-    );
+    let integers = unfilled_array2d(dev, ANARI_INT32, [2, 2]);
     set_object(dev, renderer, "background", ANARI_ARRAY2D, integers);
     expect_error(&log, &["'background'", "ANARI_INT32"]);
-    let empty = anariNewArray2D(
-        dev,
-        std::ptr::null(),
-        None,
-        std::ptr::null(),
-        ANARI_FLOAT32_VEC4,
-        0,
-        3,
-    );
+    let empty = unfilled_array2d(dev, ANARI_FLOAT32_VEC4, [0, 3]);
     set_object(dev, renderer, "background", ANARI_ARRAY2D, empty);
     commit(dev, renderer);
     expect_error(
         &log,
         &["anariCommitParameters", "'background'", "no texels"],
     );
-    for o in [renderer, row, integers, empty] {
-        anariRelease(dev, o);
-    }
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_all(dev, &[renderer, row, integers, empty]);
+    release_device(lib, dev);
 }
 
 #[test]
@@ -618,58 +442,22 @@ fn the_normal_channel_maps_as_float32_or_fixed16() {
     let dev = scene.dev;
     let material = anariNewMaterial(dev, c("matte").as_ptr());
     commit(dev, material);
-    let surface = anariNewSurface(dev);
-    set_object(dev, surface, "geometry", ANARI_GEOMETRY, scene.geometry);
-    set_object(dev, surface, "material", ANARI_MATERIAL, material);
-    commit(dev, surface);
+    let surface = surface_of(dev, scene.geometry, material);
     let world = world_of(dev, &[surface]);
     // Looking down −z from above the quad's left edge: the right half of the frame sees the
     // quad (normal +z, towards the camera), the left half nothing.
-    let camera = anariNewCamera(dev, c("orthographic").as_ptr());
-    set(
-        dev,
-        camera,
-        "position",
-        ANARI_FLOAT32_VEC3,
-        &[0.0f32, 0.5, 1.0],
-    );
-    set(
-        dev,
-        camera,
-        "direction",
-        ANARI_FLOAT32_VEC3,
-        &[0.0f32, 0.0, -1.0],
-    );
-    set(dev, camera, "aspect", ANARI_FLOAT32, &1.0f32);
-    commit(dev, camera);
-    let renderer = anariNewRenderer(dev, c("default").as_ptr());
-    commit(dev, renderer);
+    let camera = orthographic_camera(dev, [0.0, 0.5, 1.0], 1.0);
+    let renderer = plain_renderer(dev, "default");
     let frame = frame_for(dev, world, camera, renderer, [4, 4]);
-    set(
-        dev,
-        frame,
-        "channel.normal",
-        ANARI_DATA_TYPE,
-        &ANARI_FIXED16_VEC3,
-    );
-    commit(dev, frame);
+    add_channel(dev, frame, "channel.normal", ANARI_FIXED16_VEC3);
     let (fixed, _, _) = render_channel::<[i16; 3]>(dev, frame, "channel.normal");
     assert_eq!(fixed[4 * 2 + 2], [0, 0, 32767], "quad");
     assert_eq!(fixed[4 * 2 + 1], [0, 0, 0], "background");
-    set(
-        dev,
-        frame,
-        "channel.normal",
-        ANARI_DATA_TYPE,
-        &ANARI_FLOAT32_VEC3,
-    );
-    commit(dev, frame);
+    add_channel(dev, frame, "channel.normal", ANARI_FLOAT32_VEC3);
     let (float, _, _) = render_channel::<[f32; 3]>(dev, frame, "channel.normal");
     assert_eq!(float[4 * 2 + 2], [0.0, 0.0, 1.0], "quad");
     assert_eq!(float[4 * 2 + 1], [0.0, 0.0, 0.0], "background");
-    for o in [material, surface, world, camera, renderer, frame] {
-        anariRelease(dev, o);
-    }
+    release_all(dev, &[material, surface, world, camera, renderer, frame]);
     assert!(log.errors().is_empty());
 }
 
@@ -685,6 +473,5 @@ fn the_background_image_and_normal_channel_extensions_are_advertised() {
     ] {
         assert!(extensions.iter().any(|e| e == extension), "{extensions:?}");
     }
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
 }

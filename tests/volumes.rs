@@ -17,28 +17,6 @@ fn coordinate(i: u32) -> f32 {
     -2.0 + (i as f32 + 0.5) * 0.25
 }
 
-fn camera(dev: ANARIDevice) -> ANARICamera {
-    let camera = anariNewCamera(dev, c("orthographic").as_ptr());
-    set(
-        dev,
-        camera,
-        "position",
-        ANARI_FLOAT32_VEC3,
-        &[0.0f32, 0.0, 5.0],
-    );
-    set(
-        dev,
-        camera,
-        "direction",
-        ANARI_FLOAT32_VEC3,
-        &[0.0f32, 0.0, -1.0],
-    );
-    set(dev, camera, "up", ANARI_FLOAT32_VEC3, &[0.0f32, 1.0, 0.0]);
-    set(dev, camera, "height", ANARI_FLOAT32, &4.0f32);
-    commit(dev, camera);
-    camera
-}
-
 fn renderer(dev: ANARIDevice, subtype: &str, background: [f32; 4]) -> ANARIRenderer {
     let renderer = anariNewRenderer(dev, c(subtype).as_ptr());
     set(dev, renderer, "background", ANARI_FLOAT32_VEC4, &background);
@@ -58,21 +36,7 @@ fn field(
     spacing: [f32; 3],
     filter: Option<&str>,
 ) -> ANARISpatialField {
-    assert_eq!(values.len() as u64, dims[0] * dims[1] * dims[2]);
-    let data = anariNewArray3D(
-        dev,
-        std::ptr::null(),
-        None,
-        std::ptr::null(),
-        ANARI_FLOAT32,
-        dims[0],
-        dims[1],
-        dims[2],
-    );
-    let p = anariMapArray(dev, data) as *mut f32;
-    // SAFETY: the managed array holds values.len() FLOAT32 elements.
-    unsafe { std::ptr::copy_nonoverlapping(values.as_ptr(), p, values.len()) };
-    anariUnmapArray(dev, data);
+    let data = array3d(dev, ANARI_FLOAT32, values, dims);
     let field = anariNewSpatialField(dev, c("structuredRegular").as_ptr());
     set_object(dev, field, "data", ANARI_ARRAY3D, data);
     set(dev, field, "origin", ANARI_FLOAT32_VEC3, &origin);
@@ -144,11 +108,7 @@ fn rectangle(
         [x1, y1, z],
         [x0, y1, z],
     ];
-    let geometry = anariNewGeometry(dev, c("triangle").as_ptr());
-    let array = array1d(dev, ANARI_FLOAT32_VEC3, &positions);
-    set_object(dev, geometry, "vertex.position", ANARI_ARRAY1D, array);
-    commit(dev, geometry);
-    anariRelease(dev, array);
+    let geometry = triangle_geometry(dev, &positions);
     let surface = matte_surface(dev, geometry, [grey; 3]);
     set(dev, surface, "id", ANARI_UINT32, &id);
     commit(dev, surface);
@@ -165,7 +125,7 @@ struct Channels {
 }
 
 fn render(dev: ANARIDevice, world: ANARIWorld, renderer: ANARIRenderer) -> Channels {
-    let camera = camera(dev);
+    let camera = orthographic_camera(dev, [0.0, 0.0, 5.0], 4.0);
     let frame = frame_for(dev, world, camera, renderer, [SIZE, SIZE]);
     let (color, _, _) = render_channel::<[f32; 4]>(dev, frame, "channel.color");
     let channels = Channels {
@@ -178,21 +138,6 @@ fn render(dev: ANARIDevice, world: ANARIWorld, renderer: ANARIRenderer) -> Chann
     anariRelease(dev, frame);
     anariRelease(dev, camera);
     channels
-}
-
-fn assert_close(actual: [f32; 4], expected: [f32; 4], what: &str) {
-    for k in 0..4 {
-        assert!(
-            (actual[k] - expected[k]).abs() < 1e-4,
-            "{what}: got {actual:?}, expected {expected:?}"
-        );
-    }
-}
-
-fn release_all(dev: ANARIDevice, objects: &[ANARIObject]) {
-    for &o in objects {
-        anariRelease(dev, o);
-    }
 }
 
 #[test]
@@ -212,8 +157,7 @@ fn both_extensions_are_advertised_and_objects_are_real() {
         .collect();
     assert!(complaints.is_empty(), "{complaints:?}");
     release_all(dev, &[volume, field]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
 }
 
 #[test]
@@ -231,7 +175,7 @@ fn a_constant_box_composites_by_the_emission_absorption_formula() {
         let out = render(dev, world, r);
         let inside = pixel(8, 8);
         let emitted = 1.0 - transmittance;
-        assert_close(
+        assert_near(
             out.color[inside],
             [
                 1.0 * emitted,
@@ -252,26 +196,16 @@ fn a_constant_box_composites_by_the_emission_absorption_formula() {
         assert_eq!(out.instance[inside], u32::MAX);
         // Outside the box: the background and no hit.
         let outside = pixel(1, 14);
-        assert_close(out.color[outside], background, subtype);
+        assert_near(out.color[outside], background, subtype);
         assert_eq!(out.object[outside], u32::MAX);
         assert_eq!(out.depth[outside], f32::INFINITY);
         anariRelease(dev, r);
     }
     // The world's bounds are the volume's box.
-    let mut bounds = [0f32; 6];
-    anariGetProperty(
-        dev,
-        world,
-        c("bounds").as_ptr(),
-        ANARI_FLOAT32_BOX3,
-        bounds.as_mut_ptr() as _,
-        24,
-        ANARI_WAIT,
-    );
+    let bounds = bounds_of(dev, world);
     assert_eq!(bounds, [-1.0, -1.0, -1.0, 1.0, 1.0, 1.0]);
     release_all(dev, &[world, volume, field]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -303,8 +237,7 @@ fn nearest_and_linear_filters_reconstruct_differently() {
     assert!((shown[0][1] - right).abs() < 1e-5, "{shown:?}");
     assert_eq!(shown[1], [0.0, 1.0]);
     release_all(dev, &[colors, r]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -322,7 +255,7 @@ fn a_surface_inside_the_volume_ends_the_march() {
     // Left: 2 unit distances of volume, then the surface (albedo 0.5 under ambient radiance 1).
     let cut = 0.5f32.powi(2);
     let left = out.color[pixel(5, 8)];
-    assert_close(
+    assert_near(
         left,
         [
             1.0 - cut + cut * 0.5,
@@ -334,7 +267,7 @@ fn a_surface_inside_the_volume_ends_the_march() {
     );
     // Right: the whole box, then the black background.
     let full = 0.5f32.powi(4);
-    assert_close(
+    assert_near(
         out.color[pixel(10, 8)],
         [1.0 - full, 1.0 - full, 1.0 - full, 1.0],
         "whole box",
@@ -347,8 +280,7 @@ fn a_surface_inside_the_volume_ends_the_march() {
     assert_eq!(out.primitive[pixel(5, 2)], 0);
     assert!((out.depth[pixel(5, 2)] - 5.0).abs() < 1e-4);
     release_all(dev, &[world, volume, field, surface, r]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -398,8 +330,7 @@ fn object_ids_name_the_first_volume_or_surface_seen() {
     let depth = out.depth[pixel(12, 8)];
     assert!(depth > 5.0 && depth <= 5.5 + 1e-4, "{depth}");
     release_all(dev, &[world, a, a_field, b, b_field, ramp, s, r]);
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -433,7 +364,7 @@ fn an_instanced_volume_moves_and_stretches_with_its_transform() {
     // distance, so the stretched box (2 deep) passes 0.5² of the light.
     let inside = pixel(12, 8);
     let t = 0.25f32;
-    assert_close(
+    assert_near(
         out.color[inside],
         [1.0 - t, 1.0 - t, 1.0 - t, 1.0],
         "moved box",
@@ -442,35 +373,16 @@ fn an_instanced_volume_moves_and_stretches_with_its_transform() {
     assert!((out.depth[inside] - 4.0).abs() < 1e-4);
     // Where the box was before the transform there is nothing.
     assert_eq!(out.object[pixel(7, 8)], u32::MAX);
-    assert_close(out.color[pixel(7, 8)], [0.0, 0.0, 0.0, 1.0], "old place");
-    let mut bounds = [0f32; 6];
-    anariGetProperty(
-        dev,
-        world,
-        c("bounds").as_ptr(),
-        ANARI_FLOAT32_BOX3,
-        bounds.as_mut_ptr() as _,
-        24,
-        ANARI_WAIT,
-    );
+    assert_near(out.color[pixel(7, 8)], [0.0, 0.0, 0.0, 1.0], "old place");
+    let bounds = bounds_of(dev, world);
     assert_eq!(bounds, [0.5, -0.5, -1.0, 1.5, 0.5, 1.0]);
-    let mut group_bounds = [0f32; 6];
-    anariGetProperty(
-        dev,
-        group,
-        c("bounds").as_ptr(),
-        ANARI_FLOAT32_BOX3,
-        group_bounds.as_mut_ptr() as _,
-        24,
-        ANARI_WAIT,
-    );
+    let group_bounds = bounds_of(dev, group);
     assert_eq!(group_bounds, [-0.5, -0.5, -0.5, 0.5, 0.5, 0.5]);
     release_all(
         dev,
         &[world, instances, instance, volumes, group, volume, f, r],
     );
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
 
@@ -487,15 +399,7 @@ fn bad_volume_input_is_reported_and_rendered_as_nothing() {
     let (lib, dev) = device_with_log(&log);
 
     // A 2D array as 'data' is refused at anariSetParameter.
-    let flat = anariNewArray2D(
-        dev,
-        std::ptr::null(),
-        None,
-        std::ptr::null(),
-        ANARI_FLOAT32,
-        2,
-        2,
-    );
+    let flat = unfilled_array2d(dev, ANARI_FLOAT32, [2, 2]);
     let bad_field = anariNewSpatialField(dev, c("structuredRegular").as_ptr());
     set_object(dev, bad_field, "data", ANARI_ARRAY2D, flat);
     let refused = messages_with(&log, "'data'");
@@ -606,6 +510,5 @@ fn bad_volume_input_is_reported_and_rendered_as_nothing() {
             world, r, reversed, thin, empty, unusable, field, bad_field, flat, vectors,
         ],
     );
-    anariRelease(dev, dev);
-    anariUnloadLibrary(lib);
+    release_device(lib, dev);
 }

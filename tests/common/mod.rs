@@ -113,10 +113,7 @@ pub fn array1d<T: Copy>(dev: ANARIDevice, ty: ANARIDataType, data: &[T]) -> ANAR
         ty,
         data.len() as u64,
     );
-    let p = anariMapArray(dev, a) as *mut T;
-    // SAFETY: the managed array holds data.len() elements of T.
-    unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), p, data.len()) };
-    anariUnmapArray(dev, a);
+    fill_array(dev, a, data);
     a
 }
 
@@ -129,10 +126,7 @@ pub fn matte_surface(dev: ANARIDevice, geometry: ANARIGeometry, color: [f32; 3])
     let material = anariNewMaterial(dev, c("matte").as_ptr());
     set(dev, material, "color", ANARI_FLOAT32_VEC3, &color);
     commit(dev, material);
-    let surface = anariNewSurface(dev);
-    set_object(dev, surface, "geometry", ANARI_GEOMETRY, geometry);
-    set_object(dev, surface, "material", ANARI_MATERIAL, material);
-    commit(dev, surface);
+    let surface = surface_of(dev, geometry, material);
     anariRelease(dev, material);
     surface
 }
@@ -216,4 +210,246 @@ pub fn read_channel<T: Copy>(
     let pixels = unsafe { std::slice::from_raw_parts(p, (w * h) as usize) }.to_vec();
     anariUnmapFrame(dev, frame, name.as_ptr());
     (pixels, w, h)
+}
+
+/// Releases every object in `objects`.
+pub fn release_all(dev: ANARIDevice, objects: &[ANARIObject]) {
+    for &object in objects {
+        anariRelease(dev, object);
+    }
+}
+
+/// Releases the device and unloads its library.
+pub fn release_device(lib: ANARILibrary, dev: ANARIDevice) {
+    anariRelease(dev, dev);
+    anariUnloadLibrary(lib);
+}
+
+/// Copies `data` into managed `array`, which must hold exactly data.len() elements of T.
+fn fill_array<T: Copy>(dev: ANARIDevice, array: ANARIArray, data: &[T]) {
+    let p = anariMapArray(dev, array) as *mut T;
+    // SAFETY: every caller made `array` with data.len() elements of T.
+    unsafe { std::ptr::copy_nonoverlapping(data.as_ptr(), p, data.len()) };
+    anariUnmapArray(dev, array);
+}
+
+/// A managed 2D array of `size` elements filled with `data` (first row first).
+pub fn array2d<T: Copy>(
+    dev: ANARIDevice,
+    ty: ANARIDataType,
+    data: &[T],
+    size: [u64; 2],
+) -> ANARIArray2D {
+    assert_eq!(data.len() as u64, size[0] * size[1]);
+    let a = unfilled_array2d(dev, ty, size);
+    fill_array(dev, a, data);
+    a
+}
+
+/// A managed 2D array of `size` elements of `ty`, never written.
+pub fn unfilled_array2d(dev: ANARIDevice, ty: ANARIDataType, size: [u64; 2]) -> ANARIArray2D {
+    anariNewArray2D(
+        dev,
+        std::ptr::null(),
+        None,
+        std::ptr::null(),
+        ty,
+        size[0],
+        size[1],
+    )
+}
+
+/// A managed 3D array of `size` elements filled with `data` (x fastest).
+pub fn array3d<T: Copy>(
+    dev: ANARIDevice,
+    ty: ANARIDataType,
+    data: &[T],
+    size: [u64; 3],
+) -> ANARIArray3D {
+    assert_eq!(data.len() as u64, size[0] * size[1] * size[2]);
+    let a = anariNewArray3D(
+        dev,
+        std::ptr::null(),
+        None,
+        std::ptr::null(),
+        ty,
+        size[0],
+        size[1],
+        size[2],
+    );
+    fill_array(dev, a, data);
+    a
+}
+
+/// Sets parameter `name` of `object` to a new 1D array of `data`, which the object then owns.
+pub fn set_array<T: Copy>(
+    dev: ANARIDevice,
+    object: ANARIObject,
+    name: &str,
+    ty: ANARIDataType,
+    data: &[T],
+) {
+    let array = array1d(dev, ty, data);
+    set_object(dev, object, name, ANARI_ARRAY1D, array);
+    anariRelease(dev, array);
+}
+
+/// A committed triangle soup geometry (three positions a triangle).
+pub fn triangle_geometry(dev: ANARIDevice, positions: &[[f32; 3]]) -> ANARIGeometry {
+    let geometry = anariNewGeometry(dev, c("triangle").as_ptr());
+    set_array(
+        dev,
+        geometry,
+        "vertex.position",
+        ANARI_FLOAT32_VEC3,
+        positions,
+    );
+    commit(dev, geometry);
+    geometry
+}
+
+/// A committed sphere geometry of one `radius` around `centers`.
+pub fn sphere_geometry(dev: ANARIDevice, centers: &[[f32; 3]], radius: f32) -> ANARIGeometry {
+    let geometry = anariNewGeometry(dev, c("sphere").as_ptr());
+    set_array(
+        dev,
+        geometry,
+        "vertex.position",
+        ANARI_FLOAT32_VEC3,
+        centers,
+    );
+    set(dev, geometry, "radius", ANARI_FLOAT32, &radius);
+    commit(dev, geometry);
+    geometry
+}
+
+/// A committed surface of `geometry` and `material` (both stay the caller's).
+pub fn surface_of(
+    dev: ANARIDevice,
+    geometry: ANARIGeometry,
+    material: ANARIMaterial,
+) -> ANARISurface {
+    let surface = anariNewSurface(dev);
+    set_object(dev, surface, "geometry", ANARI_GEOMETRY, geometry);
+    set_object(dev, surface, "material", ANARI_MATERIAL, material);
+    commit(dev, surface);
+    surface
+}
+
+/// A committed matte material coloured by the geometry attribute `attribute` (e.g. "color").
+pub fn matte_colored_by(dev: ANARIDevice, attribute: &str) -> ANARIMaterial {
+    let material = anariNewMaterial(dev, c("matte").as_ptr());
+    set_string(dev, material, "color", attribute);
+    commit(dev, material);
+    material
+}
+
+/// A committed perspective camera at `position` looking along `direction`.
+pub fn perspective_camera(
+    dev: ANARIDevice,
+    position: [f32; 3],
+    direction: [f32; 3],
+    fovy: f32,
+) -> ANARICamera {
+    let camera = anariNewCamera(dev, c("perspective").as_ptr());
+    set(dev, camera, "position", ANARI_FLOAT32_VEC3, &position);
+    set(dev, camera, "direction", ANARI_FLOAT32_VEC3, &direction);
+    set(dev, camera, "fovy", ANARI_FLOAT32, &fovy);
+    commit(dev, camera);
+    camera
+}
+
+/// A committed orthographic camera at `position` looking down −z (up +y), `height` tall, aspect 1.
+pub fn orthographic_camera(dev: ANARIDevice, position: [f32; 3], height: f32) -> ANARICamera {
+    let camera = anariNewCamera(dev, c("orthographic").as_ptr());
+    set(dev, camera, "position", ANARI_FLOAT32_VEC3, &position);
+    set(
+        dev,
+        camera,
+        "direction",
+        ANARI_FLOAT32_VEC3,
+        &[0.0f32, 0.0, -1.0],
+    );
+    set(dev, camera, "up", ANARI_FLOAT32_VEC3, &[0.0f32, 1.0, 0.0]);
+    set(dev, camera, "height", ANARI_FLOAT32, &height);
+    set(dev, camera, "aspect", ANARI_FLOAT32, &1.0f32);
+    commit(dev, camera);
+    camera
+}
+
+/// A committed renderer of `subtype` with every parameter at its default.
+pub fn plain_renderer(dev: ANARIDevice, subtype: &str) -> ANARIRenderer {
+    let renderer = anariNewRenderer(dev, c(subtype).as_ptr());
+    commit(dev, renderer);
+    renderer
+}
+
+/// Adds channel `name` of type `ty` to `frame` and commits it.
+pub fn add_channel(dev: ANARIDevice, frame: ANARIFrame, name: &str, ty: ANARIDataType) {
+    set(dev, frame, name, ANARI_DATA_TYPE, &ty);
+    commit(dev, frame);
+}
+
+/// Renders `frame` and waits until it is ready.
+pub fn render_and_wait(dev: ANARIDevice, frame: ANARIFrame) {
+    anariRenderFrame(dev, frame);
+    anariFrameReady(dev, frame, ANARI_WAIT);
+}
+
+/// The strings of a NULL-terminated list the device returned.
+pub fn c_strings(mut list: *const *const c_char) -> Vec<String> {
+    let mut out = Vec::new();
+    // SAFETY: the device returns NULL-terminated lists of C strings that outlive these reads.
+    unsafe {
+        while !list.is_null() && !(*list).is_null() {
+            out.push(
+                std::ffi::CStr::from_ptr(*list)
+                    .to_string_lossy()
+                    .into_owned(),
+            );
+            list = list.add(1);
+        }
+    }
+    out
+}
+
+/// The device's "extension" property.
+pub fn device_extensions(dev: ANARIDevice) -> Vec<String> {
+    let mut list: *const *const c_char = std::ptr::null();
+    let found = anariGetProperty(
+        dev,
+        dev,
+        c("extension").as_ptr(),
+        ANARI_STRING_LIST,
+        &mut list as *mut _ as _,
+        std::mem::size_of::<usize>() as u64,
+        ANARI_WAIT,
+    );
+    assert_eq!(found, 1);
+    c_strings(list)
+}
+
+/// Asserts every component of `actual` is within 1e-4 of `expected`.
+pub fn assert_near<const N: usize>(actual: [f32; N], expected: [f32; N], what: &str) {
+    for k in 0..N {
+        assert!(
+            (actual[k] - expected[k]).abs() < 1e-4,
+            "{what}: got {actual:?}, expected {expected:?}"
+        );
+    }
+}
+
+/// The "bounds" property of `object` (the return status is left to the tests of properties).
+pub fn bounds_of(dev: ANARIDevice, object: ANARIObject) -> [f32; 6] {
+    let mut bounds = [0f32; 6];
+    anariGetProperty(
+        dev,
+        object,
+        c("bounds").as_ptr(),
+        ANARI_FLOAT32_BOX3,
+        bounds.as_mut_ptr() as _,
+        24,
+        ANARI_WAIT,
+    );
+    bounds
 }
