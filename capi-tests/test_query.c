@@ -64,9 +64,13 @@ static void extension_lists_agree(void) {
   CHECK(list_contains(from_device, "ANARI_KHR_GEOMETRY_TRIANGLE"));
   CHECK(list_contains(from_device, "ANARI_KHR_GEOMETRY_SPHERE"));
   CHECK(list_contains(from_device, "ANARI_KHR_FRAME_COMPLETION_CALLBACK"));
+  CHECK(list_contains(from_device, "ANARI_KHR_SPATIAL_FIELD_STRUCTURED_REGULAR"));
+  CHECK(list_contains(from_device, "ANARI_KHR_GEOMETRY_CYLINDER"));
+  CHECK(list_contains(from_device, "ANARI_KHR_LIGHT_SPOT"));
   /* Nothing the device does not implement. */
-  CHECK(!list_contains(from_device, "ANARI_KHR_SPATIAL_FIELD_STRUCTURED_REGULAR"));
-  CHECK(!list_contains(from_device, "ANARI_KHR_GEOMETRY_CYLINDER"));
+  CHECK(!list_contains(from_device, "ANARI_KHR_MATERIAL_PHYSICALLY_BASED"));
+  CHECK(!list_contains(from_device, "ANARI_KHR_LIGHT_HDRI"));
+  CHECK(!list_contains(from_device, "ANARI_KHR_SPATIAL_FIELD_UNSTRUCTURED"));
   CHECK(anariGetDeviceExtensions(library, "vulkan") == NULL);
   const char **devices = anariGetDeviceSubtypes(library);
   CHECK(list_contains(devices, "default"));
@@ -151,8 +155,9 @@ static void object_subtypes(void) {
   CHECK(list_contains(anariGetObjectSubtypes(device, ANARI_MATERIAL), "matte"));
   CHECK(list_contains(anariGetObjectSubtypes(device, ANARI_SAMPLER), "image1D"));
   CHECK(list_contains(anariGetObjectSubtypes(device, ANARI_LIGHT), "directional"));
-  /* No volumes are implemented: an empty list. */
-  CHECK(list_length(anariGetObjectSubtypes(device, ANARI_VOLUME)) == 0);
+  const char **volumes = anariGetObjectSubtypes(device, ANARI_VOLUME);
+  CHECK(list_length(volumes) == 1 && list_contains(volumes, "transferFunction1D"));
+  CHECK(list_contains(anariGetObjectSubtypes(device, ANARI_SPATIAL_FIELD), "structuredRegular"));
   CHECK(log_error_count() == 0);
   close_device(library, device);
 }
