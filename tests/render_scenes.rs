@@ -672,3 +672,48 @@ fn rendering_again_rewrites_every_pixel_and_leaves_mapped_pixels_alone() {
     release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
+
+#[test]
+fn geometry_colours_take_every_color_element_type_of_the_specification() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    // A large triangle in front of an orthographic camera: every pixel sees it.
+    let positions = [[-5.0f32, -5.0, -1.0], [5.0, -5.0, -1.0], [0.0, 5.0, -1.0]];
+    let camera = orthographic_camera(dev, [0.0, 0.0, 0.0], 1.0);
+    let renderer = plain_renderer(dev, "fast");
+    // Each case: one primitive.color of an element type and the linear colour it must give.
+    let srgb_188 = ((188.0f32 / 255.0 + 0.055) / 1.055).powf(2.4);
+    let cases: [(ANARIDataType, [f32; 3]); 3] = [
+        (ANARI_UFIXED8_RGB_SRGB, [srgb_188, 0.0, 1.0]),
+        (ANARI_UFIXED8_R_SRGB, [srgb_188, 0.0, 0.0]),
+        (ANARI_UFIXED32_VEC3, [1.0, 0.0, 0.5]),
+    ];
+    for (element_type, expected) in cases {
+        let geometry = triangle_geometry(dev, &positions);
+        let colors = match element_type {
+            ANARI_UFIXED8_RGB_SRGB => array1d(dev, element_type, &[[188u8, 0, 255]]),
+            ANARI_UFIXED8_R_SRGB => array1d(dev, element_type, &[188u8]),
+            _ => array1d(dev, element_type, &[[u32::MAX, 0, u32::MAX / 2]]),
+        };
+        set_object(dev, geometry, "primitive.color", ANARI_ARRAY1D, colors);
+        commit(dev, geometry);
+        anariRelease(dev, colors);
+        let material = matte_colored_by(dev, "color");
+        let surface = surface_of(dev, geometry, material);
+        let world = world_of(dev, &[surface]);
+        let frame = frame_for(dev, world, camera, renderer, [4, 4]);
+        add_channel(dev, frame, "channel.albedo", ANARI_FLOAT32_VEC3);
+        let (albedo, _, _) = render_channel::<[f32; 3]>(dev, frame, "channel.albedo");
+        for pixel in albedo {
+            assert_near(
+                pixel,
+                expected,
+                &format!("primitive.color of type {element_type}"),
+            );
+        }
+        release_all(dev, &[geometry, material, surface, world, frame]);
+    }
+    release_all(dev, &[camera, renderer]);
+    release_device(lib, dev);
+    assert!(log.errors().is_empty(), "{:?}", log.errors());
+}

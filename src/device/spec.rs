@@ -141,19 +141,28 @@ impl ObjectSpec {
     }
 }
 
-/// Element types accepted by vertex/primitive attribute arrays.
+/// The specification's Color element types: geometry `*.color` arrays, sampler images,
+/// primitive-sampler arrays, volume colours and the background image. Fixed point is normalised
+/// to [0, 1] and sRGB components decoded to linear when read.
 pub const ATTRIBUTE_ELEMENT_TYPES: &[ANARIDataType] = &[
-    ANARI_FLOAT32,
-    ANARI_FLOAT32_VEC2,
-    ANARI_FLOAT32_VEC3,
-    ANARI_FLOAT32_VEC4,
     ANARI_UFIXED8,
     ANARI_UFIXED8_VEC2,
     ANARI_UFIXED8_VEC3,
     ANARI_UFIXED8_VEC4,
+    ANARI_UFIXED8_R_SRGB,
+    ANARI_UFIXED8_RA_SRGB,
+    ANARI_UFIXED8_RGB_SRGB,
     ANARI_UFIXED8_RGBA_SRGB,
     ANARI_UFIXED16,
     ANARI_UFIXED16_VEC2,
     ANARI_UFIXED16_VEC3,
     ANARI_UFIXED16_VEC4,
+    ANARI_UFIXED32,
+    ANARI_UFIXED32_VEC2,
+    ANARI_UFIXED32_VEC3,
+    ANARI_UFIXED32_VEC4,
+    ANARI_FLOAT32,
+    ANARI_FLOAT32_VEC2,
+    ANARI_FLOAT32_VEC3,
+    ANARI_FLOAT32_VEC4,
 ];

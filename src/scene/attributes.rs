@@ -23,30 +23,9 @@ pub fn attribute_slot(name: &str) -> Option<usize> {
 /// The value an unset attribute reads as (ANARI: (0,0,0,1)).
 pub const ATTRIBUTE_DEFAULT: Vec4 = Vec4::new(0.0, 0.0, 0.0, 1.0);
 
-/// Element types ANARI allows for arrays of values read as attributes: sampler images,
-/// primitive-sampler arrays and the renderer's background image.
-pub const VALUE_ELEMENT_TYPES: &[ANARIDataType] = &[
-    ANARI_UFIXED8,
-    ANARI_UFIXED8_VEC2,
-    ANARI_UFIXED8_VEC3,
-    ANARI_UFIXED8_VEC4,
-    ANARI_UFIXED8_R_SRGB,
-    ANARI_UFIXED8_RA_SRGB,
-    ANARI_UFIXED8_RGB_SRGB,
-    ANARI_UFIXED8_RGBA_SRGB,
-    ANARI_UFIXED16,
-    ANARI_UFIXED16_VEC2,
-    ANARI_UFIXED16_VEC3,
-    ANARI_UFIXED16_VEC4,
-    ANARI_UFIXED32,
-    ANARI_UFIXED32_VEC2,
-    ANARI_UFIXED32_VEC3,
-    ANARI_UFIXED32_VEC4,
-    ANARI_FLOAT32,
-    ANARI_FLOAT32_VEC2,
-    ANARI_FLOAT32_VEC3,
-    ANARI_FLOAT32_VEC4,
-];
+/// Element types ANARI allows for arrays of values read as attributes (the specification's
+/// Color types): what [`read_values`] reads.
+pub const VALUE_ELEMENT_TYPES: &[ANARIDataType] = crate::device::spec::ATTRIBUTE_ELEMENT_TYPES;
 
 /// Reads an array of any type in `VALUE_ELEMENT_TYPES` as attribute values: missing components
 /// are (·, 0, 0, 1), fixed-point is normalised to [0, 1] and sRGB colour components are decoded

@@ -14,7 +14,9 @@ use crate::device::params::ParamSet;
 use crate::device::pool::with_build_pool;
 use crate::device::spec::{ATTRIBUTE_ELEMENT_TYPES, ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
-use crate::scene::attributes::{ATTRIBUTE_NAMES, Attribute, Interpolation, triangle_weights};
+use crate::scene::attributes::{
+    ATTRIBUTE_NAMES, Attribute, Interpolation, read_values, triangle_weights,
+};
 
 const FLOAT_ELEMENTS: &[ANARIDataType] = &[
     ANARI_FLOAT32,
@@ -481,7 +483,7 @@ fn read_attributes(params: &ParamSet, has_corners: bool) -> [Attribute; 5] {
     std::array::from_fn(|slot| {
         let name = ATTRIBUTE_NAMES[slot];
         let read = |prefix: &str| -> Option<Vec<Vec4>> {
-            array(params, &format!("{prefix}.{name}")).and_then(|a| a.read_attribute())
+            array(params, &format!("{prefix}.{name}")).and_then(read_values)
         };
         Attribute {
             uniform: params.get_vec4(name),
