@@ -8,12 +8,6 @@ use std::f32::consts::PI;
 
 const SIZE: u32 = 32;
 
-fn release_all(dev: ANARIDevice, objects: &[ANARIObject]) {
-    for o in objects {
-        anariRelease(dev, *o);
-    }
-}
-
 fn quad(dev: ANARIDevice, half: f32, y: f32) -> ANARIGeometry {
     let g = anariNewGeometry(dev, c("triangle").as_ptr());
     let positions = [
