@@ -179,14 +179,10 @@ impl RendererSettings {
         }
     }
 
-    /// These settings with one background colour everywhere: what the secondary rays of one
-    /// primary sample see behind the scene (the background image at that sample's position).
-    fn with_uniform_background(&self, background: Vec4) -> RendererSettings {
-        RendererSettings {
-            background,
-            background_image: None,
-            ..self.clone()
-        }
+    /// The background a ray of the sample at `screen` sees (the background colour without a
+    /// screen position): secondary rays see the image where their primary sample lies.
+    fn background_for(&self, screen: Option<Vec2>) -> Vec4 {
+        screen.map_or(self.background, |screen| self.background_at(screen))
     }
 }
 
@@ -340,12 +336,14 @@ fn direct_light(
     sum
 }
 
-/// Radiance along a ray (the default renderer).
+/// Radiance along a ray (the default renderer) of the pixel sample at `screen` (see
+/// [`RendererSettings::background_at`]).
 pub fn trace(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
     ray: &Ray,
     depth: u32,
+    screen: Option<Vec2>,
     sampling: &LightSampling,
 ) -> Vec4 {
     let hit = scene.bvh.intersect(ray);
@@ -354,10 +352,10 @@ pub fn trace(
         return volume.over(Vec4::ZERO);
     }
     let behind = match hit {
-        None => settings.background,
+        None => settings.background_for(screen),
         Some(hit) => {
             let sp = shading_point(scene, ray, &hit);
-            shade(scene, settings, ray, &sp, depth, sampling).extend(1.0)
+            shade(scene, settings, ray, &sp, depth, screen, sampling).extend(1.0)
         }
     };
     volume.map_or(behind, |v| v.over(behind))
@@ -379,6 +377,7 @@ fn shade(
     ray: &Ray,
     sp: &ShadingPoint,
     depth: u32,
+    screen: Option<Vec2>,
     sampling: &LightSampling,
 ) -> Vec3 {
     let diffuse_weight = 1.0 - sp.metallic;
@@ -398,6 +397,7 @@ fn shade(
                 settings,
                 &offset_ray(sp.point, reflected, f32::INFINITY),
                 depth + 1,
+                screen,
                 sampling,
             );
             color += sp.base_color * incoming.truncate() * reflectivity;
@@ -411,6 +411,7 @@ fn shade(
             settings,
             &offset_ray(sp.point, ray.direction, f32::INFINITY),
             depth + 1,
+            screen,
             sampling,
         );
         color = color * sp.opacity + behind.truncate() * (1.0 - sp.opacity);
@@ -489,13 +490,9 @@ fn shade_surface_primary(
     screen: Option<Vec2>,
     sampling: &LightSampling,
 ) -> Sample {
-    let background = match screen {
-        Some(screen) => settings.background_at(screen),
-        None => settings.background,
-    };
     let Some(hit) = hit else {
         return Sample {
-            color: background,
+            color: settings.background_for(screen),
             hit: None,
         };
     };
@@ -504,12 +501,8 @@ fn shade_surface_primary(
         // Eye light: a light at the camera, so what faces the viewer is brightest.
         let facing = (-ray.direction).dot(sp.normal).max(0.0);
         sp.base_color * (0.2 + 0.8 * facing) + sp.emissive
-    } else if settings.background_image.is_some() {
-        // Rays through transparent surfaces and off mirrors see this sample's background.
-        let settings = settings.with_uniform_background(background);
-        shade(scene, &settings, ray, &sp, 0, sampling)
     } else {
-        shade(scene, settings, ray, &sp, 0, sampling)
+        shade(scene, settings, ray, &sp, 0, screen, sampling)
     };
     Sample {
         color: color.extend(1.0),
