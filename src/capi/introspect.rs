@@ -6,11 +6,11 @@ use std::ffi::{c_char, c_void};
 use crate::capi::cache::{cached, leak_c_string, leak_slice, leak_string_list};
 use crate::capi::types::*;
 use crate::capi::{device_of, guard, plain_string, string_arg};
-use crate::device::catalog;
 use crate::device::datatype::*;
 use crate::device::property::{self, PropertyValue};
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::*;
+use crate::device::{Device, catalog};
 
 fn spec_for(object_type: ANARIDataType, subtype: Option<&str>) -> Option<&'static ObjectSpec> {
     catalog::find(object_type, subtype.unwrap_or(""))
@@ -202,22 +202,44 @@ pub extern "C" fn anariGetParameterInfo(
         let Some(dev) = device_of(F, device) else {
             return std::ptr::null();
         };
-        let (Some(name), Some(info)) = (
-            string_arg(&dev, F, "parameterName", parameter_name),
-            string_arg(&dev, F, "infoName", info_name),
-        ) else {
-            return std::ptr::null();
-        };
-        let subtype = plain_string(object_subtype);
-        parameter_info(
+        get_parameter_info(
+            &dev,
             object_type,
-            subtype.as_deref(),
-            &name,
+            object_subtype,
+            parameter_name,
             parameter_type,
-            &info,
+            info_name,
             info_type,
-        ) as *const c_void
+        )
     })
+}
+
+/// anariGetParameterInfo once the device is known (shared with the SDK device's slot).
+pub(crate) fn get_parameter_info(
+    dev: &Device,
+    object_type: ANARIDataType,
+    object_subtype: *const c_char,
+    parameter_name: *const c_char,
+    parameter_type: ANARIDataType,
+    info_name: *const c_char,
+    info_type: ANARIDataType,
+) -> *const c_void {
+    const F: &str = "anariGetParameterInfo";
+    let (Some(name), Some(info)) = (
+        string_arg(dev, F, "parameterName", parameter_name),
+        string_arg(dev, F, "infoName", info_name),
+    ) else {
+        return std::ptr::null();
+    };
+    let subtype = plain_string(object_subtype);
+    parameter_info(
+        object_type,
+        subtype.as_deref(),
+        &name,
+        parameter_type,
+        &info,
+        info_type,
+    ) as *const c_void
 }
 
 /// Writes a property value into `mem` if the type matches and `size` is large enough; returns 1
@@ -273,30 +295,45 @@ pub extern "C" fn anariGetProperty(
         let Some(dev) = device_of(F, device) else {
             return 0;
         };
-        let Some(name) = string_arg(&dev, F, "name", name) else {
-            return 0;
-        };
-        if mem.is_null() {
-            dev.error(
-                ANARI_STATUS_INVALID_ARGUMENT,
-                None,
-                format!("{F}('{name}'): 'mem' is NULL"),
-            );
-            return 0;
-        }
-        let value = if object as usize == dev.handle {
-            property::device_property(&name)
-        } else {
-            let Some(target) = dev.resolve(F, object as usize) else {
-                return 0;
-            };
-            property::object_property(&dev, &target, &name, mask & ANARI_WAIT != 0)
-        };
-        match value {
-            Some(v) => write_property(&v, data_type, mem, size),
-            None => 0,
-        }
+        get_property(&dev, object as usize, name, data_type, mem, size, mask)
     })
+}
+
+/// anariGetProperty once the device is known, for the object with registry handle `handle`
+/// (the device's own handle asks for a device property); shared with the SDK device's slot.
+pub(crate) fn get_property(
+    dev: &Device,
+    handle: usize,
+    name: *const c_char,
+    data_type: ANARIDataType,
+    mem: *mut c_void,
+    size: u64,
+    mask: ANARIWaitMask,
+) -> std::ffi::c_int {
+    const F: &str = "anariGetProperty";
+    let Some(name) = string_arg(dev, F, "name", name) else {
+        return 0;
+    };
+    if mem.is_null() {
+        dev.error(
+            ANARI_STATUS_INVALID_ARGUMENT,
+            None,
+            format!("{F}('{name}'): 'mem' is NULL"),
+        );
+        return 0;
+    }
+    let value = if handle == dev.handle {
+        property::device_property(&name)
+    } else {
+        let Some(target) = dev.resolve(F, handle) else {
+            return 0;
+        };
+        property::object_property(dev, &target, &name, mask & ANARI_WAIT != 0)
+    };
+    match value {
+        Some(v) => write_property(&v, data_type, mem, size),
+        None => 0,
+    }
 }
 
 /// cavetrace's own functions, by name, for anariDeviceGetProcAddress.

@@ -14,15 +14,15 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, RwLock};
 
 use crate::capi::cache::{cached, leak_string_list};
-use crate::capi::introspect::{ANARIProcAddress, object_info, parameter_info, write_property};
+use crate::capi::frame as capi_frame;
+use crate::capi::introspect::{self, ANARIProcAddress, object_info};
 use crate::capi::object::kind_from_name;
 use crate::capi::params::incoming_value;
 use crate::capi::types::*;
 use crate::capi::{plain_string, string_arg};
 use crate::device::datatype::*;
-use crate::device::object::Object;
 use crate::device::status::*;
-use crate::device::{Device, IncomingValue, catalog, property};
+use crate::device::{Device, IncomingValue, catalog};
 use crate::render::frame::ANARIFrameCompletionCallback;
 use crate::scene::array::ANARIMemoryDeleter;
 use crate::sdk::{VirtualTable, allocate, panic_text};
@@ -599,96 +599,6 @@ impl DeviceObject {
             }
         }
     }
-
-    fn get_property(
-        &self,
-        object: ANARIObject,
-        name: *const c_char,
-        data_type: ANARIDataType,
-        mem: *mut c_void,
-        size: u64,
-        mask: ANARIWaitMask,
-    ) -> c_int {
-        const F: &str = "anariGetProperty";
-        let Some(name) = string_arg(&self.device, F, "name", name) else {
-            return 0;
-        };
-        if mem.is_null() {
-            self.device.error(
-                ANARI_STATUS_INVALID_ARGUMENT,
-                None,
-                format!("{F}('{name}'): 'mem' is NULL"),
-            );
-            return 0;
-        }
-        let handle = self.handle_of(object);
-        let value = if handle == self.device.handle {
-            property::device_property(&name)
-        } else {
-            let Some(target) = self.device.resolve(F, handle) else {
-                return 0;
-            };
-            property::object_property(&self.device, &target, &name, mask & ANARI_WAIT != 0)
-        };
-        match value {
-            Some(value) => write_property(&value, data_type, mem, size),
-            None => 0,
-        }
-    }
-
-    /// The frame behind `frame`, or a report naming the function.
-    fn frame_of(&self, function: &str, frame: ANARIFrame) -> Option<Arc<Object>> {
-        let object = self.device.resolve(function, frame as usize)?;
-        if object.frame.is_none() {
-            self.device.error(
-                ANARI_STATUS_INVALID_ARGUMENT,
-                Some(&object),
-                format!("{function}: {} is not a frame", object.describe()),
-            );
-            return None;
-        }
-        Some(object)
-    }
-
-    fn map_frame(
-        &self,
-        frame: ANARIFrame,
-        channel: *const c_char,
-    ) -> Option<(*const c_void, u32, u32, ANARIDataType)> {
-        const F: &str = "anariMapFrame";
-        let frame = self.frame_of(F, frame)?;
-        let channel = string_arg(&self.device, F, "channel", channel)?;
-        let state = frame.frame.as_ref()?;
-        let mapped = state.map(&channel);
-        if mapped.is_none() {
-            self.device.error(
-                ANARI_STATUS_INVALID_OPERATION,
-                Some(&frame),
-                format!(
-                    "{F}: '{channel}' is not available: enable it with the frame parameter \
-                     '{channel}' (an ANARI_DATA_TYPE), commit, and render first"
-                ),
-            );
-        }
-        mapped
-    }
-
-    fn unmap_frame(&self, frame: ANARIFrame, channel: *const c_char) {
-        const F: &str = "anariUnmapFrame";
-        let Some(frame) = self.frame_of(F, frame) else {
-            return;
-        };
-        let Some(channel) = string_arg(&self.device, F, "channel", channel) else {
-            return;
-        };
-        if !frame.frame.as_ref().is_some_and(|s| s.unmap(&channel)) {
-            self.device.error(
-                ANARI_STATUS_INVALID_OPERATION,
-                Some(&frame),
-                format!("{F}: '{channel}' is not mapped"),
-            );
-        }
-    }
 }
 
 /// The internal device's status callback: passes messages on to the application's callback with
@@ -1024,7 +934,8 @@ extern "C" fn get_property(
     mask: ANARIWaitMask,
 ) -> c_int {
     with_device(this, "anariGetProperty", 0, |device| {
-        device.get_property(object, name, data_type, mem, size, mask)
+        let handle = device.handle_of(object);
+        introspect::get_property(&device.device, handle, name, data_type, mem, size, mask)
     })
 }
 
@@ -1066,23 +977,16 @@ extern "C" fn get_parameter_info(
     info_name: *const c_char,
     info_type: ANARIDataType,
 ) -> *const c_void {
-    const F: &str = "anariGetParameterInfo";
-    with_device(this, F, std::ptr::null(), |device| {
-        let (Some(name), Some(info)) = (
-            string_arg(&device.device, F, "parameterName", parameter_name),
-            string_arg(&device.device, F, "infoName", info_name),
-        ) else {
-            return std::ptr::null();
-        };
-        let subtype = plain_string(object_subtype);
-        parameter_info(
+    with_device(this, "anariGetParameterInfo", std::ptr::null(), |device| {
+        introspect::get_parameter_info(
+            &device.device,
             object_type,
-            subtype.as_deref(),
-            &name,
+            object_subtype,
+            parameter_name,
             parameter_type,
-            &info,
+            info_name,
             info_type,
-        ) as _
+        )
     })
 }
 
@@ -1094,22 +998,11 @@ extern "C" fn frame_buffer_map(
     height: *mut u32,
     pixel_type: *mut ANARIDataType,
 ) -> *const c_void {
-    let (pointer, w, h, t) = with_device(this, "anariMapFrame", None, |device| {
-        device.map_frame(frame, channel)
-    })
-    .unwrap_or((std::ptr::null(), 0, 0, ANARI_UNKNOWN));
-    // SAFETY: each out pointer is either NULL or writable, per the API.
-    unsafe {
-        if !width.is_null() {
-            width.write(w);
-        }
-        if !height.is_null() {
-            height.write(h);
-        }
-        if !pixel_type.is_null() {
-            pixel_type.write(t);
-        }
-    }
+    let mapped = with_device(this, "anariMapFrame", None, |device| {
+        capi_frame::map_frame(&device.device, frame, channel)
+    });
+    let (pointer, w, h, t) = mapped.unwrap_or((std::ptr::null(), 0, 0, ANARI_UNKNOWN));
+    capi_frame::write_map_outputs(width, height, pixel_type, (w, h, t));
     pointer
 }
 
@@ -1119,17 +1012,14 @@ extern "C" fn frame_buffer_unmap(
     channel: *const c_char,
 ) {
     with_device(this, "anariUnmapFrame", (), |device| {
-        device.unmap_frame(frame, channel)
+        capi_frame::unmap_frame(&device.device, frame, channel)
     })
 }
 
 /// Starts rendering and returns at once; the work runs on the device's own threads.
 extern "C" fn render_frame(this: *mut DeviceObject, frame: ANARIFrame) {
-    const F: &str = "anariRenderFrame";
-    with_device(this, F, (), |device| {
-        if let Some(frame) = device.frame_of(F, frame) {
-            crate::render::render_frame(&device.device, &frame);
-        }
+    with_device(this, "anariRenderFrame", (), |device| {
+        capi_frame::render_frame(&device.device, frame)
     })
 }
 
@@ -1139,27 +1029,14 @@ extern "C" fn frame_ready(
     frame: ANARIFrame,
     mask: ANARIWaitMask,
 ) -> c_int {
-    const F: &str = "anariFrameReady";
-    with_device(this, F, 0, |device| {
-        let Some(frame) = device.frame_of(F, frame) else {
-            return 0;
-        };
-        let Some(state) = frame.frame.as_ref() else {
-            return 0;
-        };
-        if mask & ANARI_WAIT != 0 {
-            state.wait();
-        }
-        state.is_ready() as c_int
+    with_device(this, "anariFrameReady", 0, |device| {
+        capi_frame::frame_ready(&device.device, frame, mask)
     })
 }
 
 extern "C" fn discard_frame(this: *mut DeviceObject, frame: ANARIFrame) {
-    const F: &str = "anariDiscardFrame";
-    with_device(this, F, (), |device| {
-        if let Some(state) = device.frame_of(F, frame).and_then(|f| f.frame.clone()) {
-            state.discard();
-        }
+    with_device(this, "anariDiscardFrame", (), |device| {
+        capi_frame::discard_frame(&device.device, frame)
     })
 }
 
