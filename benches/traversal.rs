@@ -256,6 +256,74 @@ fn print_rows(rows: &[Row], baseline: f64) {
     }
 }
 
+/// Prints the rows of each thread count, compared with the first row of that count.
+fn print_by_threads(rows: &[Row]) {
+    for threads in [1, 2] {
+        let selected: Vec<Row> = rows
+            .iter()
+            .filter(|row| row.threads == threads)
+            .copied()
+            .collect();
+        print_rows(&selected, selected[0].mrays_per_cpu_second);
+    }
+}
+
+/// One row: `trace_chunk` over all rays with `threads` workers, medians of `runs`.
+fn measure<F>(label: &'static str, rays: &[Ray], threads: usize, runs: usize, trace_chunk: F) -> Row
+where
+    F: Fn(&[Ray]) -> usize + Sync,
+{
+    let (mrays, mrays_per_cpu_second, hits) = throughput(rays, threads, runs, trace_chunk);
+    Row {
+        label,
+        threads,
+        mrays,
+        mrays_per_cpu_second,
+        hits,
+    }
+}
+
+/// cavetrace's four ways of tracing one geometry: single rays and 8x8 packets, through the
+/// geometry's own BVH and through a scene of one identity instance.
+fn cavetrace_rows(
+    geometry: &GeometryBvh,
+    scene: &SceneBvh,
+    rays: &[Ray],
+    threads: usize,
+    runs: usize,
+) -> [Row; 4] {
+    [
+        measure(
+            "GeometryBvh::intersect",
+            rays,
+            threads,
+            runs,
+            each_ray(|ray| geometry.intersect(ray).is_some()),
+        ),
+        measure(
+            "SceneBvh::intersect (1 identity instance)",
+            rays,
+            threads,
+            runs,
+            each_ray(|ray| scene.intersect(ray).is_some()),
+        ),
+        measure(
+            "GeometryBvh::intersect_packet (8x8 tiles)",
+            rays,
+            threads,
+            runs,
+            in_packets(|block, hits| geometry.intersect_packet(block, hits)),
+        ),
+        measure(
+            "SceneBvh::intersect_packet (8x8 tiles)",
+            rays,
+            threads,
+            runs,
+            in_packets(|block, hits| scene.intersect_packet(block, hits)),
+        ),
+    ]
+}
+
 fn bench_triangles(runs: usize) {
     println!("== height field: {GRID_CELLS}x{GRID_CELLS} cells, 2 triangles per cell");
     let prims = height_field();
@@ -310,7 +378,8 @@ fn bench_triangles(runs: usize) {
     let rays = primary_rays(vec3(354.0, -180.0, 260.0), vec3(354.0, 330.0, 0.0), 60.0);
     let mut rows = Vec::new();
     for threads in [1, 2] {
-        let (mrays, mrays_per_cpu_second, hits) = throughput(
+        rows.push(measure(
+            "raw obvhs ray_traverse + Triangle::intersect",
             &rays,
             threads,
             runs,
@@ -320,79 +389,10 @@ fn bench_triangles(runs: usize) {
                     raw_triangles[id].intersect(r)
                 })
             }),
-        );
-        rows.push(Row {
-            label: "raw obvhs ray_traverse + Triangle::intersect",
-            threads,
-            mrays,
-            mrays_per_cpu_second,
-            hits,
-        });
-        let (mrays, mrays_per_cpu_second, hits) = throughput(
-            &rays,
-            threads,
-            runs,
-            each_ray(|ray| geometry.intersect(ray).is_some()),
-        );
-        rows.push(Row {
-            label: "GeometryBvh::intersect",
-            threads,
-            mrays,
-            mrays_per_cpu_second,
-            hits,
-        });
-        let (mrays, mrays_per_cpu_second, hits) = throughput(
-            &rays,
-            threads,
-            runs,
-            each_ray(|ray| scene.intersect(ray).is_some()),
-        );
-        rows.push(Row {
-            label: "SceneBvh::intersect (1 identity instance)",
-            threads,
-            mrays,
-            mrays_per_cpu_second,
-            hits,
-        });
-        let (mrays, mrays_per_cpu_second, hits) = throughput(
-            &rays,
-            threads,
-            runs,
-            in_packets(|block, hits| geometry.intersect_packet(block, hits)),
-        );
-        rows.push(Row {
-            label: "GeometryBvh::intersect_packet (8x8 tiles)",
-            threads,
-            mrays,
-            mrays_per_cpu_second,
-            hits,
-        });
-        let (mrays, mrays_per_cpu_second, hits) = throughput(
-            &rays,
-            threads,
-            runs,
-            in_packets(|block, hits| scene.intersect_packet(block, hits)),
-        );
-        rows.push(Row {
-            label: "SceneBvh::intersect_packet (8x8 tiles)",
-            threads,
-            mrays,
-            mrays_per_cpu_second,
-            hits,
-        });
+        ));
+        rows.extend(cavetrace_rows(&geometry, &scene, &rays, threads, runs));
     }
-    for threads in [1, 2] {
-        let baseline: Vec<&Row> = rows.iter().filter(|row| row.threads == threads).collect();
-        let raw = baseline[0].mrays_per_cpu_second;
-        print_rows(
-            &rows
-                .iter()
-                .filter(|row| row.threads == threads)
-                .map(|row| Row { ..*row })
-                .collect::<Vec<_>>(),
-            raw,
-        );
-    }
+    print_by_threads(&rows);
 }
 
 fn bench_spheres(runs: usize) {
@@ -449,7 +449,8 @@ fn bench_spheres(runs: usize) {
     let rays = primary_rays(vec3(0.0, -320.0, 60.0), Vec3::ZERO, 45.0);
     let mut rows = Vec::new();
     for threads in [1, 2] {
-        let (mrays, mrays_per_cpu_second, hits) = throughput(
+        rows.push(measure(
+            "raw obvhs ray_traverse + f32 sphere closure",
             &rays,
             threads,
             runs,
@@ -457,76 +458,10 @@ fn bench_spheres(runs: usize) {
                 let mut hit = RayHit::none();
                 raw_bvh.ray_traverse(obvhs_ray(ray), &mut hit, raw_sphere_t)
             }),
-        );
-        rows.push(Row {
-            label: "raw obvhs ray_traverse + f32 sphere closure",
-            threads,
-            mrays,
-            mrays_per_cpu_second,
-            hits,
-        });
-        let (mrays, mrays_per_cpu_second, hits) = throughput(
-            &rays,
-            threads,
-            runs,
-            each_ray(|ray| geometry.intersect(ray).is_some()),
-        );
-        rows.push(Row {
-            label: "GeometryBvh::intersect",
-            threads,
-            mrays,
-            mrays_per_cpu_second,
-            hits,
-        });
-        let (mrays, mrays_per_cpu_second, hits) = throughput(
-            &rays,
-            threads,
-            runs,
-            each_ray(|ray| scene.intersect(ray).is_some()),
-        );
-        rows.push(Row {
-            label: "SceneBvh::intersect (1 identity instance)",
-            threads,
-            mrays,
-            mrays_per_cpu_second,
-            hits,
-        });
-        let (mrays, mrays_per_cpu_second, hits) = throughput(
-            &rays,
-            threads,
-            runs,
-            in_packets(|block, hits| geometry.intersect_packet(block, hits)),
-        );
-        rows.push(Row {
-            label: "GeometryBvh::intersect_packet (8x8 tiles)",
-            threads,
-            mrays,
-            mrays_per_cpu_second,
-            hits,
-        });
-        let (mrays, mrays_per_cpu_second, hits) = throughput(
-            &rays,
-            threads,
-            runs,
-            in_packets(|block, hits| scene.intersect_packet(block, hits)),
-        );
-        rows.push(Row {
-            label: "SceneBvh::intersect_packet (8x8 tiles)",
-            threads,
-            mrays,
-            mrays_per_cpu_second,
-            hits,
-        });
+        ));
+        rows.extend(cavetrace_rows(&geometry, &scene, &rays, threads, runs));
     }
-    for threads in [1, 2] {
-        let selected: Vec<Row> = rows
-            .iter()
-            .filter(|row| row.threads == threads)
-            .map(|row| Row { ..*row })
-            .collect();
-        let base = selected[0].mrays_per_cpu_second;
-        print_rows(&selected, base);
-    }
+    print_by_threads(&rows);
 }
 
 /// Terrain plus four transformed copies of the sphere cloud floating above it: the top level
@@ -566,42 +501,22 @@ fn bench_combined(runs: usize) {
     let rays = primary_rays(vec3(354.0, -180.0, 260.0), vec3(354.0, 330.0, 0.0), 60.0);
     let mut rows = Vec::new();
     for threads in [1, 2] {
-        let (mrays, mrays_per_cpu_second, hits) = throughput(
+        rows.push(measure(
+            "SceneBvh::intersect (5 instances)",
             &rays,
             threads,
             runs,
             each_ray(|ray| scene.intersect(ray).is_some()),
-        );
-        rows.push(Row {
-            label: "SceneBvh::intersect (5 instances)",
-            threads,
-            mrays,
-            mrays_per_cpu_second,
-            hits,
-        });
-        let (mrays, mrays_per_cpu_second, hits) = throughput(
+        ));
+        rows.push(measure(
+            "SceneBvh::intersect_packet (5 instances)",
             &rays,
             threads,
             runs,
             in_packets(|block, hits| scene.intersect_packet(block, hits)),
-        );
-        rows.push(Row {
-            label: "SceneBvh::intersect_packet (5 instances)",
-            threads,
-            mrays,
-            mrays_per_cpu_second,
-            hits,
-        });
+        ));
     }
-    for threads in [1, 2] {
-        let selected: Vec<Row> = rows
-            .iter()
-            .filter(|row| row.threads == threads)
-            .copied()
-            .collect();
-        let base = selected[0].mrays_per_cpu_second;
-        print_rows(&selected, base);
-    }
+    print_by_threads(&rows);
 }
 
 fn main() {
