@@ -13,8 +13,8 @@ use crate::accel::{EMPTY_BOUNDS, GeometryPrims, PrimHit, Ray};
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::node::CwBvhNode;
-use rayon::iter::{IndexedParallelIterator, IntoParallelRefIterator, ParallelIterator};
-use std::sync::atomic::{AtomicU64, Ordering};
+use rayon::iter::{IntoParallelIterator, IntoParallelRefIterator, ParallelIterator};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 static GEOMETRY_BUILDS: AtomicU64 = AtomicU64::new(0);
 
@@ -94,12 +94,42 @@ fn triangle_from(positions: &[Vec3], corners: [u32; 3]) -> Option<PackedTriangle
     )
 }
 
-/// Builds the BVH over the collected primitives and stores them in BVH slot order.
-fn order_for_bvh<P: Copy + Send + Sync>(
-    collected: Collected<P>,
-    bounds_of: impl Fn(&P) -> Aabb + Send + Sync,
-) -> (Vec<CwBvhNode>, Vec<P>, Vec<u32>, (Vec3, Vec3)) {
-    let boxes: Vec<Aabb> = collected.primitives.par_iter().map(bounds_of).collect();
+/// Boxes of the usable primitives among `count` inputs, in input order, with their source ids;
+/// `None` when every input is usable (the ids are then `0..count`, the common case, which
+/// needs neither a filter nor an id array). `bounds_of` returns `None` for unusable inputs.
+fn usable_boxes(
+    count: usize,
+    bounds_of: impl Fn(usize) -> Option<Aabb> + Send + Sync,
+) -> (Vec<Aabb>, Option<Vec<u32>>) {
+    let rejected = AtomicUsize::new(0);
+    // Indexed collects write straight into the result; usable boxes are finite and never
+    // inverted, so `Aabb::INVALID` marks the rejected ones.
+    let boxes: Vec<Aabb> = (0..count)
+        .into_par_iter()
+        .map(|id| {
+            bounds_of(id).unwrap_or_else(|| {
+                rejected.fetch_add(1, Ordering::Relaxed);
+                Aabb::INVALID
+            })
+        })
+        .collect();
+    if rejected.into_inner() == 0 {
+        return (boxes, None);
+    }
+    let source_ids: Vec<u32> = (0..count as u32)
+        .into_par_iter()
+        .filter(|&id| boxes[id as usize].valid())
+        .collect();
+    let usable = source_ids
+        .par_iter()
+        .map(|&id| boxes[id as usize])
+        .collect();
+    (usable, Some(source_ids))
+}
+
+/// Builds the BVH over `boxes`; returns its nodes, the indices into `boxes` in BVH slot order
+/// and the union of the boxes.
+fn build_over_boxes(boxes: &[Aabb]) -> (Vec<CwBvhNode>, Vec<u32>, (Vec3, Vec3)) {
     let total = boxes
         .par_iter()
         .fold(
@@ -110,7 +140,18 @@ fn order_for_bvh<P: Copy + Send + Sync>(
             || EMPTY_BOUNDS,
             |(min_a, max_a), (min_b, max_b)| (min_a.min(min_b), max_a.max(max_b)),
         );
-    let (nodes, order) = build_wide_bvh(&boxes);
+    let (nodes, order) = build_wide_bvh(boxes);
+    (nodes, order, total)
+}
+
+/// Builds the BVH over the collected primitives and stores them in BVH slot order.
+fn order_for_bvh<P: Copy + Send + Sync>(
+    collected: Collected<P>,
+    bounds_of: impl Fn(&P) -> Aabb + Send + Sync,
+) -> (Vec<CwBvhNode>, Vec<P>, Vec<u32>, (Vec3, Vec3)) {
+    let boxes: Vec<Aabb> = collected.primitives.par_iter().map(bounds_of).collect();
+    let (nodes, order, total) = build_over_boxes(&boxes);
+    drop(boxes);
     let primitives = order
         .par_iter()
         .map(|&i| collected.primitives[i as usize])
@@ -132,22 +173,29 @@ impl GeometryBvh {
 
         match prims {
             GeometryPrims::Triangles { positions, indices } => {
-                let usable = u32::MAX as usize;
-                let (primitives, source_ids) = indices[..indices.len().min(usable)]
-                    .par_iter()
-                    .enumerate()
-                    .filter_map(|(id, corners)| {
-                        triangle_from(&positions, corners.to_array()).map(|t| (t, id as u32))
-                    })
-                    .unzip();
-                let collected = Collected {
-                    primitives,
-                    source_ids,
-                };
                 let input_count = indices.len();
-                let accepted = collected.primitives.len();
-                let (nodes, triangles, source_ids, bounds) =
-                    order_for_bvh(collected, PackedTriangle::bounds);
+                let candidates = &indices[..input_count.min(u32::MAX as usize)];
+                // Only boxes are gathered before the build; the triangles are packed once, in
+                // BVH slot order, straight from the mesh.
+                let (boxes, usable_ids) = usable_boxes(candidates.len(), |id| {
+                    triangle_from(&positions, candidates[id].to_array()).map(|t| t.bounds())
+                });
+                let accepted = boxes.len();
+                let (nodes, order, bounds) = build_over_boxes(&boxes);
+                drop(boxes);
+                let source_ids = match usable_ids {
+                    None => order,
+                    Some(ids) => order.par_iter().map(|&i| ids[i as usize]).collect(),
+                };
+                let triangles = source_ids
+                    .par_iter()
+                    .map(|&id| {
+                        let [v0, v1, v2] = candidates[id as usize]
+                            .to_array()
+                            .map(|corner| positions[corner as usize]);
+                        PackedTriangle::from_usable(v0, v1, v2)
+                    })
+                    .collect();
                 GeometryBvh {
                     nodes,
                     primitives: PrimitiveData::Triangles(triangles),

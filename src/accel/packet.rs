@@ -161,12 +161,7 @@ impl RayPacket {
         let kx = (kz + 1) % 3;
         let ky = (kx + 1) % 3;
         let inv_dominant = inv_direction[kz];
-        let active = BVec4A::new(
-            lanes & 1 != 0,
-            lanes & 2 != 0,
-            lanes & 4 != 0,
-            lanes & 8 != 0,
-        );
+        let active = lane_mask(lanes);
         Some(RayPacket {
             origin,
             direction,
@@ -242,35 +237,55 @@ impl RayPacket {
     }
 }
 
+/// A node's child boxes decoded once for all the ray groups that test them: per axis the
+/// quantized entry and exit planes (in the traversal octant's order) as floats.
+pub(crate) struct DecodedNode {
+    step: Vec3A,
+    corner: Vec3A,
+    entry: [[Vec4; 2]; 3],
+    exit: [[Vec4; 2]; 3],
+}
+
+impl DecodedNode {
+    #[inline(always)]
+    pub(crate) fn new(node: &CwBvhNode, octant_inv: u32) -> DecodedNode {
+        let planes = entry_exit_planes(node, octant_inv);
+        DecodedNode {
+            step: quantization_step(node),
+            corner: Vec3A::from(node.p),
+            entry: [0, 1, 2].map(|axis| unpack_planes(planes[axis].0)),
+            exit: [0, 1, 2].map(|axis| unpack_planes(planes[axis].1)),
+        }
+    }
+}
+
 /// Per child slot, a 4-bit mask of the packet lanes whose `[t_min, t_max]` overlaps the child
-/// box (child `c` in bits `4c..4c+4`), restricted to `lanes`. Empty slots give 0.
+/// box (child `c` in bits `4c..4c+4`), restricted to `lanes` and to the slots in `children`
+/// (which must be occupied).
 #[inline(always)]
-fn child_lane_masks(node: &CwBvhNode, packet: &RayPacket, lanes: u32, children: u32) -> u32 {
+fn child_lane_masks(node: &DecodedNode, packet: &RayPacket, lanes: u32, children: u32) -> u32 {
     // Slab parameters per axis and lane, as `slab_parameters` computes them for single rays.
-    let node_step = quantization_step(node);
     let mut step = [Vec4::ZERO; 3];
     let mut entry_offset = [Vec4::ZERO; 3];
     let mut exit_offset = [Vec4::ZERO; 3];
     for axis in 0..3 {
-        step[axis] = Vec4::splat(node_step[axis]) * packet.inv_direction[axis];
-        let offset = (Vec4::splat(node.p[axis]) - packet.origin[axis]) * packet.inv_direction[axis];
+        step[axis] = Vec4::splat(node.step[axis]) * packet.inv_direction[axis];
+        let offset =
+            (Vec4::splat(node.corner[axis]) - packet.origin[axis]) * packet.inv_direction[axis];
         let error = (offset.abs() + step[axis].abs() * MAX_QUANTIZED) * SLAB_ERROR;
         entry_offset[axis] = offset - error;
         exit_offset[axis] = offset + error;
     }
-    let planes = entry_exit_planes(node, packet.octant_inv);
-    let entry = [0, 1, 2].map(|axis| unpack_planes(planes[axis].0));
-    let exit = [0, 1, 2].map(|axis| unpack_planes(planes[axis].1));
     let mut masks = 0;
-    let mut present = children & non_empty_children(node);
+    let mut present = children;
     while present != 0 {
         let child = present.trailing_zeros() as usize;
         present &= present - 1;
         let mut near = packet.t_min;
         let mut far = packet.t_max;
         for axis in 0..3 {
-            let q_entry = Vec4::splat(entry[axis][child / 4][child % 4]);
-            let q_exit = Vec4::splat(exit[axis][child / 4][child % 4]);
+            let q_entry = Vec4::splat(node.entry[axis][child / 4][child % 4]);
+            let q_exit = Vec4::splat(node.exit[axis][child / 4][child % 4]);
             near = near.max(q_entry * step[axis] + entry_offset[axis]);
             far = far.min(q_exit * step[axis] + exit_offset[axis]);
         }
@@ -340,7 +355,12 @@ pub(crate) fn traverse_packet<F>(
             stack.push(current);
         }
         let node = &nodes[node_index as usize];
-        let masks = child_lane_masks(node, packet, lanes, 0xff);
+        let masks = child_lane_masks(
+            &DecodedNode::new(node, octant_inv),
+            packet,
+            lanes,
+            non_empty_children(node),
+        );
 
         let mut inner = 0;
         let mut child_lanes = 0;
@@ -399,19 +419,25 @@ pub(crate) fn triangle_packet(
     let positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
     let inside = !(negative & positive);
     let determinant = u + v + w;
-    let scaled_t = u * (z0 * shear_z) + v * (z1 * shear_z) + w * (z2 * shear_z);
-    let t = scaled_t / determinant;
-    let accepted: BVec4A =
-        inside & determinant.cmpne(zero) & t.cmpge(packet.t_min) & t.cmple(packet.t_max);
-    let mut hits = accepted.bitmask() & lanes & !on_edge;
-    if hits != 0 {
-        let hit = BVec4A::new(hits & 1 != 0, hits & 2 != 0, hits & 4 != 0, hits & 8 != 0);
-        packet.t_max = Vec4::select(hit, t, packet.t_max);
-        // Barycentrics exactly as the single-ray test computes them.
-        let inv = Vec4::ONE / determinant;
-        packet.hit_uv[0] = Vec4::select(hit, v * inv, packet.hit_uv[0]);
-        packet.hit_uv[1] = Vec4::select(hit, w * inv, packet.hit_uv[1]);
-    }
+    let candidates = inside & determinant.cmpne(zero);
+    // Most groups miss most triangles of a leaf they reach: skip the division for them.
+    let mut hits = if candidates.bitmask() & lanes & !on_edge == 0 {
+        0
+    } else {
+        let scaled_t = u * (z0 * shear_z) + v * (z1 * shear_z) + w * (z2 * shear_z);
+        let t = scaled_t / determinant;
+        let accepted: BVec4A = candidates & t.cmpge(packet.t_min) & t.cmple(packet.t_max);
+        let hits = accepted.bitmask() & lanes & !on_edge;
+        if hits != 0 {
+            let hit = lane_mask(hits);
+            packet.t_max = Vec4::select(hit, t, packet.t_max);
+            // Barycentrics exactly as the single-ray test computes them.
+            let inv = Vec4::ONE / determinant;
+            packet.hit_uv[0] = Vec4::select(hit, v * inv, packet.hit_uv[0]);
+            packet.hit_uv[1] = Vec4::select(hit, w * inv, packet.hit_uv[1]);
+        }
+        hits
+    };
     // Rays through an edge or vertex take the single-ray path with its f64 edge functions.
     let mut remaining = on_edge;
     while remaining != 0 {
@@ -430,17 +456,72 @@ pub(crate) fn triangle_packet(
 /// Most rays in a frustum packet (an 8x8 block of primary rays).
 pub(crate) const FRUSTUM_RAYS: usize = 64;
 const FRUSTUM_GROUPS: usize = FRUSTUM_RAYS / LANES;
+/// The packet's groups of four as four quadrants of four groups (4x4 pixels of the 8x8 block
+/// when the groups are 2x2 quads in row order). Leaf boxes are culled per quadrant before
+/// groups test them: a leaf usually covers a few pixels, so most groups are spared.
+const QUADRANTS: usize = 4;
+const QUADRANT_GROUPS: [[usize; 4]; QUADRANTS] =
+    [[0, 1, 4, 5], [2, 3, 6, 7], [8, 9, 12, 13], [10, 11, 14, 15]];
 
-/// Up to 64 rays from one origin sharing a direction octant, as groups of four. Upper BVH levels are culled once for the whole packet with interval arithmetic over
-/// the rays' inverse directions (a box no ray can reach is skipped for all of them); leaf
-/// boxes and primitives are then tested per group of four.
+/// Range of the inverse direction components of a set of rays from one origin, and their
+/// smallest `t_min`: a conservative stand-in for all of them in box tests.
+#[derive(Clone, Copy, Debug)]
+struct DirectionBounds {
+    inv_low: Vec3A,
+    inv_high: Vec3A,
+    t_min_low: f32,
+}
+
+impl DirectionBounds {
+    const EMPTY: DirectionBounds = DirectionBounds {
+        inv_low: Vec3A::INFINITY,
+        inv_high: Vec3A::NEG_INFINITY,
+        t_min_low: f32::INFINITY,
+    };
+
+    /// Bounds of the active lanes of `group`.
+    fn of_group(group: &RayPacket) -> DirectionBounds {
+        let active = lane_mask(group.lanes);
+        let low = |values: Vec4| Vec4::select(active, values, Vec4::INFINITY).min_element();
+        let high = |values: Vec4| Vec4::select(active, values, Vec4::NEG_INFINITY).max_element();
+        let inv = &group.inv_direction;
+        DirectionBounds {
+            inv_low: Vec3A::new(low(inv[0]), low(inv[1]), low(inv[2])),
+            inv_high: Vec3A::new(high(inv[0]), high(inv[1]), high(inv[2])),
+            t_min_low: low(group.t_min),
+        }
+    }
+
+    fn union(self, other: DirectionBounds) -> DirectionBounds {
+        DirectionBounds {
+            inv_low: self.inv_low.min(other.inv_low),
+            inv_high: self.inv_high.max(other.inv_high),
+            t_min_low: self.t_min_low.min(other.t_min_low),
+        }
+    }
+}
+
+/// Lanes of a 4-bit mask as a SIMD mask.
+#[inline(always)]
+fn lane_mask(lanes: u32) -> BVec4A {
+    BVec4A::new(
+        lanes & 1 != 0,
+        lanes & 2 != 0,
+        lanes & 4 != 0,
+        lanes & 8 != 0,
+    )
+}
+
+/// Up to 64 rays from one origin sharing a direction octant, as groups of four. Upper BVH
+/// levels are culled once for the whole packet with interval arithmetic over the rays' inverse
+/// directions (a box no ray can reach is skipped for all of them); leaf boxes are culled per
+/// quadrant the same way, then tested per group of four, and primitives per group.
 pub(crate) struct FrustumPacket {
     pub groups: [RayPacket; FRUSTUM_GROUPS],
     pub group_count: usize,
     origin: Vec3A,
-    inv_low: Vec3A,
-    inv_high: Vec3A,
-    t_min_low: f32,
+    whole: DirectionBounds,
+    quadrants: [DirectionBounds; QUADRANTS],
     octant_inv: u32,
 }
 
@@ -466,9 +547,8 @@ impl FrustumPacket {
             }); FRUSTUM_GROUPS],
             group_count: 0,
             origin: Vec3A::ZERO,
-            inv_low: Vec3A::ZERO,
-            inv_high: Vec3A::ZERO,
-            t_min_low: 0.0,
+            whole: DirectionBounds::EMPTY,
+            quadrants: [DirectionBounds::EMPTY; QUADRANTS],
             octant_inv: 0,
         }
     }
@@ -480,11 +560,6 @@ impl FrustumPacket {
             return false;
         }
         let mut first: Option<(Vec3A, u32)> = None;
-        let mut inv_low = Vec4::INFINITY;
-        let mut inv_high = Vec4::NEG_INFINITY;
-        let mut inv_low_axes = [Vec4::INFINITY; 3];
-        let mut inv_high_axes = [Vec4::NEG_INFINITY; 3];
-        let mut t_min_low = Vec4::INFINITY;
         self.group_count = rays.len().div_ceil(LANES);
         for (group, chunk) in self.groups[..self.group_count]
             .iter_mut()
@@ -506,53 +581,19 @@ impl FrustumPacket {
                 packet.origin[2][lane],
             );
             let (shared_origin, octant) = *first.get_or_insert((origin, packet.octant_inv));
-            let active = BVec4A::new(
-                packet.lanes & 1 != 0,
-                packet.lanes & 2 != 0,
-                packet.lanes & 4 != 0,
-                packet.lanes & 8 != 0,
-            );
+            let active = lane_mask(packet.lanes);
             let same_origin = (0..3).all(|axis| {
                 (packet.origin[axis].cmpeq(Vec4::splat(shared_origin[axis])) | !active).all()
             });
             if !same_origin || packet.octant_inv != octant {
                 return false;
             }
-            for axis in 0..3 {
-                inv_low_axes[axis] = Vec4::select(
-                    active,
-                    inv_low_axes[axis].min(packet.inv_direction[axis]),
-                    inv_low_axes[axis],
-                );
-                inv_high_axes[axis] = Vec4::select(
-                    active,
-                    inv_high_axes[axis].max(packet.inv_direction[axis]),
-                    inv_high_axes[axis],
-                );
-            }
-            t_min_low = t_min_low.min(packet.t_min);
             *group = packet;
         }
         let Some((origin, octant_inv)) = first else {
             return false;
         };
-        inv_low = inv_low.min(Vec4::new(
-            inv_low_axes[0].min_element(),
-            inv_low_axes[1].min_element(),
-            inv_low_axes[2].min_element(),
-            f32::INFINITY,
-        ));
-        inv_high = inv_high.max(Vec4::new(
-            inv_high_axes[0].max_element(),
-            inv_high_axes[1].max_element(),
-            inv_high_axes[2].max_element(),
-            f32::NEG_INFINITY,
-        ));
-        self.origin = origin;
-        self.inv_low = inv_low.truncate().into();
-        self.inv_high = inv_high.truncate().into();
-        self.t_min_low = t_min_low.min_element();
-        self.octant_inv = octant_inv;
+        self.finish(origin, octant_inv);
         true
     }
 
@@ -569,9 +610,6 @@ impl FrustumPacket {
             return false;
         }
         let mut first: Option<(Vec3A, u32)> = None;
-        let mut inv_low = Vec3A::INFINITY;
-        let mut inv_high = Vec3A::NEG_INFINITY;
-        let mut t_min_low = f32::INFINITY;
         self.group_count = count.div_ceil(LANES);
         for (group_index, group) in self.groups[..self.group_count].iter_mut().enumerate() {
             group.reset();
@@ -595,64 +633,82 @@ impl FrustumPacket {
                     Some(_) => {}
                 }
                 group.set_lane(lane, &ray);
-                inv_low = inv_low.min(ray.inv_direction);
-                inv_high = inv_high.max(ray.inv_direction);
-                t_min_low = t_min_low.min(ray.t_min);
             }
         }
         let Some((origin, octant_inv)) = first else {
             return false;
         };
-        self.origin = origin;
-        self.inv_low = inv_low;
-        self.inv_high = inv_high;
-        self.t_min_low = t_min_low;
-        self.octant_inv = octant_inv;
+        self.finish(origin, octant_inv);
         true
     }
 
-    /// Largest `t_max` of any active lane.
-    #[inline(always)]
-    fn t_max_high(&self, active: &[u32; FRUSTUM_GROUPS]) -> f32 {
-        let mut high = Vec4::NEG_INFINITY;
-        for (group, lanes) in self.groups[..self.group_count].iter().zip(active) {
-            if *lanes != 0 {
-                high = high.max(group.t_max);
-            }
+    /// Records the shared origin and octant and the direction bounds of each quadrant and of
+    /// the whole packet.
+    fn finish(&mut self, origin: Vec3A, octant_inv: u32) {
+        self.origin = origin;
+        self.octant_inv = octant_inv;
+        for (quadrant, groups) in QUADRANT_GROUPS.iter().enumerate() {
+            self.quadrants[quadrant] = groups
+                .iter()
+                .filter(|group| **group < self.group_count && self.groups[**group].lanes != 0)
+                .map(|group| DirectionBounds::of_group(&self.groups[*group]))
+                .fold(DirectionBounds::EMPTY, DirectionBounds::union);
         }
-        high.max_element()
+        self.whole = self
+            .quadrants
+            .iter()
+            .fold(DirectionBounds::EMPTY, |whole, quadrant| {
+                whole.union(*quadrant)
+            });
+    }
+
+    /// Largest `t_max` of the active lanes of each quadrant (-inf for a quadrant without any).
+    #[inline(always)]
+    fn t_max_high(&self, active: &[u32; FRUSTUM_GROUPS]) -> [f32; QUADRANTS] {
+        QUADRANT_GROUPS.map(|groups| {
+            let mut high = Vec4::NEG_INFINITY;
+            for group in groups {
+                if group < self.group_count && active[group] != 0 {
+                    high = high.max(self.groups[group].t_max);
+                }
+            }
+            high.max_element()
+        })
     }
 }
 
-/// Children of a node that some ray of the packet may reach within `[t_min_low, t_max_high]`.
-/// Conservative: every slab distance of every ray lies between the distances computed with
-/// the smallest and largest inverse direction component.
+/// Children of a node that some ray within `bounds` (from the packet's origin) may reach
+/// within `[bounds.t_min_low, t_max_high]`. Conservative: every slab distance of every ray lies
+/// between the distances computed with the smallest and largest inverse direction component.
 #[inline(always)]
-fn frustum_child_hits(node: &CwBvhNode, frustum: &FrustumPacket, t_max_high: f32) -> u32 {
-    let step = quantization_step(node);
-    let planes = entry_exit_planes(node, frustum.octant_inv);
-    let mut near = [Vec4::splat(frustum.t_min_low); 2];
+fn frustum_child_hits(
+    node: &DecodedNode,
+    origin: Vec3A,
+    bounds: &DirectionBounds,
+    t_max_high: f32,
+) -> u32 {
+    let mut near = [Vec4::splat(bounds.t_min_low); 2];
     let mut far = [Vec4::splat(t_max_high); 2];
-    for (axis, (entry, exit)) in planes.iter().enumerate() {
-        let step_low = step[axis] * frustum.inv_low[axis];
-        let step_high = step[axis] * frustum.inv_high[axis];
-        let to_node = node.p[axis] - frustum.origin[axis];
-        let offset_low = to_node * frustum.inv_low[axis];
-        let offset_high = to_node * frustum.inv_high[axis];
+    for axis in 0..3 {
+        let step_low = node.step[axis] * bounds.inv_low[axis];
+        let step_high = node.step[axis] * bounds.inv_high[axis];
+        let to_node = node.corner[axis] - origin[axis];
+        let offset_low = to_node * bounds.inv_low[axis];
+        let offset_high = to_node * bounds.inv_high[axis];
         let error = SLAB_ERROR
             * (offset_low.abs().max(offset_high.abs())
                 + MAX_QUANTIZED * step_low.abs().max(step_high.abs()));
         let (step_low, step_high) = (Vec4::splat(step_low), Vec4::splat(step_high));
         let (offset_low, offset_high) = (Vec4::splat(offset_low), Vec4::splat(offset_high));
         let error = Vec4::splat(error);
-        let entry = unpack_planes(entry);
-        let exit = unpack_planes(exit);
         for half in 0..2 {
-            let entry_low = entry[half] * step_low + offset_low;
-            let entry_high = entry[half] * step_high + offset_high;
+            let entry = node.entry[axis][half];
+            let exit = node.exit[axis][half];
+            let entry_low = entry * step_low + offset_low;
+            let entry_high = entry * step_high + offset_high;
             near[half] = near[half].max(entry_low.min(entry_high) - error);
-            let exit_low = exit[half] * step_low + offset_low;
-            let exit_high = exit[half] * step_high + offset_high;
+            let exit_low = exit * step_low + offset_low;
+            let exit_high = exit * step_high + offset_high;
             far[half] = far[half].min(exit_low.max(exit_high) + error);
         }
     }
@@ -683,6 +739,11 @@ pub(crate) fn traverse_frustum<F, P>(
         first_child: 0,
         bits: 1 << 31,
     };
+    let quadrant_active = QUADRANT_GROUPS.map(|groups| {
+        groups
+            .iter()
+            .any(|group| *group < frustum.group_count && active[*group] != 0)
+    });
     let mut t_max_high = frustum.t_max_high(active);
     loop {
         if current.bits & 0xff00_0000 == 0 {
@@ -699,8 +760,11 @@ pub(crate) fn traverse_frustum<F, P>(
         if current.bits & 0xff00_0000 != 0 {
             stack.push(current);
         }
-        let hits = frustum_child_hits(node, frustum, t_max_high);
-        let leaves = hits & !(node.imask as u32) & non_empty_children(node);
+        let decoded = DecodedNode::new(node, octant_inv);
+        let whole_high = t_max_high.into_iter().fold(f32::NEG_INFINITY, f32::max);
+        let hits = frustum_child_hits(&decoded, frustum.origin, &frustum.whole, whole_high)
+            & non_empty_children(node);
+        let leaves = hits & !(node.imask as u32);
         // Start loading inner children and leaf primitives while the leaf boxes are tested.
         if hits & node.imask as u32 != 0 {
             prefetch(&nodes[node.child_base_idx as usize]);
@@ -714,10 +778,29 @@ pub(crate) fn traverse_frustum<F, P>(
         }
         if leaves != 0 {
             let mut masks = [0u32; FRUSTUM_GROUPS];
-            for group in 0..frustum.group_count {
-                if active[group] != 0 {
-                    masks[group] =
-                        child_lane_masks(node, &frustum.groups[group], active[group], leaves);
+            for (quadrant, groups) in QUADRANT_GROUPS.iter().enumerate() {
+                if !quadrant_active[quadrant] {
+                    continue;
+                }
+                let quadrant_leaves = leaves
+                    & frustum_child_hits(
+                        &decoded,
+                        frustum.origin,
+                        &frustum.quadrants[quadrant],
+                        t_max_high[quadrant],
+                    );
+                if quadrant_leaves == 0 {
+                    continue;
+                }
+                for &group in groups {
+                    if group < frustum.group_count && active[group] != 0 {
+                        masks[group] = child_lane_masks(
+                            &decoded,
+                            &frustum.groups[group],
+                            active[group],
+                            quadrant_leaves,
+                        );
+                    }
                 }
             }
             let mut remaining = leaves;

@@ -47,13 +47,18 @@ impl PackedTriangle {
         if !(area_squared.is_finite() && area_squared > 0.0) {
             return None;
         }
-        Some(PackedTriangle {
+        Some(PackedTriangle::from_usable(v0, v1, v2))
+    }
+
+    /// Packs vertices that [`Self::new`] has already accepted, without checking them again.
+    pub fn from_usable(v0: Vec3, v1: Vec3, v2: Vec3) -> PackedTriangle {
+        PackedTriangle {
             rows: [
                 Vec4::new(v0.x, v1.x, v2.x, 0.0),
                 Vec4::new(v0.y, v1.y, v2.y, 0.0),
                 Vec4::new(v0.z, v1.z, v2.z, 0.0),
             ],
-        })
+        }
     }
 
     pub fn vertices(&self) -> [Vec3; 3] {

@@ -1799,7 +1799,9 @@ fn frustum_packets_match_single_rays() {
     for prims in shapes {
         let bvh = prims.build();
         for (eye, target) in views {
-            let rays = camera_tiles(&mut rng, eye, target, 48);
+            let mut rays = camera_tiles(&mut rng, eye, target, 48);
+            // The last packet holds 37 rays: ten groups, two quadrants partly filled.
+            rays.truncate(rays.len() - 27);
             let mut hits = vec![None; rays.len()];
             bvh.intersect_packet(&rays, &mut hits);
             let singles: Vec<Option<f32>> = rays

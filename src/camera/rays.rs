@@ -172,16 +172,25 @@ impl EyeRays {
                 };
                 let direction = (target - origin).normalize();
                 // The lens disk lies in the plane through the eye perpendicular to `forward`,
-                // so plane distances from the origin along `forward` equal those from the eye.
-                let cos_theta = direction.dot(p.forward);
+                // so plane distances from the origin along `forward` equal those from the eye:
+                // a plane at distance `z` is reached at `t = z / cos θ`. One division serves
+                // both planes (it runs for every primary ray).
+                let clip = &p.clip;
+                let (t_min, t_max) = if clip.near.is_some() || clip.far.is_some() {
+                    let per_distance = 1.0 / direction.dot(p.forward);
+                    (
+                        clip.near.map_or(0.0, |near| (near * per_distance) as f32),
+                        clip.far
+                            .map_or(f32::INFINITY, |far| (far * per_distance) as f32),
+                    )
+                } else {
+                    (0.0, f32::INFINITY)
+                };
                 CameraRay {
                     origin: origin.as_vec3(),
                     direction: direction.as_vec3(),
-                    t_min: p.clip.near.map_or(0.0, |near| (near / cos_theta) as f32),
-                    t_max: p
-                        .clip
-                        .far
-                        .map_or(f32::INFINITY, |far| (far / cos_theta) as f32),
+                    t_min,
+                    t_max,
                 }
             }
             Generator::Parallel(p) => CameraRay {

@@ -15,6 +15,7 @@ use crate::device::datatype::*;
 use crate::device::property::PropertyValue;
 use crate::render::color::{encode_srgb8, to_snorm16, to_unorm8};
 use crate::render::renderer::{PrimaryHit, RendererSettings, shade_primary_at};
+use crate::scene::light::LightSampling;
 use crate::scene::world::SceneSnapshot;
 
 /// Side of the square tiles the threads share out.
@@ -543,12 +544,25 @@ const NO_RAY: Ray = Ray {
     t_max: 0.0,
 };
 
-/// What a pixel of a tile produced: the colour summed over its samples, whether any eye
-/// covers it, and the first sample's hit when channels other than colour need it.
-struct PixelResult<'a> {
-    color: Vec4,
-    covered: bool,
-    first_hit: Option<(PrimaryHit, CameraRay, &'a EyeRays)>,
+/// Pixels in a full tile.
+const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
+
+/// A pixel's first sample's hit with the camera ray and eye that saw it, kept for the channels
+/// other than colour.
+type FirstHit<'a> = (PrimaryHit, CameraRay, &'a EyeRays);
+
+/// Whether `viewport` holds the pixels `[x0, x1) × [y0, y1)`.
+fn viewport_holds(
+    viewport: &crate::camera::EyeViewport,
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+) -> bool {
+    x0 >= viewport.x
+        && y0 >= viewport.y
+        && x1 <= viewport.x + viewport.width
+        && y1 <= viewport.y + viewport.height
 }
 
 fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: usize) {
@@ -558,19 +572,26 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
     let x_end = (tx + TILE_SIZE).min(setup.width);
     let y_end = (ty + TILE_SIZE).min(setup.height);
     let tile_width = x_end - tx;
+    let pixel_count = (tile_width * (y_end - ty)) as usize;
     let samples = setup.settings.pixel_samples;
-    let mut results: Vec<PixelResult> = (0..tile_width * (y_end - ty))
-        .map(|_| PixelResult {
-            color: Vec4::ZERO,
-            covered: false,
-            first_hit: None,
-        })
-        .collect();
+    // Colour summed over the samples, and whether any eye covers the pixel.
+    let mut colors = [Vec4::ZERO; TILE_PIXELS];
+    let mut covered = [false; TILE_PIXELS];
+    let mut first_hits: Vec<Option<FirstHit>> = if job.keeps_hits {
+        vec![None; pixel_count]
+    } else {
+        Vec::new()
+    };
     let mut rays = [NO_RAY; 64];
     let mut camera_rays = [None; 64];
     let mut hits = [None; 64];
     for by in (ty..y_end).step_by(PACKET_SIDE as usize) {
         for bx in (tx..x_end).step_by(PACKET_SIDE as usize) {
+            let (bx_end, by_end) = ((bx + PACKET_SIDE).min(x_end), (by + PACKET_SIDE).min(y_end));
+            // Usually one eye's viewport holds the whole block; otherwise look per pixel.
+            let block_eye = eyes
+                .iter()
+                .find(|(viewport, _)| viewport_holds(viewport, bx, by, bx_end, by_end));
             for s in 0..samples {
                 let index = job.pass * samples + s;
                 let offset = jitter(index);
@@ -582,9 +603,11 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
                     if x >= x_end || y >= y_end {
                         continue;
                     }
-                    let Some((viewport, eye_rays)) = eyes.iter().find(|(v, _)| {
-                        x >= v.x && x < v.x + v.width && y >= v.y && y < v.y + v.height
-                    }) else {
+                    let eye = block_eye.or_else(|| {
+                        eyes.iter()
+                            .find(|(viewport, _)| viewport_holds(viewport, x, y, x + 1, y + 1))
+                    });
+                    let Some((viewport, eye_rays)) = eye else {
                         continue;
                     };
                     let u = ((x - viewport.x) as f32 + offset.x) / viewport.width as f32;
@@ -603,24 +626,31 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
                     let Some((camera_ray, eye_rays)) = camera_rays[lane] else {
                         continue;
                     };
+                    let (x, y) = (bx + dx, by + dy);
                     // The sample's position in the frame places the background image.
                     let screen = Vec2::new(
-                        ((bx + dx) as f32 + offset.x) / setup.width as f32,
-                        ((by + dy) as f32 + offset.y) / setup.height as f32,
+                        (x as f32 + offset.x) / setup.width as f32,
+                        (y as f32 + offset.y) / setup.height as f32,
                     );
+                    // The fast renderer samples no lights: it skips the per-pixel hash.
+                    let sampling = if setup.settings.fast {
+                        LightSampling::default()
+                    } else {
+                        LightSampling::for_pixel(index, x, y)
+                    };
                     let sample = shade_primary_at(
                         &setup.scene,
                         &setup.settings,
                         &rays[lane],
                         hits[lane],
                         Some(screen),
-                        &crate::scene::light::LightSampling::for_pixel(index, bx + dx, by + dy),
+                        &sampling,
                     );
-                    let pixel = &mut results[((by + dy - ty) * tile_width + bx + dx - tx) as usize];
-                    pixel.color += sample.color;
-                    pixel.covered = true;
+                    let k = ((y - ty) * tile_width + x - tx) as usize;
+                    colors[k] += sample.color;
+                    covered[k] = true;
                     if s == 0 && job.keeps_hits {
-                        pixel.first_hit = sample.hit.map(|hit| (hit, camera_ray, eye_rays));
+                        first_hits[k] = sample.hit.map(|hit| (hit, camera_ray, eye_rays));
                     }
                 }
             }
@@ -629,20 +659,20 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
     let passes = (job.pass + 1) as f32;
     let mut channels = lock(&job.channels);
     let mut color_sum = job.color_sum.as_ref().map(lock);
-    for (k, pixel) in results.iter().enumerate() {
+    for k in 0..pixel_count {
         let (x, y) = (tx + k as u32 % tile_width, ty + k as u32 / tile_width);
         let index = (y * setup.width + x) as usize;
-        let mut color = if pixel.covered {
-            pixel.color / samples as f32
+        let mut color = if covered[k] {
+            colors[k] / samples as f32
         } else {
             setup.settings.background_at(Vec2::new(
                 (x as f32 + 0.5) / setup.width as f32,
                 (y as f32 + 0.5) / setup.height as f32,
             ))
         };
-        let hit = pixel
-            .first_hit
-            .as_ref()
+        let hit = first_hits
+            .get(k)
+            .and_then(Option::as_ref)
             .map(|(hit, camera_ray, eye_rays)| (hit, camera_ray, *eye_rays));
         if let Some(sum) = color_sum.as_deref_mut()
             && let Some(total) = sum.get_mut(index)

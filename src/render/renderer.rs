@@ -240,12 +240,13 @@ fn shading_point(scene: &SceneSnapshot, ray: &Ray, hit: &SceneHit) -> ShadingPoi
     let at: Option<Interpolation> = (uses_attributes || geometry.has_shading_normals())
         .then(|| geometry.interpolation(hit.primitive, hit.uv));
     let primitive_id = geometry.primitive_id(hit.primitive);
-    let object_normal = at.as_ref().map_or(hit.object_normal, |at| {
-        geometry.shading_normal(at, hit.object_normal)
-    });
-    let mut normal = (instance.normal_transform * object_normal)
-        .try_normalize()
-        .unwrap_or(hit.normal);
+    // Without shading normals the hit's world normal is already the one to shade with.
+    let mut normal = match at.as_ref().filter(|_| geometry.has_shading_normals()) {
+        Some(at) => (instance.normal_transform * geometry.shading_normal(at, hit.object_normal))
+            .try_normalize()
+            .unwrap_or(hit.normal),
+        None => hit.normal,
+    };
     // Shade the side the ray arrives from.
     if normal.dot(ray.direction) > 0.0 {
         normal = -normal;

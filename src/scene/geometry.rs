@@ -529,6 +529,7 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
 
     let mut primitive_ids: Vec<u32> = Vec::new();
     let mut vertex_indices: Vec<UVec4> = Vec::new();
+    let mut triangles_kept_whole = false;
     let prims = match shape {
         Shape::Triangle => {
             let triangles: Vec<UVec3> = match array(&params, "primitive.index") {
@@ -537,16 +538,25 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
                     .map(|i| UVec3::new(3 * i, 3 * i + 1, 3 * i + 2))
                     .collect(),
             };
-            let mut kept = Vec::with_capacity(triangles.len());
-            for (i, t) in triangles.iter().enumerate() {
-                if !(valid_vertex(t.x) && valid_vertex(t.y) && valid_vertex(t.z)) {
-                    note_skip(i, "has an index out of range or a non-finite vertex");
-                    continue;
+            let valid = |t: &UVec3| valid_vertex(t.x) && valid_vertex(t.y) && valid_vertex(t.z);
+            let kept = if triangles.iter().all(valid) {
+                // The usual case, checked first so that big meshes are not copied: ids stay
+                // the identity (left empty) and vertex indices are made only if needed.
+                triangles_kept_whole = true;
+                triangles
+            } else {
+                let mut kept = Vec::with_capacity(triangles.len());
+                for (i, t) in triangles.iter().enumerate() {
+                    if !valid(t) {
+                        note_skip(i, "has an index out of range or a non-finite vertex");
+                        continue;
+                    }
+                    kept.push(*t);
+                    primitive_ids.push(i as u32);
+                    vertex_indices.push(t.extend(0));
                 }
-                kept.push(*t);
-                primitive_ids.push(i as u32);
-                vertex_indices.push(t.extend(0));
-            }
+                kept
+            };
             Primitives::Standard(GeometryPrims::Triangles {
                 positions: positions.clone(),
                 indices: kept,
@@ -742,6 +752,12 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
         || attributes
             .iter()
             .any(|a| a.per_vertex.is_some() || a.per_corner.is_some());
+    if needs_vertices
+        && triangles_kept_whole
+        && let Primitives::Standard(GeometryPrims::Triangles { indices, .. }) = &prims
+    {
+        vertex_indices = indices.iter().map(|t| t.extend(0)).collect();
+    }
     Some(Geometry {
         shape,
         bvh: Arc::new(with_build_pool(
