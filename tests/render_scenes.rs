@@ -717,3 +717,48 @@ fn geometry_colours_take_every_color_element_type_of_the_specification() {
     release_device(lib, dev);
     assert!(log.errors().is_empty(), "{:?}", log.errors());
 }
+
+#[test]
+fn the_fast_renderer_gives_the_same_colours_with_or_without_other_channels() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let tri = triangle_geometry(
+        dev,
+        &[[-0.9, -0.6, -2.0], [0.2, -0.7, -2.2], [-0.3, 0.5, -1.9]],
+    );
+    let ball = sphere_geometry(dev, &[[0.45, 0.2, -2.5]], 0.35);
+    let red = matte_surface(dev, tri, [0.9, 0.1, 0.1]);
+    let blue = matte_surface(dev, ball, [0.1, 0.2, 0.9]);
+    let world = world_of(dev, &[red, blue]);
+    let camera = perspective_camera(dev, [0.0, 0.0, 0.0], [0.0, 0.0, -1.0], 1.0);
+    let r = anariNewRenderer(dev, c("fast").as_ptr());
+    set(
+        dev,
+        r,
+        "background",
+        ANARI_FLOAT32_VEC4,
+        &[0.0f32, 0.5, 0.0, 1.0],
+    );
+    commit(dev, r);
+    let frame = frame_for(dev, world, camera, r, [48, 40]);
+    // With hit channels the colour comes from the full primary sample...
+    let (with_hits, _, _) = render_channel::<[f32; 4]>(dev, frame, "channel.color");
+    // ...without them from the fast renderer's colour-only path.
+    for name in [
+        "channel.depth",
+        "channel.primitiveId",
+        "channel.objectId",
+        "channel.instanceId",
+    ] {
+        anariUnsetParameter(dev, frame, c(name).as_ptr());
+    }
+    commit(dev, frame);
+    let (colour_only, _, _) = render_channel::<[f32; 4]>(dev, frame, "channel.color");
+    assert_eq!(with_hits, colour_only);
+    let count = |pick: fn(&[f32; 4]) -> bool| colour_only.iter().filter(|p| pick(p)).count();
+    assert!(count(|p| p[0] > 0.3 && p[2] < 0.2) > 20, "red triangle");
+    assert!(count(|p| p[2] > 0.3 && p[0] < 0.2) > 20, "blue sphere");
+    assert!(count(|p| *p == [0.0, 0.5, 0.0, 1.0]) > 20, "background");
+    release_all(dev, &[tri, ball, red, blue, world, camera, r, frame]);
+    release_device(lib, dev);
+}

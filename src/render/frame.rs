@@ -14,7 +14,7 @@ use crate::camera::{Camera, CameraRay, EyeRays};
 use crate::device::datatype::*;
 use crate::device::property::PropertyValue;
 use crate::render::color::{encode_srgb8, to_snorm16, to_unorm8};
-use crate::render::renderer::{PrimaryHit, RendererSettings, shade_primary_at};
+use crate::render::renderer::{PrimaryHit, RendererSettings, fast_surface_color, shade_primary_at};
 use crate::scene::light::LightSampling;
 use crate::scene::world::SceneSnapshot;
 
@@ -574,6 +574,8 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
     let tile_width = x_end - tx;
     let pixel_count = (tile_width * (y_end - ty)) as usize;
     let samples = setup.settings.pixel_samples;
+    // The fast renderer's lean path: nothing but colour to compute.
+    let colour_only_fast = setup.settings.fast && !job.keeps_hits && setup.scene.volumes.is_empty();
     // Colour summed over the samples, and whether any eye covers the pixel.
     let mut colors = [Vec4::ZERO; TILE_PIXELS];
     let mut covered = [false; TILE_PIXELS];
@@ -638,6 +640,18 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
                     } else {
                         LightSampling::for_pixel(index, x, y)
                     };
+                    let k = ((y - ty) * tile_width + x - tx) as usize;
+                    covered[k] = true;
+                    if colour_only_fast {
+                        colors[k] += fast_surface_color(
+                            &setup.scene,
+                            &setup.settings,
+                            &rays[lane],
+                            hits[lane].as_ref(),
+                            screen,
+                        );
+                        continue;
+                    }
                     let sample = shade_primary_at(
                         &setup.scene,
                         &setup.settings,
@@ -646,9 +660,7 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
                         Some(screen),
                         &sampling,
                     );
-                    let k = ((y - ty) * tile_width + x - tx) as usize;
                     colors[k] += sample.color;
-                    covered[k] = true;
                     if s == 0 && job.keeps_hits {
                         first_hits[k] = sample.hit.map(|hit| (hit, camera_ray, eye_rays));
                     }

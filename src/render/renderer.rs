@@ -482,6 +482,30 @@ pub fn shade_primary_at(
     }
 }
 
+/// The fast renderer's shading: a light at the camera, so what faces the viewer is brightest.
+#[inline(always)]
+fn eye_light(ray: &Ray, sp: &ShadingPoint) -> Vec3 {
+    let facing = (-ray.direction).dot(sp.normal).max(0.0);
+    sp.base_color * (0.2 + 0.8 * facing) + sp.emissive
+}
+
+/// The fast renderer's colour for a primary ray whose closest surface hit is known, when the
+/// scene has no volumes and no channel needs the hit's details: what [`shade_primary_at`]
+/// gives then, without building the details.
+pub fn fast_surface_color(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    ray: &Ray,
+    hit: Option<&SceneHit>,
+    screen: Vec2,
+) -> Vec4 {
+    debug_assert!(settings.fast && scene.volumes.is_empty());
+    match hit {
+        Some(hit) => eye_light(ray, &shading_point(scene, ray, hit)).extend(1.0),
+        None => settings.background_for(Some(screen)),
+    }
+}
+
 /// The surface (or background) part of a primary sample.
 fn shade_surface_primary(
     scene: &SceneSnapshot,
@@ -499,9 +523,7 @@ fn shade_surface_primary(
     };
     let sp = shading_point(scene, ray, &hit);
     let color = if settings.fast {
-        // Eye light: a light at the camera, so what faces the viewer is brightest.
-        let facing = (-ray.direction).dot(sp.normal).max(0.0);
-        sp.base_color * (0.2 + 0.8 * facing) + sp.emissive
+        eye_light(ray, &sp)
     } else {
         shade(scene, settings, ray, &sp, 0, screen, sampling)
     };
