@@ -12,6 +12,7 @@ use glam::{Vec3, Vec3A, Vec4};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::node::Bvh2Node;
+use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
 
@@ -27,26 +28,28 @@ const MAX_PRIMS_PER_LEAF: u32 = 3;
 /// refer to, the index into `boxes` it stands for (callers reorder their primitives by it).
 /// `boxes` must be finite; an empty input gives no nodes.
 ///
-/// obvhs builds the binary BVH (PLOC with search distance 2, parallel through rayon with
-/// obvhs' `parallel` feature); [`collapse_to_wide`] then packs it into
+/// obvhs builds the binary BVH (PLOC with search distance 2 plus 1% reinsertion, parallel
+/// through rayon with obvhs' `parallel` feature); [`collapse_to_wide`] then packs it into
 /// obvhs' CWBVH node format. obvhs' own converter optimizes the collapse by dynamic
 /// programming and costs about as much as the binary build (~300 ms for 1M triangles, single
 /// threaded); the greedy collapse runs in parallel and takes a fraction of that, for a BVH that
-/// traces single rays a few percent slower. Measured on a 1M-triangle mesh and its primary
-/// rays: search distance 6, or 1-5 % reinsertion, cost 15-50 ms more build time (a large share
-/// of first-frame latency) and gained at most 2 % in frame time; search distance 1 lost 2 %.
+/// traces single rays a few percent slower. Measured on a 1M-triangle mesh (2 cores): the 1%
+/// reinsertion costs 15 ms of a ~300 ms build and gains 4% on the default renderer's shadow
+/// rays (none on packets of primary rays), so it stays; search distance 6 or 5% reinsertion
+/// cost another 40-50 ms for at most 2%, search distance 1 lost 2%.
 pub(crate) fn build_wide_bvh(boxes: &[Aabb]) -> (Vec<CwBvhNode>, Vec<u32>) {
     if boxes.is_empty() {
         return (Vec::new(), Vec::new());
     }
     let indices: Vec<u32> = (0..boxes.len() as u32).into_par_iter().collect();
-    let bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
+    let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
         PlocSearchDistance::VeryLow,
         boxes,
         indices,
         SortPrecision::U64,
         1,
     );
+    ReinsertionOptimizer::default().run(&mut bvh2, 0.01, None);
     collapse_to_wide(&bvh2)
 }
 
