@@ -69,29 +69,35 @@ struct Candidate {
     leaf_count: Option<u32>,
 }
 
-/// The children of one wide node, without heap allocation.
-struct Candidates {
-    entries: [Candidate; WIDTH],
+/// Up to eight values (a wide node's children) without heap allocation.
+struct WideList<T: Copy> {
+    entries: [T; WIDTH],
     len: usize,
 }
 
-impl Candidates {
-    fn as_slice(&self) -> &[Candidate] {
+impl<T: Copy> WideList<T> {
+    fn new(filler: T) -> WideList<T> {
+        WideList {
+            entries: [filler; WIDTH],
+            len: 0,
+        }
+    }
+
+    fn push(&mut self, value: T) {
+        self.entries[self.len] = value;
+        self.len += 1;
+    }
+
+    fn as_slice(&self) -> &[T] {
         &self.entries[..self.len]
     }
 }
 
-/// Binary indices of a wide node's inner children, in slot order.
-struct InnerChildren {
-    indices: [u32; WIDTH],
-    len: usize,
-}
+/// Binary descendants chosen as the children of one wide node.
+type Candidates = WideList<Candidate>;
 
-impl InnerChildren {
-    fn as_slice(&self) -> &[u32] {
-        &self.indices[..self.len]
-    }
-}
+/// Binary indices of a wide node's inner children, in slot order.
+type InnerChildren = WideList<u32>;
 
 /// The collapsed form of one binary subtree: its wide root at node 0, node indices and
 /// primitive bases relative to this subtree.
@@ -220,10 +226,7 @@ fn wide_node(
         primitive_base_idx: primitive_order.len() as u32,
         ..CwBvhNode::default()
     };
-    let mut inner_children = InnerChildren {
-        indices: [0; WIDTH],
-        len: 0,
-    };
+    let mut inner_children = InnerChildren::new(0);
     let mut leaf_offset = 0u32;
     for (slot, &position) in slots.iter().enumerate() {
         if position == EMPTY_SLOT {
@@ -256,8 +259,7 @@ fn wide_node(
         } else {
             node.imask |= 1 << slot;
             node.child_meta[slot] = (24 + slot as u8) | 0b0010_0000;
-            inner_children.indices[inner_children.len] = child.index;
-            inner_children.len += 1;
+            inner_children.push(child.index);
         }
     }
     (node, inner_children)
@@ -353,26 +355,23 @@ fn candidate_pair(bvh2: &Bvh2, first: usize) -> [Candidate; 2] {
 fn wide_children(bvh2: &Bvh2, index: usize, may_be_leaf: bool) -> Candidates {
     let binary = &bvh2.nodes;
     let node = &binary[index];
-    let mut children = Candidates {
-        entries: [Candidate {
-            index: 0,
-            half_area: 0.0,
-            leaf_count: None,
-        }; WIDTH],
-        len: 0,
-    };
+    let mut children = Candidates::new(Candidate {
+        index: 0,
+        half_area: 0.0,
+        leaf_count: None,
+    });
     if may_be_leaf && let Some(count) = leaf_sized_count(bvh2, index) {
         // Only for a tiny root: a single leaf child.
-        children.entries[0] = Candidate {
+        children.push(Candidate {
             index: index as u32,
             half_area: 0.0,
             leaf_count: Some(count),
-        };
-        children.len = 1;
+        });
         return children;
     }
-    [children.entries[0], children.entries[1]] = candidate_pair(bvh2, node.first_index as usize);
-    children.len = 2;
+    let [first, second] = candidate_pair(bvh2, node.first_index as usize);
+    children.push(first);
+    children.push(second);
     while children.len < WIDTH {
         // Open the largest subtree too large for a leaf. Subtrees that fit one stay whole
         // even when slots are spare: splitting them makes leaves of one primitive, whose box
@@ -391,8 +390,9 @@ fn wide_children(bvh2: &Bvh2, index: usize, may_be_leaf: bool) -> Candidates {
             break;
         };
         let opened = binary[children.entries[position].index as usize].first_index as usize;
-        [children.entries[position], children.entries[children.len]] = candidate_pair(bvh2, opened);
-        children.len += 1;
+        let [first, second] = candidate_pair(bvh2, opened);
+        children.entries[position] = first;
+        children.push(second);
     }
     children
 }
