@@ -259,9 +259,11 @@ impl ArrayStore {
         )
     }
 
-    /// Reads an index array of UINT32 or UINT64 elements with `components` per element, flat.
-    /// 64-bit values beyond u32 range read as u32::MAX (out of range for any geometry).
-    pub fn read_indices(&self, components: usize) -> Option<Vec<u32>> {
+    /// Reads an index array of UINT32 or UINT64 elements with `components` (1 to 4) per
+    /// element, each element passed to `make` as a slice of `components` values, in one pass
+    /// (big meshes' index arrays are not copied twice). 64-bit values beyond u32 range read as
+    /// u32::MAX (out of range for any geometry).
+    pub fn read_indices<T>(&self, components: usize, make: impl Fn(&[u32]) -> T) -> Option<Vec<T>> {
         let (narrow, wide) = match components {
             1 => (ANARI_UINT32, ANARI_UINT64),
             2 => (ANARI_UINT32_VEC2, ANARI_UINT64_VEC2),
@@ -269,17 +271,31 @@ impl ArrayStore {
             4 => (ANARI_UINT32_VEC4, ANARI_UINT64_VEC4),
             _ => return None,
         };
-        if self.element_type == narrow {
-            return self.u32s(narrow);
-        }
-        if self.element_type != wide {
+        let value_bytes = if self.element_type == narrow {
+            4
+        } else if self.element_type == wide {
+            8
+        } else {
             return None;
-        }
+        };
         Some(self.with_bytes(|bytes| {
             bytes
-                .chunks_exact(8)
-                .map(|c| {
-                    u32::try_from(u64::from_ne_bytes(c.try_into().unwrap())).unwrap_or(u32::MAX)
+                .chunks_exact(value_bytes * components)
+                .map(|element| {
+                    let mut values = [0u32; 4];
+                    for (value, raw) in values.iter_mut().zip(element.chunks_exact(value_bytes)) {
+                        // Four bytes are a UINT32 value, eight a UINT64 one.
+                        *value = match raw.try_into() {
+                            Ok(narrow) => u32::from_ne_bytes(narrow),
+                            Err(_) => raw
+                                .try_into()
+                                .map(u64::from_ne_bytes)
+                                .ok()
+                                .and_then(|wide| u32::try_from(wide).ok())
+                                .unwrap_or(u32::MAX),
+                        };
+                    }
+                    make(&values[..components])
                 })
                 .collect()
         }))
@@ -395,6 +411,43 @@ mod tests {
         assert_eq!(a.read_f32().unwrap(), vec![1.0, 2.0, 3.0]);
         drop(a);
         assert_eq!(DELETED.load(Ordering::SeqCst), before + 1);
+    }
+
+    #[test]
+    fn index_arrays_read_as_tuples_of_32_or_64_bit_values() {
+        let narrow = [1u32, 2, 3, 4, 5, 6];
+        let a = ArrayStore::new(
+            ANARI_UINT32_VEC3,
+            [2, 1, 1],
+            narrow.as_ptr() as *const c_void,
+            None,
+            std::ptr::null(),
+        )
+        .unwrap();
+        let triples = a.read_indices(3, glam::UVec3::from_slice).unwrap();
+        assert_eq!(
+            triples,
+            [glam::UVec3::new(1, 2, 3), glam::UVec3::new(4, 5, 6)]
+        );
+        // Other component counts do not match the element type.
+        assert!(a.read_indices(2, glam::UVec2::from_slice).is_none());
+        // 64-bit values beyond u32 range become u32::MAX, out of range for any geometry.
+        let wide = [7u64, u64::from(u32::MAX) + 1, 9, 10];
+        let a = ArrayStore::new(
+            ANARI_UINT64_VEC2,
+            [2, 1, 1],
+            wide.as_ptr() as *const c_void,
+            None,
+            std::ptr::null(),
+        )
+        .unwrap();
+        let pairs = a.read_indices(2, glam::UVec2::from_slice).unwrap();
+        assert_eq!(
+            pairs,
+            [glam::UVec2::new(7, u32::MAX), glam::UVec2::new(9, 10)]
+        );
+        let singles = a.read_indices(1, |value| value[0]);
+        assert!(singles.is_none());
     }
 
     #[test]

@@ -469,11 +469,6 @@ fn array<'p>(params: &'p ParamSet, name: &str) -> Option<&'p crate::scene::array
 }
 
 /// Groups a flat index list into vectors of `n` (an unreadable array reads as empty).
-fn grouped<T>(flat: Option<Vec<u32>>, n: usize, make: impl Fn(&[u32]) -> T) -> Vec<T> {
-    flat.map(|f| f.chunks_exact(n).map(make).collect())
-        .unwrap_or_default()
-}
-
 fn finite(v: Vec3) -> bool {
     v.is_finite()
 }
@@ -533,7 +528,7 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
     let prims = match shape {
         Shape::Triangle => {
             let triangles: Vec<UVec3> = match array(&params, "primitive.index") {
-                Some(a) => grouped(a.read_indices(3), 3, |c| UVec3::new(c[0], c[1], c[2])),
+                Some(a) => a.read_indices(3, UVec3::from_slice).unwrap_or_default(),
                 None => (0..vertex_count as u32 / 3)
                     .map(|i| UVec3::new(3 * i, 3 * i + 1, 3 * i + 2))
                     .collect(),
@@ -564,7 +559,7 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
         }
         Shape::Quad => {
             let quads: Vec<UVec4> = match array(&params, "primitive.index") {
-                Some(a) => grouped(a.read_indices(4), 4, |c| UVec4::new(c[0], c[1], c[2], c[3])),
+                Some(a) => a.read_indices(4, UVec4::from_slice).unwrap_or_default(),
                 None => (0..vertex_count as u32 / 4)
                     .map(|i| UVec4::new(4 * i, 4 * i + 1, 4 * i + 2, 4 * i + 3))
                     .collect(),
@@ -588,7 +583,7 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
             let radii = array(&params, "vertex.radius").and_then(|a| a.read_f32());
             let radius = params.get_f32("radius").unwrap_or(1.0);
             let spheres: Vec<u32> = match array(&params, "primitive.index") {
-                Some(a) => a.read_indices(1).unwrap_or_default(),
+                Some(a) => a.read_indices(1, |value| value[0]).unwrap_or_default(),
                 None => (0..vertex_count as u32).collect(),
             };
             let mut centers = Vec::with_capacity(spheres.len());
@@ -617,7 +612,7 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
         }
         Shape::Cylinder | Shape::Cone => {
             let pairs: Vec<UVec2> = match array(&params, "primitive.index") {
-                Some(a) => grouped(a.read_indices(2), 2, |c| UVec2::new(c[0], c[1])),
+                Some(a) => a.read_indices(2, UVec2::from_slice).unwrap_or_default(),
                 None => (0..vertex_count as u32 / 2)
                     .map(|i| UVec2::new(2 * i, 2 * i + 1))
                     .collect(),
@@ -681,7 +676,7 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
         }
         Shape::Curve => {
             let starts: Vec<u32> = match array(&params, "primitive.index") {
-                Some(a) => a.read_indices(1).unwrap_or_default(),
+                Some(a) => a.read_indices(1, |value| value[0]).unwrap_or_default(),
                 None => (0..vertex_count.saturating_sub(1) as u32).collect(),
             };
             if vertex_count < 2 {
