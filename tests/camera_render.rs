@@ -433,3 +433,46 @@ fn invalid_cameras_are_reported_at_commit_and_render_background() {
     anariRelease(dev, world);
     release_device(lib, dev);
 }
+
+#[test]
+/// 8x8 pixel blocks that straddle the two eyes' viewports (frame sizes not multiples of 8).
+fn stereo_blocks_straddling_two_eyes_render_each_eye_as_alone() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let world = scene(dev);
+    let (w, h) = (45u32, 37u32);
+    for (mode, size) in [("sideBySide", [2 * w, h]), ("topBottom", [w, 2 * h])] {
+        let camera = off_axis_camera(dev, mode);
+        let pair = render(dev, world, camera, size);
+        anariRelease(dev, camera);
+        for eye in ["left", "right"] {
+            let camera = off_axis_camera(dev, eye);
+            let single = render(dev, world, camera, [w, h]);
+            anariRelease(dev, camera);
+            let (ox, oy) = match (mode, eye) {
+                ("sideBySide", "left") => (0, 0),
+                ("sideBySide", _) => (w, 0),
+                (_, "left") => (0, h),
+                _ => (0, 0),
+            };
+            let mut nonbg = 0;
+            for y in 0..h {
+                for x in 0..w {
+                    let a = single.ids[(y * w + x) as usize];
+                    let i = ((y + oy) * size[0] + x + ox) as usize;
+                    assert_eq!(a, pair.ids[i], "{mode} {eye} ids {x},{y}");
+                    assert_eq!(
+                        single.color[(y * w + x) as usize],
+                        pair.color[i],
+                        "{mode} {eye} colour {x},{y}"
+                    );
+                    nonbg += usize::from(a != u32::MAX);
+                }
+            }
+            assert!(nonbg > 50, "{mode} {eye}: {nonbg}");
+        }
+    }
+    anariRelease(dev, world);
+    release_device(lib, dev);
+    assert!(log.errors().is_empty(), "{:?}", log.errors());
+}

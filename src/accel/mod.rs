@@ -51,6 +51,8 @@ mod wide_bvh;
 mod tests;
 
 pub use geometry::{GeometryBvh, geometry_build_count};
+#[cfg(test)]
+pub(crate) use packet::QUADRANT_GROUPS;
 pub use scene::SceneBvh;
 pub use tube::{TubeKind, TubeSegment};
 

@@ -5,7 +5,8 @@
 //!   against all four rays, each child remembering which rays reach it.
 //! * [`FrustumPacket`]: up to sixteen such groups (an 8x8 tile) from one eye point. Inner nodes
 //!   are culled once for the whole tile with interval arithmetic over the rays' inverse
-//!   directions; only leaf boxes and primitives are tested per group.
+//!   directions, leaf boxes once per quadrant of four groups the same way; only then are leaf
+//!   boxes and primitives tested per group.
 //!
 //! Triangles are tested against four rays with the same watertight arithmetic as the
 //! single-ray path, lane by lane in the same operation order, so every ray gets a
@@ -239,7 +240,7 @@ impl RayPacket {
 
 /// A node's child boxes decoded once for all the ray groups that test them: per axis the
 /// quantized entry and exit planes (in the traversal octant's order) as floats.
-pub(crate) struct DecodedNode {
+struct DecodedNode {
     step: Vec3A,
     corner: Vec3A,
     entry: [[Vec4; 2]; 3],
@@ -248,7 +249,7 @@ pub(crate) struct DecodedNode {
 
 impl DecodedNode {
     #[inline(always)]
-    pub(crate) fn new(node: &CwBvhNode, octant_inv: u32) -> DecodedNode {
+    fn new(node: &CwBvhNode, octant_inv: u32) -> DecodedNode {
         let planes = entry_exit_planes(node, octant_inv);
         DecodedNode {
             step: quantization_step(node),
@@ -460,7 +461,7 @@ const FRUSTUM_GROUPS: usize = FRUSTUM_RAYS / LANES;
 /// when the groups are 2x2 quads in row order). Leaf boxes are culled per quadrant before
 /// groups test them: a leaf usually covers a few pixels, so most groups are spared.
 const QUADRANTS: usize = 4;
-const QUADRANT_GROUPS: [[usize; 4]; QUADRANTS] =
+pub(crate) const QUADRANT_GROUPS: [[usize; 4]; QUADRANTS] =
     [[0, 1, 4, 5], [2, 3, 6, 7], [8, 9, 12, 13], [10, 11, 14, 15]];
 
 /// Range of the inverse direction components of a set of rays from one origin, and their
@@ -662,7 +663,9 @@ impl FrustumPacket {
             });
     }
 
-    /// Largest `t_max` of the active lanes of each quadrant (-inf for a quadrant without any).
+    /// Per quadrant, the largest `t_max` over every lane of its groups that have an active lane
+    /// (-inf for a quadrant without one). Lanes that are not active have `t_max` -inf or a
+    /// value of their own ray, so this may only overestimate: safe for culling.
     #[inline(always)]
     fn t_max_high(&self, active: &[u32; FRUSTUM_GROUPS]) -> [f32; QUADRANTS] {
         QUADRANT_GROUPS.map(|groups| {

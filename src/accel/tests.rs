@@ -2058,3 +2058,269 @@ fn vectorized_packet_preparation_matches_single_rays() {
         }
     }
 }
+/// Frustum packets against single rays and brute force with whole groups and quadrants of
+/// dead rays, partial packets and random intervals; and the wide BVH's structure walked from
+/// its root.
+mod packet_and_structure {
+    use super::*;
+    use crate::accel::wide_bvh::build_wide_bvh;
+    use obvhs::aabb::Aabb;
+
+    /// 8x8 tile of rays in packet order, with a random pattern of invalid lanes/groups/quadrants.
+    fn tile(rng: &mut Rng, eye: Vec3, target: Vec3, fov: f32, kill: u32) -> Vec<Ray> {
+        let forward = (target - eye).normalize();
+        let right = forward.cross(Vec3::Z).normalize();
+        let up = right.cross(forward);
+        let mut rays = Vec::new();
+        for quad in 0..16u32 {
+            for lane in 0..4u32 {
+                let column = (quad % 4) * 2 + lane % 2;
+                let row = (quad / 4) * 2 + lane / 2;
+                let u = (column as f32 + 0.5) / 8.0 * 2.0 - 1.0;
+                let v = 1.0 - (row as f32 + 0.5) / 8.0 * 2.0;
+                let direction = (forward + (right * u + up * v) * fov).normalize();
+                let mut ray = Ray::new(eye, direction, 0.0, f32::INFINITY);
+                let quadrant = [0, 0, 1, 1, 0, 0, 1, 1, 2, 2, 3, 3, 2, 2, 3, 3][quad as usize];
+                let dead = match kill {
+                    0 => false,
+                    1 => rng.next_u64().is_multiple_of(3),
+                    2 => quadrant != 3, // only one quadrant alive
+                    3 => quadrant % 2 == 0,
+                    4 => quad % 3 != 0,
+                    _ => !rng.next_u64().is_multiple_of(8),
+                };
+                if dead {
+                    ray.direction = Vec3::ZERO;
+                }
+                match rng.next_u64() % 8 {
+                    0 => ray.t_max = rng.range(0.5, 30.0),
+                    1 => ray.t_min = rng.range(0.0, 20.0),
+                    _ => {}
+                }
+                rays.push(ray);
+            }
+        }
+        rays
+    }
+
+    fn scenes(rng: &mut Rng) -> Vec<GeometryPrims> {
+        let mut out = vec![
+            random_triangles(rng, 3000, 10.0, 0.8),
+            random_triangles(rng, 3, 1.0, 0.5),
+            random_triangles(rng, 7, 1.0, 0.5),
+        ];
+        // A flat grid at z = 0 of tiny triangles, plus broken ones mixed in.
+        let mut positions = Vec::new();
+        let mut indices = Vec::new();
+        let n = 60u32;
+        for j in 0..=n {
+            for i in 0..=n {
+                positions.push(vec3(i as f32 * 0.3 - 9.0, j as f32 * 0.3 - 9.0, 0.0));
+            }
+        }
+        positions.push(vec3(f32::NAN, 0.0, 0.0));
+        let nan_index = positions.len() as u32 - 1;
+        for j in 0..n {
+            for i in 0..n {
+                let a = j * (n + 1) + i;
+                indices.push(UVec3::new(a, a + 1, a + n + 2));
+                indices.push(UVec3::new(a, a + n + 2, a + n + 1));
+                if (i + j) % 17 == 0 {
+                    indices.push(UVec3::new(a, a + 1, nan_index));
+                    indices.push(UVec3::new(a, a, a + 1));
+                    indices.push(UVec3::new(a, 99_999_999, a + 1));
+                }
+            }
+        }
+        out.push(GeometryPrims::Triangles { positions, indices });
+        out
+    }
+
+    #[test]
+    fn frustum_packets_with_dead_groups_and_quadrants_match_single_rays() {
+        let mut rng = Rng::new(0xBEEF);
+        let mut compared = 0usize;
+        let mut hit_count = 0usize;
+        let (mut frustums, mut tiles) = (0usize, 0usize);
+        for prims in scenes(&mut rng) {
+            let test: TestGeometry = prims.clone().into();
+            let bvh = test.build();
+            for round in 0..120 {
+                let eye = match round % 3 {
+                    0 => rng.point(-25.0, 25.0),
+                    1 => rng.point(-5.0, 5.0), // often inside the geometry
+                    _ => rng.point(-9.0, 9.0) * vec3(1.0, 1.0, 0.0) + vec3(0.0, 0.0, 0.1),
+                };
+                let target = rng.point(-8.0, 8.0) * vec3(1.0, 1.0, 0.2);
+                let fov = [0.001, 0.02, 0.3, 1.0, 3.0][round % 5];
+                let kill = (round / 5 % 6) as u32;
+                let mut rays = tile(&mut rng, eye, target, fov, kill);
+                let keep = 1 + (rng.next_u64() % 64) as usize;
+                if round % 4 == 0 {
+                    rays.truncate(keep);
+                }
+                let mut hits = vec![None; rays.len()];
+                let mut probe = crate::accel::packet::FrustumPacket::empty();
+                frustums += usize::from(probe.fill_from_rays(&rays));
+                tiles += 1;
+                bvh.intersect_packet(&rays, &mut hits);
+                for (ray, hit) in rays.iter().zip(&hits) {
+                    let single = bvh.intersect(ray);
+                    assert_eq!(
+                        single.map(|h| h.t),
+                        hit.map(|h| h.t),
+                        "{ray:?} round {round}"
+                    );
+                    if let Some(r) = TraversalRay::new(
+                        ray.origin.into(),
+                        ray.direction.into(),
+                        ray.t_min,
+                        ray.t_max,
+                    ) {
+                        check_against_brute_force(
+                            &test,
+                            hit.map(|h| (h.t, h.primitive)),
+                            &r,
+                            "frustum vs brute",
+                        );
+                    }
+                    compared += 1;
+                    hit_count += usize::from(hit.is_some());
+                }
+            }
+        }
+        assert!(hit_count > compared / 10, "{hit_count} of {compared}");
+        // Most tiles really went through the frustum path.
+        assert!(frustums * 3 > tiles, "{frustums} of {tiles}");
+    }
+
+    #[test]
+    fn scene_frustum_packets_with_dead_groups_and_quadrants_match_single_rays() {
+        let mut rng = Rng::new(0xF00D);
+        let geometries: Vec<Arc<GeometryBvh>> = [
+            random_triangles(&mut rng, 3000, 2.0, 0.2),
+            random_triangles(&mut rng, 2, 1.0, 0.5),
+        ]
+        .into_iter()
+        .map(|p| Arc::new(GeometryBvh::build(p)))
+        .collect();
+        let mut instances = Vec::new();
+        for k in 0..30 {
+            let transform = Affine3A::from_scale_rotation_translation(
+                Vec3::splat(rng.range(0.5, 2.0)) * vec3(1.0, rng.range(0.3, 3.0), 1.0),
+                Quat::from_axis_angle(rng.direction(), rng.range(0.0, 6.0)),
+                rng.point(-12.0, 12.0),
+            );
+            let transform = if k % 5 == 0 {
+                Affine3A::IDENTITY
+            } else {
+                transform
+            };
+            instances.push(InstanceDesc {
+                transform,
+                geometries: vec![geometries[k % 2].clone()],
+            });
+        }
+        let scene = SceneBvh::build(instances);
+        for round in 0..200 {
+            let eye = rng.point(-20.0, 20.0);
+            let target = rng.point(-10.0, 10.0);
+            let fov = [0.01, 0.2, 1.0, 3.0][round % 4];
+            let rays = tile(&mut rng, eye, target, fov, (round / 4 % 6) as u32);
+            let mut hits = vec![None; rays.len()];
+            scene.intersect_packet(&rays, &mut hits);
+            for (ray, hit) in rays.iter().zip(&hits) {
+                assert_eq!(
+                    scene.intersect(ray).map(|h| h.t),
+                    hit.map(|h| h.t),
+                    "{ray:?}"
+                );
+            }
+        }
+    }
+
+    /// Walks the CWBVH from the root and checks its invariants.
+    fn check_structure(boxes: &[Aabb]) {
+        let (nodes, order) = build_wide_bvh(boxes);
+        let n = boxes.len();
+        if n == 0 {
+            assert!(nodes.is_empty() && order.is_empty());
+            return;
+        }
+        let mut slot_seen = vec![0u32; n];
+        let mut node_seen = vec![0u32; nodes.len()];
+        let mut stack = vec![0usize];
+        let mut leaves_per_node = Vec::new();
+        while let Some(index) = stack.pop() {
+            node_seen[index] += 1;
+            let node = &nodes[index];
+            let mut inner_rank = 0;
+            let mut leaf_next = 0u32;
+            let mut children = 0;
+            for slot in 0..8 {
+                let meta = node.child_meta[slot];
+                if meta == 0 {
+                    assert_eq!(node.imask & (1 << slot), 0);
+                    continue;
+                }
+                children += 1;
+                if node.imask & (1 << slot) != 0 {
+                    assert_eq!(meta & 0b1_1111, 24 + slot as u8, "inner meta");
+                    let child = node.child_base_idx as usize + inner_rank;
+                    assert_eq!(child, node.child_node_index(slot) as usize);
+                    inner_rank += 1;
+                    stack.push(child);
+                } else {
+                    let offset = (meta & 31) as u32;
+                    let count = (meta >> 5).count_ones();
+                    assert!(meta >> 5 == (1 << count) - 1, "count bits contiguous");
+                    assert!((1..=3).contains(&count));
+                    assert_eq!(offset, leaf_next, "leaves contiguous in slot order");
+                    leaf_next += count;
+                    for i in 0..count {
+                        slot_seen[(node.primitive_base_idx + offset + i) as usize] += 1;
+                    }
+                }
+            }
+            assert!(leaf_next <= 24);
+            assert!((1..=8).contains(&children));
+            if index != 0 {
+                assert!(children >= 2, "non-root wide node with {children} children");
+            }
+            leaves_per_node.push(leaf_next);
+        }
+        assert!(
+            node_seen.iter().all(|&c| c == 1),
+            "{n}: nodes {node_seen:?}"
+        );
+        assert!(slot_seen.iter().all(|&c| c == 1), "{n}: slots");
+        let mut ids = order.clone();
+        ids.sort();
+        assert_eq!(ids, (0..n as u32).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn wide_bvh_nodes_and_leaves_are_reachable_once_and_well_formed() {
+        let mut rng = Rng::new(7);
+        for count in (1..=80).chain([100, 257, 1000, 5000, 40000]) {
+            let random: Vec<Aabb> = (0..count)
+                .map(|_| {
+                    let low = rng.point(-50.0, 50.0);
+                    Aabb::new(low.into(), (low + rng.point(0.0, 3.0)).into())
+                })
+                .collect();
+            check_structure(&random);
+            // All identical boxes.
+            let same = vec![Aabb::new(Vec3A::ZERO, Vec3A::ONE); count];
+            check_structure(&same);
+            // Flat and degenerate (points) boxes.
+            let flat: Vec<Aabb> = (0..count)
+                .map(|i| {
+                    let p = vec3(i as f32, (i % 7) as f32, 0.0);
+                    Aabb::new(p.into(), p.into())
+                })
+                .collect();
+            check_structure(&flat);
+        }
+    }
+}

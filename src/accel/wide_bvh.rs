@@ -109,12 +109,15 @@ struct Subtree {
 /// Packs a binary BVH (one primitive per leaf) into CWBVH nodes: each wide node takes its
 /// binary node's two children and keeps opening the largest child (by surface area) that is
 /// too big for a leaf until it has eight or none is left; subtrees of at most three
-/// primitives become leaves. The subtrees
-/// below the root are collapsed in parallel on the current rayon pool.
+/// primitives become leaves. The subtrees below the root are collapsed in parallel on the
+/// current rayon pool.
 pub(crate) fn collapse_to_wide(bvh2: &Bvh2) -> (Vec<CwBvhNode>, Vec<u32>) {
     if bvh2.nodes.is_empty() {
         return (Vec::new(), Vec::new());
     }
+    // A binary leaf of several primitives would be taken for an inner node (PLOC makes one
+    // primitive per leaf, and reinsertion keeps it so).
+    debug_assert!(bvh2.nodes.iter().all(|node| node.prim_count <= 1));
     let mut root_primitives = Vec::new();
     let (mut root, inner_children) = wide_node(bvh2, 0, true, &mut root_primitives);
     let subtrees: Vec<Subtree> = inner_children

@@ -634,12 +634,6 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
                         (x as f32 + offset.x) / setup.width as f32,
                         (y as f32 + offset.y) / setup.height as f32,
                     );
-                    // The fast renderer samples no lights: it skips the per-pixel hash.
-                    let sampling = if setup.settings.fast {
-                        LightSampling::default()
-                    } else {
-                        LightSampling::for_pixel(index, x, y)
-                    };
                     let k = ((y - ty) * tile_width + x - tx) as usize;
                     covered[k] = true;
                     if colour_only_fast {
@@ -658,7 +652,7 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
                         &rays[lane],
                         hits[lane],
                         Some(screen),
-                        &sampling,
+                        &LightSampling::for_pixel(index, x, y),
                     );
                     colors[k] += sample.color;
                     if s == 0 && job.keeps_hits {
@@ -701,6 +695,24 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn packet_quadrants_are_4x4_pixel_blocks() {
+        // Frustum packets cull leaves per quadrant of groups; that pays only if each quadrant
+        // is a compact 4x4 block of the 8x8 block's pixels.
+        for groups in crate::accel::QUADRANT_GROUPS {
+            let pixels: Vec<(u32, u32)> = groups
+                .iter()
+                .flat_map(|group| PACKET_ORDER[4 * group..4 * group + 4].iter().copied())
+                .collect();
+            let (x0, y0) = (pixels[0].0 / 4 * 4, pixels[0].1 / 4 * 4);
+            let mut expected: Vec<(u32, u32)> = (0..16).map(|i| (x0 + i % 4, y0 + i / 4)).collect();
+            let mut sorted = pixels.clone();
+            sorted.sort();
+            expected.sort();
+            assert_eq!(sorted, expected, "{groups:?}");
+        }
+    }
 
     #[test]
     fn first_sample_is_the_pixel_centre_and_the_rest_stay_inside() {

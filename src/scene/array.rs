@@ -284,15 +284,14 @@ impl ArrayStore {
                 .map(|element| {
                     let mut values = [0u32; 4];
                     for (value, raw) in values.iter_mut().zip(element.chunks_exact(value_bytes)) {
-                        // Four bytes are a UINT32 value, eight a UINT64 one.
-                        *value = match raw.try_into() {
-                            Ok(narrow) => u32::from_ne_bytes(narrow),
-                            Err(_) => raw
-                                .try_into()
+                        *value = if value_bytes == 4 {
+                            raw.try_into().map_or(u32::MAX, u32::from_ne_bytes)
+                        } else {
+                            raw.try_into()
                                 .map(u64::from_ne_bytes)
                                 .ok()
                                 .and_then(|wide| u32::try_from(wide).ok())
-                                .unwrap_or(u32::MAX),
+                                .unwrap_or(u32::MAX)
                         };
                     }
                     make(&values[..components])

@@ -553,7 +553,7 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
                 kept
             };
             Primitives::Standard(GeometryPrims::Triangles {
-                positions: positions.clone(),
+                positions,
                 indices: kept,
             })
         }
@@ -575,7 +575,7 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
                 vertex_indices.push(*q);
             }
             Primitives::Standard(GeometryPrims::Quads {
-                positions: positions.clone(),
+                positions,
                 indices: kept,
             })
         }
