@@ -2302,7 +2302,9 @@ mod packet_and_structure {
     #[test]
     fn wide_bvh_nodes_and_leaves_are_reachable_once_and_well_formed() {
         let mut rng = Rng::new(7);
-        for count in (1..=80).chain([100, 257, 1000, 5000, 40000]) {
+        // Not bigger: obvhs' PLOC takes quadratic time on many identical boxes (40,000 take
+        // seconds).
+        for count in (1..=80).chain([100, 257, 1000, 5000]) {
             let random: Vec<Aabb> = (0..count)
                 .map(|_| {
                     let low = rng.point(-50.0, 50.0);
