@@ -8,7 +8,7 @@ use crate::accel::primitives::{
     PackedSphere, PackedTriangle, sphere_surface, sphere_t, triangle_t, triangle_t_uv,
 };
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
-use crate::accel::wide_bvh::{TraversalRay, build_wide_bvh, prefetch, traverse};
+use crate::accel::wide_bvh::{LeafSizing, TraversalRay, build_wide_bvh, prefetch, traverse};
 use crate::accel::{EMPTY_BOUNDS, GeometryPrims, PrimHit, Ray};
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
@@ -49,6 +49,14 @@ pub struct GeometryBvh {
     bounds: (Vec3, Vec3),
     primitive_count: usize,
     skipped_primitive_count: usize,
+}
+
+#[cfg(test)]
+impl GeometryBvh {
+    /// Number of leaves in the BVH.
+    pub(crate) fn leaf_count(&self) -> usize {
+        crate::accel::wide_bvh::leaf_count(&self.nodes)
+    }
 }
 
 impl std::fmt::Debug for GeometryBvh {
@@ -129,7 +137,10 @@ fn usable_boxes(
 
 /// Builds the BVH over `boxes`; returns its nodes, the indices into `boxes` in BVH slot order
 /// and the union of the boxes.
-fn build_over_boxes(boxes: &[Aabb]) -> (Vec<CwBvhNode>, Vec<u32>, (Vec3, Vec3)) {
+fn build_over_boxes(
+    boxes: &[Aabb],
+    sizing: LeafSizing,
+) -> (Vec<CwBvhNode>, Vec<u32>, (Vec3, Vec3)) {
     let total = boxes
         .par_iter()
         .fold(
@@ -140,7 +151,7 @@ fn build_over_boxes(boxes: &[Aabb]) -> (Vec<CwBvhNode>, Vec<u32>, (Vec3, Vec3)) 
             || EMPTY_BOUNDS,
             |(min_a, max_a), (min_b, max_b)| (min_a.min(min_b), max_a.max(max_b)),
         );
-    let (nodes, order) = build_wide_bvh(boxes);
+    let (nodes, order) = build_wide_bvh(boxes, sizing);
     (nodes, order, total)
 }
 
@@ -148,9 +159,10 @@ fn build_over_boxes(boxes: &[Aabb]) -> (Vec<CwBvhNode>, Vec<u32>, (Vec3, Vec3)) 
 fn order_for_bvh<P: Copy + Send + Sync>(
     collected: Collected<P>,
     bounds_of: impl Fn(&P) -> Aabb + Send + Sync,
+    sizing: LeafSizing,
 ) -> (Vec<CwBvhNode>, Vec<P>, Vec<u32>, (Vec3, Vec3)) {
     let boxes: Vec<Aabb> = collected.primitives.par_iter().map(bounds_of).collect();
-    let (nodes, order, total) = build_over_boxes(&boxes);
+    let (nodes, order, total) = build_over_boxes(&boxes, sizing);
     drop(boxes);
     let primitives = order
         .par_iter()
@@ -181,7 +193,7 @@ impl GeometryBvh {
                     triangle_from(&positions, candidates[id].to_array()).map(|t| t.bounds())
                 });
                 let accepted = boxes.len();
-                let (nodes, order, bounds) = build_over_boxes(&boxes);
+                let (nodes, order, bounds) = build_over_boxes(&boxes, LeafSizing::Whole);
                 drop(boxes);
                 let source_ids = match usable_ids {
                     None => order,
@@ -220,7 +232,7 @@ impl GeometryBvh {
                     }
                 }
                 let (nodes, triangles, source_ids, bounds) =
-                    order_for_bvh(collected, PackedTriangle::bounds);
+                    order_for_bvh(collected, PackedTriangle::bounds, LeafSizing::Whole);
                 GeometryBvh {
                     nodes,
                     primitives: PrimitiveData::Quads(triangles),
@@ -242,7 +254,7 @@ impl GeometryBvh {
                 }
                 let accepted = collected.primitives.len();
                 let (nodes, spheres, source_ids, bounds) =
-                    order_for_bvh(collected, PackedSphere::bounds);
+                    order_for_bvh(collected, PackedSphere::bounds, LeafSizing::Split);
                 GeometryBvh {
                     nodes,
                     primitives: PrimitiveData::Spheres(spheres),
@@ -269,7 +281,8 @@ impl GeometryBvh {
             }
         }
         let accepted = collected.primitives.len();
-        let (nodes, tubes, source_ids, bounds) = order_for_bvh(collected, PackedTube::bounds);
+        let (nodes, tubes, source_ids, bounds) =
+            order_for_bvh(collected, PackedTube::bounds, LeafSizing::Split);
         GeometryBvh {
             nodes,
             primitives: PrimitiveData::Tubes(tubes),

@@ -9,7 +9,7 @@ use crate::accel::geometry::{GeometryBvh, prepare};
 use crate::accel::packet::{
     FRUSTUM_RAYS, FrustumPacket, LANES, RayPacket, traverse_frustum, traverse_packet,
 };
-use crate::accel::wide_bvh::{TraversalRay, build_wide_bvh, traverse};
+use crate::accel::wide_bvh::{LeafSizing, TraversalRay, build_wide_bvh, traverse};
 use crate::accel::{EMPTY_BOUNDS, InstanceDesc, PrimHit, Ray, SceneHit, bounds_are_empty};
 use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
@@ -117,7 +117,7 @@ impl SceneBvh {
                 });
             }
         }
-        let (nodes, order) = build_wide_bvh(&boxes);
+        let (nodes, order) = build_wide_bvh(&boxes, LeafSizing::Split);
         let mut slots: Vec<Option<Placement>> = placements.into_iter().map(Some).collect();
         let placements = order
             .iter()

@@ -3,7 +3,7 @@
 use crate::accel::geometry::BUILDS_ON_THIS_THREAD;
 use crate::accel::primitives::{PackedSphere, PackedTriangle, sphere_t, triangle_t};
 use crate::accel::tube::{PackedTube, tube_hit};
-use crate::accel::wide_bvh::TraversalRay;
+use crate::accel::wide_bvh::{LeafSizing, TraversalRay};
 use crate::accel::*;
 use glam::{Affine3A, Quat, UVec3, UVec4, Vec3, Vec3A, vec3};
 use std::sync::Arc;
@@ -1501,7 +1501,7 @@ fn sse2_box_test_matches_portable_version() {
             obvhs::aabb::Aabb::new(a.min(b).min(d).into(), a.max(b).max(d).into())
         })
         .collect();
-    let (nodes, _) = crate::accel::wide_bvh::build_wide_bvh(&boxes);
+    let (nodes, _) = crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole);
     let mut mismatches = 0;
     for test_ray in random_rays(&mut rng, 500, 10.0) {
         let prepared = traversal_ray(&test_ray);
@@ -1692,7 +1692,7 @@ fn wide_bvh_contains_every_primitive_once_inside_its_quantized_boxes() {
                 Aabb::new(low.into(), (low + rng.point(0.0, 3.0)).into())
             })
             .collect();
-        let (nodes, order) = crate::accel::wide_bvh::build_wide_bvh(&boxes);
+        let (nodes, order) = crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole);
         let mut seen = vec![0; count];
         for &index in &order {
             seen[index as usize] += 1;
@@ -2241,7 +2241,13 @@ mod packet_and_structure {
 
     /// Walks the CWBVH from the root and checks its invariants.
     fn check_structure(boxes: &[Aabb]) {
-        let (nodes, order) = build_wide_bvh(boxes);
+        for sizing in [LeafSizing::Whole, LeafSizing::Split] {
+            check_structure_with(boxes, sizing);
+        }
+    }
+
+    fn check_structure_with(boxes: &[Aabb], sizing: LeafSizing) {
+        let (nodes, order) = build_wide_bvh(boxes, sizing);
         let n = boxes.len();
         if n == 0 {
             assert!(nodes.is_empty() && order.is_empty());
@@ -2325,4 +2331,29 @@ mod packet_and_structure {
             check_structure(&flat);
         }
     }
+}
+
+#[test]
+fn triangle_leaves_stay_whole_and_sphere_and_tube_leaves_split() {
+    use crate::accel::wide_bvh::{build_wide_bvh, leaf_count};
+    let mut rng = Rng::new(61);
+    let boxes: Vec<obvhs::aabb::Aabb> = (0..3000)
+        .map(|_| {
+            let low = rng.point(-20.0, 20.0);
+            obvhs::aabb::Aabb::new(low.into(), (low + rng.point(0.0, 1.0)).into())
+        })
+        .collect();
+    let whole = leaf_count(&build_wide_bvh(&boxes, LeafSizing::Whole).0);
+    let split = leaf_count(&build_wide_bvh(&boxes, LeafSizing::Split).0);
+    // Whole: leaves of up to three boxes; split: spare slots break them up.
+    assert!(whole * 3 >= 3000 && whole < 1500, "{whole}");
+    assert!(split > 2 * whole, "{split} vs {whole}");
+    // Geometries choose by the cost of their primitive test.
+    let per_leaf = |bvh: &GeometryBvh| bvh.primitive_count() as f64 / bvh.leaf_count() as f64;
+    let triangles = GeometryBvh::build(random_triangles(&mut rng, 3000, 20.0, 1.0));
+    let spheres = GeometryBvh::build(random_spheres(&mut rng, 3000, 20.0, 0.5));
+    let tubes = random_tubes(&mut rng, 3000, 20.0, 1.0).build();
+    assert!(per_leaf(&triangles) > 2.0, "{}", per_leaf(&triangles));
+    assert!(per_leaf(&spheres) < 1.3, "{}", per_leaf(&spheres));
+    assert!(per_leaf(&tubes) < 1.3, "{}", per_leaf(&tubes));
 }

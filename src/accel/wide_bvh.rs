@@ -37,7 +37,7 @@ const MAX_PRIMS_PER_LEAF: u32 = 3;
 /// reinsertion costs 15 ms of a ~300 ms build and gains 4% on the default renderer's shadow
 /// rays (none on packets of primary rays), so it stays; search distance 6 or 5% reinsertion
 /// cost another 40-50 ms for at most 2%, search distance 1 lost 2%.
-pub(crate) fn build_wide_bvh(boxes: &[Aabb]) -> (Vec<CwBvhNode>, Vec<u32>) {
+pub(crate) fn build_wide_bvh(boxes: &[Aabb], sizing: LeafSizing) -> (Vec<CwBvhNode>, Vec<u32>) {
     if boxes.is_empty() {
         return (Vec::new(), Vec::new());
     }
@@ -50,7 +50,32 @@ pub(crate) fn build_wide_bvh(boxes: &[Aabb]) -> (Vec<CwBvhNode>, Vec<u32>) {
         1,
     );
     ReinsertionOptimizer::default().run(&mut bvh2, 0.01, None);
-    collapse_to_wide(&bvh2)
+    collapse_to_wide(&bvh2, sizing)
+}
+
+/// Number of leaves (occupied child slots that are not inner nodes) in `nodes`.
+#[cfg(test)]
+pub(crate) fn leaf_count(nodes: &[CwBvhNode]) -> usize {
+    nodes
+        .iter()
+        .map(|node| {
+            (node.child_meta.iter().filter(|meta| **meta != 0).count())
+                - node.imask.count_ones() as usize
+        })
+        .sum()
+}
+
+/// Whether spare child slots of a wide node split subtrees that would fit one leaf.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(crate) enum LeafSizing {
+    /// Subtrees of up to three primitives stay one leaf: for cheap primitive tests
+    /// (triangles), fewer box tests win. Measured on a 1M-triangle mesh: primary-ray packets
+    /// 10 % faster, the default renderer 2 %.
+    Whole,
+    /// Spare slots split small subtrees into smaller leaves: for costly primitive tests
+    /// (spheres and tubes in f64, instances), tighter boxes win. Measured: 100k spheres 5 %
+    /// faster, the CAVE demo's sphere cloud with shadows and a mirror 15-20 %.
+    Split,
 }
 
 /// A wide node's children can be at most this many.
@@ -108,10 +133,10 @@ struct Subtree {
 
 /// Packs a binary BVH (one primitive per leaf) into CWBVH nodes: each wide node takes its
 /// binary node's two children and keeps opening the largest child (by surface area) that is
-/// too big for a leaf until it has eight or none is left; subtrees of at most three
-/// primitives become leaves. The subtrees below the root are collapsed in parallel on the
+/// too big for a leaf until it has eight or none is left (then, with `LeafSizing::Split`, the
+/// largest that fits a leaf); subtrees of at most three primitives become leaves. The subtrees below the root are collapsed in parallel on the
 /// current rayon pool.
-pub(crate) fn collapse_to_wide(bvh2: &Bvh2) -> (Vec<CwBvhNode>, Vec<u32>) {
+pub(crate) fn collapse_to_wide(bvh2: &Bvh2, sizing: LeafSizing) -> (Vec<CwBvhNode>, Vec<u32>) {
     if bvh2.nodes.is_empty() {
         return (Vec::new(), Vec::new());
     }
@@ -119,11 +144,11 @@ pub(crate) fn collapse_to_wide(bvh2: &Bvh2) -> (Vec<CwBvhNode>, Vec<u32>) {
     // primitive per leaf, and reinsertion keeps it so).
     debug_assert!(bvh2.nodes.iter().all(|node| node.prim_count <= 1));
     let mut root_primitives = Vec::new();
-    let (mut root, inner_children) = wide_node(bvh2, 0, true, &mut root_primitives);
+    let (mut root, inner_children) = wide_node(bvh2, 0, true, sizing, &mut root_primitives);
     let subtrees: Vec<Subtree> = inner_children
         .as_slice()
         .par_iter()
-        .map(|&child| collapse_subtree(bvh2, child as usize))
+        .map(|&child| collapse_subtree(bvh2, child as usize, sizing))
         .collect();
 
     // Layout: root, its inner children's roots side by side (CWBVH addresses inner children
@@ -188,13 +213,14 @@ fn concat_parallel<T: Copy + Sync, U: Send>(
 }
 
 /// Collapses the binary subtree at `binary_root` into a node array with its root at 0.
-fn collapse_subtree(bvh2: &Bvh2, binary_root: usize) -> Subtree {
+fn collapse_subtree(bvh2: &Bvh2, binary_root: usize, sizing: LeafSizing) -> Subtree {
     let mut nodes = vec![CwBvhNode::default()];
     let mut primitives = Vec::new();
     // (wide node index, binary node it stands for)
     let mut pending = vec![(0usize, binary_root)];
     while let Some((wide_index, binary_index)) = pending.pop() {
-        let (mut node, inner_children) = wide_node(bvh2, binary_index, false, &mut primitives);
+        let (mut node, inner_children) =
+            wide_node(bvh2, binary_index, false, sizing, &mut primitives);
         // Inner children get consecutive nodes in slot order.
         node.child_base_idx = nodes.len() as u32;
         for &child in inner_children.as_slice() {
@@ -215,10 +241,11 @@ fn wide_node(
     bvh2: &Bvh2,
     binary_index: usize,
     may_be_leaf: bool,
+    sizing: LeafSizing,
     primitive_order: &mut Vec<u32>,
 ) -> (CwBvhNode, InnerChildren) {
     let binary = &bvh2.nodes;
-    let children = wide_children(bvh2, binary_index, may_be_leaf);
+    let children = wide_children(bvh2, binary_index, may_be_leaf, sizing);
     let children = children.as_slice();
     let parent_box = *binary[binary_index].aabb();
     let slots = assign_slots(bvh2, children, &parent_box);
@@ -355,7 +382,7 @@ fn candidate_pair(bvh2: &Bvh2, first: usize) -> [Candidate; 2] {
 
 /// Up to eight binary descendants that become the children of one wide node, each with its
 /// primitive count if it is small enough to be a leaf.
-fn wide_children(bvh2: &Bvh2, index: usize, may_be_leaf: bool) -> Candidates {
+fn wide_children(bvh2: &Bvh2, index: usize, may_be_leaf: bool, sizing: LeafSizing) -> Candidates {
     let binary = &bvh2.nodes;
     let node = &binary[index];
     let mut children = Candidates::new(Candidate {
@@ -376,20 +403,23 @@ fn wide_children(bvh2: &Bvh2, index: usize, may_be_leaf: bool) -> Candidates {
     children.push(first);
     children.push(second);
     while children.len < WIDTH {
-        // Open the largest subtree too large for a leaf. Subtrees that fit one stay whole
-        // even when slots are spare: splitting them makes leaves of one primitive, whose box
-        // tests cost packets of primary rays more than the primitive tests they save
-        // (measured: 10 % more packet traversal time on a 1M-triangle mesh).
-        let mut best: Option<(usize, f32)> = None;
+        // Open the largest subtree too large for a leaf; with spare slots and
+        // `LeafSizing::Split`, then the largest one that fits a leaf.
+        let mut best: Option<(usize, bool, f32)> = None;
         for (position, child) in children.as_slice().iter().enumerate() {
-            if child.leaf_count.is_some() || binary[child.index as usize].is_leaf() {
+            let must_open = child.leaf_count.is_none();
+            if binary[child.index as usize].is_leaf() || (!must_open && sizing == LeafSizing::Whole)
+            {
                 continue;
             }
-            if best.is_none_or(|(_, best_area)| child.half_area > best_area) {
-                best = Some((position, child.half_area));
+            let better = best.is_none_or(|(_, best_must, best_area)| {
+                (must_open && !best_must) || (must_open == best_must && child.half_area > best_area)
+            });
+            if better {
+                best = Some((position, must_open, child.half_area));
             }
         }
-        let Some((position, _)) = best else {
+        let Some((position, _, _)) = best else {
             break;
         };
         let opened = binary[children.entries[position].index as usize].first_index as usize;
