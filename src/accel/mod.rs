@@ -51,6 +51,7 @@ mod wide_bvh;
 mod tests;
 
 pub use geometry::{GeometryBvh, geometry_build_count};
+pub use packet::PacketScratch;
 #[cfg(test)]
 pub(crate) use packet::QUADRANT_GROUPS;
 pub use scene::SceneBvh;

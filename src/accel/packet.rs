@@ -513,6 +513,25 @@ fn lane_mask(lanes: u32) -> BVec4A {
     )
 }
 
+/// Working memory for tracing packets of primary rays, reusable from one tile to the next.
+pub struct PacketScratch {
+    pub(crate) frustum: FrustumPacket,
+}
+
+impl PacketScratch {
+    pub fn new() -> PacketScratch {
+        PacketScratch {
+            frustum: FrustumPacket::empty(),
+        }
+    }
+}
+
+impl Default for PacketScratch {
+    fn default() -> PacketScratch {
+        PacketScratch::new()
+    }
+}
+
 /// Up to 64 rays from one origin sharing a direction octant, as groups of four. Upper BVH
 /// levels are culled once for the whole packet with interval arithmetic over the rays' inverse
 /// directions (a box no ray can reach is skipped for all of them); leaf boxes are culled per

@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use glam::{Vec2, Vec3, Vec4};
 
-use crate::accel::Ray;
+use crate::accel::{PacketScratch, Ray};
 use crate::camera::{Camera, CameraRay, EyeRays};
 use crate::device::datatype::*;
 use crate::device::property::PropertyValue;
@@ -584,6 +584,7 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
     } else {
         Vec::new()
     };
+    let mut scratch = PacketScratch::new();
     let mut rays = [NO_RAY; 64];
     let mut camera_rays = [None; 64];
     let mut hits = [None; 64];
@@ -623,7 +624,10 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
                     };
                     camera_rays[lane] = Some((camera_ray, eye_rays));
                 }
-                setup.scene.bvh.intersect_packet(&rays, &mut hits);
+                setup
+                    .scene
+                    .bvh
+                    .intersect_packet_with(&mut scratch, &rays, &mut hits);
                 for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
                     let Some((camera_ray, eye_rays)) = camera_rays[lane] else {
                         continue;
