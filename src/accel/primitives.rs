@@ -193,9 +193,20 @@ pub(crate) fn sphere_t(sphere: &PackedSphere, ray: &TraversalRay) -> Option<f32>
     if line_clearly_misses_sphere(sphere, ray) {
         return None;
     }
-    let origin = ray.origin.as_dvec3() - sphere.center.as_dvec3();
+    let [near, far] = ball_roots(sphere.center, sphere.radius, ray)?;
+    in_interval(near, ray).or_else(|| in_interval(far, ray))
+}
+
+/// Both roots (in f64) of a ray and a ball, or `None` on a miss or a radius that is not
+/// positive. Spheres and the end balls of tubes share it.
+#[inline(always)]
+pub(crate) fn ball_roots(center: Vec3, radius: f32, ray: &TraversalRay) -> Option<[f64; 2]> {
+    if radius <= 0.0 {
+        return None;
+    }
+    let origin = ray.origin.as_dvec3() - center.as_dvec3();
     let direction = ray.direction.as_dvec3();
-    let radius = sphere.radius as f64;
+    let radius = radius as f64;
     let a = direction.length_squared();
     let b = -origin.dot(direction);
     // Distance from the centre to the line, measured directly instead of through b^2 - a c.
@@ -206,8 +217,7 @@ pub(crate) fn sphere_t(sphere: &PackedSphere, ray: &TraversalRay) -> Option<f32>
         return None;
     }
     let c = origin.length_squared() - radius * radius;
-    let [near, far] = quadratic_roots(a, b, c, disc);
-    in_interval(near, ray).or_else(|| in_interval(far, ray))
+    Some(quadratic_roots(a, b, c, disc))
 }
 
 /// Cheap f32 rejection for the common miss: the ray's line passes the centre farther than the

@@ -17,7 +17,7 @@
 //! the lateral surface.
 
 use crate::accel::primitives::{
-    in_interval, is_usable_box, is_usable_point, quadratic_roots, unit_or_axis,
+    ball_roots, in_interval, is_usable_box, is_usable_point, quadratic_roots, unit_or_axis,
 };
 use crate::accel::wide_bvh::TraversalRay;
 use glam::{DVec3, Vec2, Vec3};
@@ -229,26 +229,6 @@ fn side_roots(frame: &AxisFrame, side: &Side, mut consider: impl FnMut(f64)) {
     for t in quadratic_roots(a, b, c, disc) {
         offer(t);
     }
-}
-
-/// Both roots of a ray and a ball, or `None` on a miss.
-#[inline(always)]
-fn ball_roots(center: Vec3, radius: f32, ray: &TraversalRay) -> Option<[f64; 2]> {
-    if radius <= 0.0 {
-        return None;
-    }
-    let origin = ray.origin.as_dvec3() - center.as_dvec3();
-    let direction = ray.direction.as_dvec3();
-    let radius = radius as f64;
-    let a = direction.length_squared();
-    let b = -origin.dot(direction);
-    let closest = origin + direction * (b / a);
-    let disc = a * (radius * radius - closest.length_squared());
-    if disc.is_nan() || disc < 0.0 {
-        return None;
-    }
-    let c = origin.length_squared() - radius * radius;
-    Some(quadratic_roots(a, b, c, disc))
 }
 
 /// Closest hit of a tube in the ray interval and the part it lies on.
