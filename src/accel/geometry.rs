@@ -155,14 +155,17 @@ fn build_over_boxes(
     (nodes, order, total)
 }
 
-/// Builds the BVH over the collected primitives and stores them in BVH slot order.
-fn order_for_bvh<P: Copy + Send + Sync>(
+/// Builds the BVH over the collected primitives, stores them in BVH slot order (wrapped by
+/// `wrap`) and counts `input_count - accepted` primitives as skipped.
+fn bvh_over_collected<P: Copy + Send + Sync>(
     collected: Collected<P>,
     bounds_of: impl Fn(&P) -> Aabb + Send + Sync,
     sizing: LeafSizing,
-) -> (Vec<CwBvhNode>, Vec<P>, Vec<u32>, (Vec3, Vec3)) {
+    wrap: impl FnOnce(Vec<P>) -> PrimitiveData,
+    (accepted, input_count): (usize, usize),
+) -> GeometryBvh {
     let boxes: Vec<Aabb> = collected.primitives.par_iter().map(bounds_of).collect();
-    let (nodes, order, total) = build_over_boxes(&boxes, sizing);
+    let (nodes, order, bounds) = build_over_boxes(&boxes, sizing);
     drop(boxes);
     let primitives = order
         .par_iter()
@@ -172,7 +175,14 @@ fn order_for_bvh<P: Copy + Send + Sync>(
         .par_iter()
         .map(|&i| collected.source_ids[i as usize])
         .collect();
-    (nodes, primitives, source_ids, total)
+    GeometryBvh {
+        nodes,
+        primitives: wrap(primitives),
+        source_ids,
+        bounds,
+        primitive_count: accepted,
+        skipped_primitive_count: input_count - accepted,
+    }
 }
 
 impl GeometryBvh {
@@ -231,16 +241,13 @@ impl GeometryBvh {
                         collected.push(triangle, id as u32 | QUAD_SECOND_HALF);
                     }
                 }
-                let (nodes, triangles, source_ids, bounds) =
-                    order_for_bvh(collected, PackedTriangle::bounds, LeafSizing::Whole);
-                GeometryBvh {
-                    nodes,
-                    primitives: PrimitiveData::Quads(triangles),
-                    source_ids,
-                    bounds,
-                    primitive_count: accepted,
-                    skipped_primitive_count: indices.len() - accepted,
-                }
+                bvh_over_collected(
+                    collected,
+                    PackedTriangle::bounds,
+                    LeafSizing::Whole,
+                    PrimitiveData::Quads,
+                    (accepted, indices.len()),
+                )
             }
             GeometryPrims::Spheres { centers, radii } => {
                 let mut collected = Collected::with_capacity(centers.len());
@@ -253,16 +260,13 @@ impl GeometryBvh {
                     }
                 }
                 let accepted = collected.primitives.len();
-                let (nodes, spheres, source_ids, bounds) =
-                    order_for_bvh(collected, PackedSphere::bounds, LeafSizing::Split);
-                GeometryBvh {
-                    nodes,
-                    primitives: PrimitiveData::Spheres(spheres),
-                    source_ids,
-                    bounds,
-                    primitive_count: accepted,
-                    skipped_primitive_count: centers.len() - accepted,
-                }
+                bvh_over_collected(
+                    collected,
+                    PackedSphere::bounds,
+                    LeafSizing::Split,
+                    PrimitiveData::Spheres,
+                    (accepted, centers.len()),
+                )
             }
         }
     }
@@ -281,16 +285,13 @@ impl GeometryBvh {
             }
         }
         let accepted = collected.primitives.len();
-        let (nodes, tubes, source_ids, bounds) =
-            order_for_bvh(collected, PackedTube::bounds, LeafSizing::Split);
-        GeometryBvh {
-            nodes,
-            primitives: PrimitiveData::Tubes(tubes),
-            source_ids,
-            bounds,
-            primitive_count: accepted,
-            skipped_primitive_count: segments.len() - accepted,
-        }
+        bvh_over_collected(
+            collected,
+            PackedTube::bounds,
+            LeafSizing::Split,
+            PrimitiveData::Tubes,
+            (accepted, segments.len()),
+        )
     }
 
     /// Closest hit with `t` in `[t_min, t_max]`.
