@@ -88,6 +88,15 @@ impl Drop for Scene {
     }
 }
 
+/// End points of two upright segments along y, at x = −0.75 (vertices 0, 1) and x = 0.75
+/// (vertices 2, 3), from y = −1 to 1.
+const UPRIGHTS: [[f32; 3]; 4] = [
+    [-0.75, -1.0, 0.0],
+    [-0.75, 1.0, 0.0],
+    [0.75, -1.0, 0.0],
+    [0.75, 1.0, 0.0],
+];
+
 fn positions(dev: ANARIDevice, geometry: ANARIGeometry, points: &[[f32; 3]]) {
     set_array(dev, geometry, "vertex.position", ANARI_FLOAT32_VEC3, points);
 }
@@ -168,16 +177,7 @@ fn cylinder_sides_have_analytic_depth_and_indexed_primitive_ids() {
     // Two cylinders of radius 0.25 along y, at x = −0.75 and x = 0.75; the second runs from
     // vertex 3 to vertex 2. Seen from +z their sides are bands of depth 5 − sqrt(r² − dx²).
     let geometry = scene.geometry("cylinder", |dev, g| {
-        positions(
-            dev,
-            g,
-            &[
-                [-0.75, -1.0, 0.0],
-                [-0.75, 1.0, 0.0],
-                [0.75, -1.0, 0.0],
-                [0.75, 1.0, 0.0],
-            ],
-        );
+        positions(dev, g, &UPRIGHTS);
         set_array(
             dev,
             g,
@@ -567,16 +567,7 @@ fn bad_primitives_are_reported_and_skipped_while_the_rest_renders() {
     let scene = Scene::new(&log);
     // Cylinder 1 has a negative radius, cylinder 2 an index out of range.
     let geometry = scene.geometry("cylinder", |dev, g| {
-        positions(
-            dev,
-            g,
-            &[
-                [-0.75, -1.0, 0.0],
-                [-0.75, 1.0, 0.0],
-                [0.75, -1.0, 0.0],
-                [0.75, 1.0, 0.0],
-            ],
-        );
+        positions(dev, g, &UPRIGHTS);
         set_array(
             dev,
             g,
@@ -611,16 +602,7 @@ fn bad_primitives_are_reported_and_skipped_while_the_rest_renders() {
 
     // Cone: NaN radius at vertex 3; the first cone still shows.
     let geometry = scene.geometry("cone", |dev, g| {
-        positions(
-            dev,
-            g,
-            &[
-                [-0.75, -1.0, 0.0],
-                [-0.75, 1.0, 0.0],
-                [0.75, -1.0, 0.0],
-                [0.75, 1.0, 0.0],
-            ],
-        );
+        positions(dev, g, &UPRIGHTS);
         set_array(
             dev,
             g,
