@@ -47,8 +47,13 @@ fn srgb_table() -> &'static [u8] {
 /// Linear [0,1] → sRGB byte. A table lookup: this runs for every pixel of every frame, and
 /// `powf` per channel cost a sizeable share of a frame.
 pub fn encode_srgb8(linear: f32) -> u8 {
-    let index = (linear.clamp(0.0, 1.0) * SRGB_TABLE_STEPS as f32 + 0.5) as usize;
-    srgb_table()[index]
+    srgb8_encoder()(linear)
+}
+
+/// [`encode_srgb8`] with the table looked up once, for loops over many pixels.
+pub fn srgb8_encoder() -> impl Fn(f32) -> u8 + Copy {
+    let table = srgb_table();
+    move |linear: f32| table[(linear.clamp(0.0, 1.0) * SRGB_TABLE_STEPS as f32 + 0.5) as usize]
 }
 
 #[cfg(test)]

@@ -13,7 +13,7 @@ use crate::accel::{PacketScratch, Ray};
 use crate::camera::{Camera, CameraRay, EyeRays};
 use crate::device::datatype::*;
 use crate::device::property::PropertyValue;
-use crate::render::color::{encode_srgb8, to_snorm16, to_unorm8};
+use crate::render::color::{srgb8_encoder, to_snorm16, to_unorm8};
 use crate::render::renderer::{PrimaryHit, RendererSettings, fast_surface_color, shade_primary_at};
 use crate::scene::light::LightSampling;
 use crate::scene::world::SceneSnapshot;
@@ -95,83 +95,114 @@ impl ChannelKind {
     }
 }
 
-/// One requested channel of a render, encoded as the type the application asked for. Tiles
-/// write their pixels straight into it, so a finished render needs no encoding pass.
-struct Channel {
-    name: &'static str,
+/// How one requested channel is encoded: what it holds, as which type.
+#[derive(Clone, Copy, Debug)]
+struct ChannelFormat {
     kind: ChannelKind,
     data_type: ANARIDataType,
     pixel_bytes: usize,
+}
+
+/// What the channels other than colour read for a pixel: its first sample's hit with the
+/// camera ray and eye, `None` where nothing was hit.
+type PixelHit<'a> = Option<(&'a PrimaryHit, &'a CameraRay, &'a EyeRays)>;
+
+/// Writes `pixel(k)` as pixel `k` of `out` (N bytes each).
+#[inline(always)]
+fn encode_pixels<const N: usize>(out: &mut [u8], pixel: impl Fn(usize) -> [u8; N]) {
+    for (k, chunk) in out.chunks_exact_mut(N).enumerate() {
+        chunk.copy_from_slice(&pixel(k));
+    }
+}
+
+/// `values` as native-endian bytes (`B` = 4·`N`).
+#[inline(always)]
+fn f32_bytes<const N: usize, const B: usize>(values: [f32; N]) -> [u8; B] {
+    let mut bytes = [0; B];
+    for (chunk, value) in bytes.chunks_exact_mut(4).zip(values) {
+        chunk.copy_from_slice(&value.to_ne_bytes());
+    }
+    bytes
+}
+
+impl ChannelFormat {
+    /// Encodes the pixels of a tile into `out` (`pixel_bytes` each, in the order of `colors`):
+    /// `colors` are their final colours, `hit(k)` pixel `k`'s first hit. The match on the type
+    /// is made once per tile, not per pixel.
+    fn encode<'a>(&self, colors: &[Vec4], hit: impl Fn(usize) -> PixelHit<'a>, out: &mut [u8]) {
+        let out = &mut out[..colors.len() * self.pixel_bytes];
+        let color = |k: usize| colors[k];
+        let id = |k: usize, of: fn(&PrimaryHit) -> u32| {
+            hit(k).map_or(u32::MAX, |(h, _, _)| of(h)).to_ne_bytes()
+        };
+        match (self.kind, self.data_type) {
+            (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB) => {
+                let srgb = srgb8_encoder();
+                encode_pixels(out, |k| {
+                    let c = color(k);
+                    [srgb(c.x), srgb(c.y), srgb(c.z), to_unorm8(c.w)]
+                })
+            }
+            (ChannelKind::Color, ANARI_UFIXED8_VEC4) => {
+                encode_pixels(out, |k| color(k).to_array().map(to_unorm8))
+            }
+            (ChannelKind::Color, _) => {
+                encode_pixels(out, |k| f32_bytes::<4, 16>(color(k).to_array()))
+            }
+            (ChannelKind::Depth, _) => encode_pixels(out, |k| {
+                f32_bytes::<1, 4>([
+                    hit(k).map_or(f32::INFINITY, |(h, ray, eye)| eye.depth(ray, h.t))
+                ])
+            }),
+            (ChannelKind::WindowDepth, _) => encode_pixels(out, |k| {
+                f32_bytes::<1, 4>([hit(k).map_or(1.0, |(h, _, eye)| eye.window_depth(h.point))])
+            }),
+            (ChannelKind::PrimitiveId, _) => encode_pixels(out, |k| id(k, |h| h.primitive_id)),
+            (ChannelKind::ObjectId, _) => encode_pixels(out, |k| id(k, |h| h.object_id)),
+            (ChannelKind::InstanceId, _) => encode_pixels(out, |k| id(k, |h| h.instance_id)),
+            (ChannelKind::Albedo, data_type) => {
+                let albedo = |k: usize| hit(k).map_or(Vec3::ZERO, |(h, _, _)| h.albedo).to_array();
+                match data_type {
+                    ANARI_UFIXED8_RGB_SRGB => {
+                        let srgb = srgb8_encoder();
+                        encode_pixels(out, |k| albedo(k).map(srgb))
+                    }
+                    ANARI_UFIXED8_VEC3 => encode_pixels(out, |k| albedo(k).map(to_unorm8)),
+                    _ => encode_pixels(out, |k| f32_bytes::<3, 12>(albedo(k))),
+                }
+            }
+            (ChannelKind::Normal, data_type) => {
+                let normal = |k: usize| hit(k).map_or(Vec3::ZERO, |(h, _, _)| h.normal).to_array();
+                match data_type {
+                    ANARI_FIXED16_VEC3 => encode_pixels(out, |k| {
+                        let [x, y, z] = normal(k).map(|v| to_snorm16(v).to_ne_bytes());
+                        [x[0], x[1], y[0], y[1], z[0], z[1]]
+                    }),
+                    _ => encode_pixels(out, |k| f32_bytes::<3, 12>(normal(k))),
+                }
+            }
+        }
+    }
+}
+
+/// One requested channel of a render with its pixels. Tiles are encoded by the threads that
+/// render them and copied in row by row, so a finished render needs no encoding pass.
+struct Channel {
+    name: &'static str,
+    format: ChannelFormat,
     bytes: Vec<u8>,
 }
 
 impl Channel {
-    /// Writes pixel `index`; `hit` is the first sample's hit with its camera ray, `None` for
-    /// a pixel where nothing was hit.
-    #[inline]
-    fn write(
-        &mut self,
-        index: usize,
-        color: Vec4,
-        hit: Option<(&PrimaryHit, &CameraRay, &EyeRays)>,
-    ) {
-        let offset = index * self.pixel_bytes;
-        let Some(out) = self.bytes.get_mut(offset..offset + self.pixel_bytes) else {
-            return;
-        };
-        fn put_f32s(out: &mut [u8], values: &[f32]) {
-            for (chunk, value) in out.chunks_exact_mut(4).zip(values) {
-                chunk.copy_from_slice(&value.to_ne_bytes());
-            }
-        }
-        match (self.kind, self.data_type) {
-            (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB) => out.copy_from_slice(&[
-                encode_srgb8(color.x),
-                encode_srgb8(color.y),
-                encode_srgb8(color.z),
-                to_unorm8(color.w),
-            ]),
-            (ChannelKind::Color, ANARI_UFIXED8_VEC4) => {
-                out.copy_from_slice(&color.to_array().map(to_unorm8))
-            }
-            (ChannelKind::Color, _) => put_f32s(out, &color.to_array()),
-            (ChannelKind::Depth, _) => put_f32s(
-                out,
-                &[hit.map_or(f32::INFINITY, |(hit, ray, eye)| eye.depth(ray, hit.t))],
-            ),
-            (ChannelKind::WindowDepth, _) => put_f32s(
-                out,
-                &[hit.map_or(1.0, |(hit, _, eye)| eye.window_depth(hit.point))],
-            ),
-            (ChannelKind::PrimitiveId, _) => {
-                out.copy_from_slice(&hit.map_or(u32::MAX, |h| h.0.primitive_id).to_ne_bytes())
-            }
-            (ChannelKind::ObjectId, _) => {
-                out.copy_from_slice(&hit.map_or(u32::MAX, |h| h.0.object_id).to_ne_bytes())
-            }
-            (ChannelKind::InstanceId, _) => {
-                out.copy_from_slice(&hit.map_or(u32::MAX, |h| h.0.instance_id).to_ne_bytes())
-            }
-            (ChannelKind::Albedo, data_type) => {
-                let albedo = hit.map_or(Vec3::ZERO, |h| h.0.albedo);
-                match data_type {
-                    ANARI_UFIXED8_RGB_SRGB => {
-                        out.copy_from_slice(&albedo.to_array().map(encode_srgb8))
-                    }
-                    ANARI_UFIXED8_VEC3 => out.copy_from_slice(&albedo.to_array().map(to_unorm8)),
-                    _ => put_f32s(out, &albedo.to_array()),
-                }
-            }
-            (ChannelKind::Normal, data_type) => {
-                let normal = hit.map_or(Vec3::ZERO, |h| h.0.normal);
-                match data_type {
-                    ANARI_FIXED16_VEC3 => {
-                        for (chunk, value) in out.chunks_exact_mut(2).zip(normal.to_array()) {
-                            chunk.copy_from_slice(&to_snorm16(value).to_ne_bytes());
-                        }
-                    }
-                    _ => put_f32s(out, &normal.to_array()),
-                }
+    /// Copies a tile encoded by [`ChannelFormat::encode`] (`tile_width` pixels per row, rows
+    /// from `y0` up) to its place in a frame `frame_width` pixels wide.
+    fn write_tile(&mut self, x0: u32, y0: u32, tile_width: u32, frame_width: u32, tile: &[u8]) {
+        let row_bytes = tile_width as usize * self.format.pixel_bytes;
+        for (row, source) in tile.chunks_exact(row_bytes).enumerate() {
+            let start = ((y0 as usize + row) * frame_width as usize + x0 as usize)
+                * self.format.pixel_bytes;
+            if let Some(target) = self.bytes.get_mut(start..start + row_bytes) {
+                target.copy_from_slice(source);
             }
         }
     }
@@ -204,9 +235,11 @@ fn allocate_channels(setup: &RenderSetup, previous: Option<Output>) -> Option<Ve
         };
         channels.push(Channel {
             name,
-            kind,
-            data_type,
-            pixel_bytes,
+            format: ChannelFormat {
+                kind,
+                data_type,
+                pixel_bytes,
+            },
             bytes,
         });
     }
@@ -228,6 +261,8 @@ struct Job {
     tile_count: usize,
     workers_left: AtomicUsize,
     channels: Mutex<Vec<Channel>>,
+    /// The formats of `channels`, in the same order, readable without the lock.
+    formats: Vec<ChannelFormat>,
     /// Whether a channel other than colour needs each pixel's first hit.
     keeps_hits: bool,
     /// Accumulation pass number (0 = first).
@@ -357,7 +392,8 @@ impl FrameState {
             tiles_x,
             tile_count: (tiles_x * tiles_y) as usize,
             workers_left: AtomicUsize::new(workers),
-            keeps_hits: channels.iter().any(|c| c.kind != ChannelKind::Color),
+            keeps_hits: channels.iter().any(|c| c.format.kind != ChannelKind::Color),
+            formats: channels.iter().map(|c| c.format).collect(),
             channels: Mutex::new(channels),
             pass,
             color_sum: color_sum.map(Mutex::new),
@@ -375,12 +411,13 @@ impl FrameState {
     /// One worker's share: tiles until none are left, then the last worker finishes the frame.
     fn work(&self, job: &Job) {
         let eyes = prepare_eyes(&job.setup);
+        let mut scratch = TileScratch::default();
         while !job.cancel.load(Ordering::Acquire) {
             let tile = job.next_tile.fetch_add(1, Ordering::AcqRel);
             if tile >= job.tile_count {
                 break;
             }
-            render_tile(job, &eyes, tile);
+            render_tile(job, &eyes, tile, &mut scratch);
         }
         if job.workers_left.fetch_sub(1, Ordering::AcqRel) == 1 {
             self.finish(job);
@@ -395,7 +432,7 @@ impl FrameState {
             height: setup.height,
             channels: channels
                 .into_iter()
-                .map(|channel| (channel.name, (channel.data_type, channel.bytes)))
+                .map(|channel| (channel.name, (channel.format.data_type, channel.bytes)))
                 .collect(),
         });
         let accumulation = job.color_sum.as_ref().map(|sum| {
@@ -565,7 +602,20 @@ fn viewport_holds(
         && y1 <= viewport.y + viewport.height
 }
 
-fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: usize) {
+/// A worker's working memory, kept from one tile to the next.
+#[derive(Default)]
+struct TileScratch {
+    packets: PacketScratch,
+    /// One channel's pixels of a tile, encoded.
+    encoded: Vec<u8>,
+}
+
+fn render_tile(
+    job: &Job,
+    eyes: &[(crate::camera::EyeViewport, EyeRays)],
+    tile: usize,
+    scratch: &mut TileScratch,
+) {
     let setup = &job.setup;
     let tx = (tile as u32 % job.tiles_x) * TILE_SIZE;
     let ty = (tile as u32 / job.tiles_x) * TILE_SIZE;
@@ -584,7 +634,6 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
     } else {
         Vec::new()
     };
-    let mut scratch = PacketScratch::new();
     let mut rays = [NO_RAY; 64];
     let mut camera_rays = [None; 64];
     let mut hits = [None; 64];
@@ -627,7 +676,7 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
                 setup
                     .scene
                     .bvh
-                    .intersect_packet_with(&mut scratch, &rays, &mut hits);
+                    .intersect_packet_with(&mut scratch.packets, &rays, &mut hits);
                 for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
                     let Some((camera_ray, eye_rays)) = camera_rays[lane] else {
                         continue;
@@ -667,31 +716,40 @@ fn render_tile(job: &Job, eyes: &[(crate::camera::EyeViewport, EyeRays)], tile: 
         }
     }
     let passes = (job.pass + 1) as f32;
-    let mut channels = lock(&job.channels);
+    // Final colours: the samples' mean (the background where no eye looks), then the running
+    // mean over the passes when accumulating.
     let mut color_sum = job.color_sum.as_ref().map(lock);
-    for k in 0..pixel_count {
+    for (k, color) in colors[..pixel_count].iter_mut().enumerate() {
         let (x, y) = (tx + k as u32 % tile_width, ty + k as u32 / tile_width);
-        let index = (y * setup.width + x) as usize;
-        let mut color = if covered[k] {
-            colors[k] / samples as f32
+        *color = if covered[k] {
+            *color / samples as f32
         } else {
             setup.settings.background_at(Vec2::new(
                 (x as f32 + 0.5) / setup.width as f32,
                 (y as f32 + 0.5) / setup.height as f32,
             ))
         };
-        let hit = first_hits
+        if let Some(sum) = color_sum.as_deref_mut()
+            && let Some(total) = sum.get_mut((y * setup.width + x) as usize)
+        {
+            *total += *color;
+            *color = *total / passes;
+        }
+    }
+    drop(color_sum);
+    let hit = |k: usize| {
+        first_hits
             .get(k)
             .and_then(Option::as_ref)
-            .map(|(hit, camera_ray, eye_rays)| (hit, camera_ray, *eye_rays));
-        if let Some(sum) = color_sum.as_deref_mut()
-            && let Some(total) = sum.get_mut(index)
-        {
-            *total += color;
-            color = *total / passes;
-        }
-        for channel in channels.iter_mut() {
-            channel.write(index, color, hit);
+            .map(|(hit, camera_ray, eye_rays)| (hit, camera_ray, *eye_rays))
+    };
+    // Encoded outside the lock; the lock is held only to copy the rows in.
+    for (index, format) in job.formats.iter().enumerate() {
+        let encoded = &mut scratch.encoded;
+        encoded.resize(pixel_count * format.pixel_bytes, 0);
+        format.encode(&colors[..pixel_count], hit, encoded);
+        if let Some(channel) = lock(&job.channels).get_mut(index) {
+            channel.write_tile(tx, ty, tile_width, setup.width, encoded);
         }
     }
 }
