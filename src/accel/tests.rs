@@ -357,6 +357,49 @@ fn triangle_hit_has_analytic_t_uv_and_normal() {
 }
 
 #[test]
+fn tilted_triangle_hits_carry_its_unit_normal_on_both_paths() {
+    // (v1 - v0) x (v2 - v0) = (1, 0, 1) x (0, 1, 0) = (-1, 0, 1).
+    let bvh = Arc::new(GeometryBvh::build(GeometryPrims::Triangles {
+        positions: vec![
+            vec3(0.0, 0.0, 0.0),
+            vec3(1.0, 0.0, 1.0),
+            vec3(0.0, 1.0, 0.0),
+        ],
+        indices: vec![UVec3::new(0, 1, 2)],
+    }));
+    let expected = vec3(-1.0, 0.0, 1.0).normalize();
+    let single = bvh
+        .intersect(&ray(vec3(0.25, 0.25, 5.0), -Vec3::Z))
+        .unwrap();
+    assert_vec_close(single.normal, expected, 1e-7);
+    // A packet of primary rays from one eye goes through the packet test and its hit records.
+    let scene = SceneBvh::build(vec![identity_instance(vec![bvh])]);
+    let eye = vec3(0.2, 0.2, 5.0);
+    let rays: Vec<Ray> = (0..64)
+        .map(|i| {
+            let target = vec3(
+                0.1 + 0.05 * (i % 8) as f32,
+                0.1 + 0.05 * (i / 8) as f32,
+                0.0,
+            );
+            Ray::new(eye, target - eye, 0.0, f32::INFINITY)
+        })
+        .collect();
+    let mut hits = [None; 64];
+    scene.intersect_packet(&rays, &mut hits);
+    let mut hit_count = 0;
+    for (ray, hit) in rays.iter().zip(&hits) {
+        let single = scene.intersect(ray);
+        assert_eq!(hit.map(|h| h.t), single.map(|h| h.t));
+        if let Some(hit) = hit {
+            assert_vec_close(hit.normal, expected, 1e-7);
+            hit_count += 1;
+        }
+    }
+    assert!(hit_count > 20, "{hit_count} hits");
+}
+
+#[test]
 fn triangle_misses() {
     let bvh = unit_triangle();
     assert!(
@@ -2303,6 +2346,72 @@ mod packet_and_structure {
         let mut ids = order.clone();
         ids.sort();
         assert_eq!(ids, (0..n as u32).collect::<Vec<_>>());
+    }
+
+    /// Checks that `clusters` partition `0..boxes.len()` into consecutive runs of one to three
+    /// primitives in order, each with the union of its boxes; returns the run lengths.
+    fn check_clusters(boxes: &[Aabb], clusters: &[obvhs::bvh2::node::Bvh2Node]) -> Vec<u32> {
+        let mut next = 0u32;
+        let mut lengths = Vec::new();
+        for cluster in clusters {
+            assert_eq!(cluster.first_index, next, "runs in order, without gaps");
+            assert!((1..=3).contains(&cluster.prim_count));
+            let mut union = Aabb::empty();
+            for b in &boxes[next as usize..(next + cluster.prim_count) as usize] {
+                union.extend(b.min);
+                union.extend(b.max);
+            }
+            assert_eq!(
+                (cluster.aabb().min, cluster.aabb().max),
+                (union.min, union.max)
+            );
+            next += cluster.prim_count;
+            lengths.push(cluster.prim_count);
+        }
+        assert_eq!(next as usize, boxes.len());
+        lengths
+    }
+
+    #[test]
+    fn neighbouring_mesh_triangles_start_the_build_in_pairs() {
+        use crate::accel::wide_bvh::neighbour_clusters;
+        // A grid listed cell by cell, two triangles per cell (both cover the cell's square):
+        // 5,000 cells span two scan chunks.
+        let cells = 5000;
+        let grid: Vec<Aabb> = (0..cells * 2)
+            .map(|i| {
+                let cell = (i / 2) as f32;
+                let (x, y) = (cell % 100.0, (cell / 100.0).floor());
+                Aabb::new(vec3(x, y, 0.0).into(), vec3(x + 1.0, y + 1.0, 0.1).into())
+            })
+            .collect();
+        let lengths = check_clusters(&grid, &neighbour_clusters(&grid));
+        // Pairs: a third triangle from the next cell would double the box.
+        assert!(lengths.iter().all(|&n| n == 2), "{:?}", &lengths[..10]);
+        // Boxes that do not touch their predecessor stay single.
+        let apart: Vec<Aabb> = (0..300)
+            .map(|i| {
+                let p = vec3(i as f32 * 2.0, 0.0, 0.0);
+                Aabb::new(p.into(), (p + Vec3::ONE).into())
+            })
+            .collect();
+        let lengths = check_clusters(&apart, &neighbour_clusters(&apart));
+        assert!(lengths.iter().all(|&n| n == 1));
+        // Touching, compact neighbours (a fan of slivers around one point) group by three.
+        let fan: Vec<Aabb> = (0..300)
+            .map(|i| {
+                let angle = i as f32 * 0.01;
+                let tip = vec3(angle.cos(), angle.sin(), 0.0);
+                Aabb::new(Vec3A::ZERO.min(tip.into()), Vec3A::ZERO.max(tip.into()))
+            })
+            .collect();
+        let lengths = check_clusters(&fan, &neighbour_clusters(&fan));
+        assert!(
+            lengths.iter().filter(|&&n| n == 3).count() > 80,
+            "{lengths:?}"
+        );
+        // The built BVH still holds every primitive once (and is checked in full below).
+        check_structure(&grid);
     }
 
     #[test]

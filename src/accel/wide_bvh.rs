@@ -14,22 +14,27 @@ use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::cwbvh::node::CwBvhNode;
-use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
+use obvhs::ploc::{PlocBuilder, SortPrecision};
 
 use crate::accel::MAX_COORDINATE;
 use rayon::iter::{
     IndexedParallelIterator, IntoParallelIterator, IntoParallelRefIterator, ParallelIterator,
 };
+use rayon::slice::ParallelSlice;
 
 /// CWBVH leaves hold at most three primitives.
 const MAX_PRIMS_PER_LEAF: u32 = 3;
+
+/// How far PLOC looks for a node's nearest neighbour (obvhs' `PlocSearchDistance::VeryLow`).
+const PLOC_SEARCH_DISTANCE: usize = 2;
 
 /// Builds a wide BVH over `boxes`. Returns the nodes and, for every primitive slot the leaves
 /// refer to, the index into `boxes` it stands for (callers reorder their primitives by it).
 /// `boxes` must be finite; an empty input gives no nodes.
 ///
 /// obvhs builds the binary BVH (PLOC with search distance 2 plus 1% reinsertion, parallel
-/// through rayon with obvhs' `parallel` feature); [`collapse_to_wide`] then packs it into
+/// through rayon with obvhs' `parallel` feature), for whole leaves starting from the runs of
+/// [`neighbour_clusters`]; [`collapse_to_wide`] then packs it into
 /// obvhs' CWBVH node format. obvhs' own converter optimizes the collapse by dynamic
 /// programming and costs about as much as the binary build (~300 ms for 1M triangles, single
 /// threaded); the greedy collapse runs in parallel and takes a fraction of that, for a BVH that
@@ -41,16 +46,86 @@ pub(crate) fn build_wide_bvh(boxes: &[Aabb], sizing: LeafSizing) -> (Vec<CwBvhNo
     if boxes.is_empty() {
         return (Vec::new(), Vec::new());
     }
-    let indices: Vec<u32> = (0..boxes.len() as u32).into_par_iter().collect();
-    let mut bvh2 = PlocBuilder::with_capacity(boxes.len()).build(
-        PlocSearchDistance::VeryLow,
-        boxes,
-        indices,
+    // obvhs' PLOC merges the leaves it is given: runs of neighbours for whole leaves, else one
+    // per box (what its `build` would make).
+    let leaves: Vec<Bvh2Node> = match sizing {
+        LeafSizing::Whole => neighbour_clusters(boxes),
+        LeafSizing::Split => boxes
+            .par_iter()
+            .enumerate()
+            .map(|(index, aabb)| Bvh2Node::new(*aabb, 1, index as u32))
+            .collect(),
+    };
+    let total = leaves
+        .par_iter()
+        .map(|leaf| *leaf.aabb())
+        .reduce(Aabb::empty, |a, b| a.union(&b));
+    // Sized for PLOC, which writes every node.
+    let mut bvh2 = Bvh2::zeroed(leaves.len());
+    bvh2.primitive_indices = (0..boxes.len() as u32).into_par_iter().collect();
+    let mut builder = PlocBuilder {
+        current_nodes: leaves,
+        ..PlocBuilder::default()
+    };
+    builder.build_ploc_from_leaves::<PLOC_SEARCH_DISTANCE, false>(
+        &mut bvh2,
+        total,
         SortPrecision::U64,
         1,
     );
     ReinsertionOptimizer::default().run(&mut bvh2, 0.01, None);
     collapse_to_wide(&bvh2, sizing)
+}
+
+/// Binary leaves for a build over `boxes`: runs of up to three consecutive primitives whose
+/// boxes touch one after the other and stay compact together (in a mesh: neighbouring
+/// triangles, such as the two halves of a quad), else single primitives. Meshes list
+/// neighbours next to each other, so the binary build starts from about half as many leaves.
+/// On the benchmark's 1M-triangle height field (2 cores) the BVH build went from 290 to 220 ms
+/// and packets of primary rays got 6 % faster; single rays were about 4 % slower. Runs of three
+/// regardless of shape built in 200 ms but cost single rays 8 %. Boxes are scanned in chunks in
+/// parallel; a run never crosses a chunk boundary.
+pub(crate) fn neighbour_clusters(boxes: &[Aabb]) -> Vec<Bvh2Node> {
+    const CHUNK: usize = 1 << 12;
+    let joins = |cluster: &Aabb, last: &Aabb, next: &Aabb| {
+        let touch = last.min.cmple(next.max).all() && next.min.cmple(last.max).all();
+        let mut union = *cluster;
+        union.extend(next.min);
+        union.extend(next.max);
+        // A run grows only while the union stays smaller than the parts side by side.
+        touch && union.half_area() <= 0.75 * (cluster.half_area() + next.half_area())
+    };
+    let chunks: Vec<Vec<Bvh2Node>> = boxes
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(chunk, boxes)| {
+            let base = chunk * CHUNK;
+            let mut clusters = Vec::with_capacity(boxes.len() / 2 + 1);
+            let mut first = 0;
+            let mut cluster = boxes[0];
+            for i in 1..=boxes.len() {
+                if i < boxes.len()
+                    && i - first < MAX_PRIMS_PER_LEAF as usize
+                    && joins(&cluster, &boxes[i - 1], &boxes[i])
+                {
+                    cluster.extend(boxes[i].min);
+                    cluster.extend(boxes[i].max);
+                    continue;
+                }
+                clusters.push(Bvh2Node::new(
+                    cluster,
+                    (i - first) as u32,
+                    (base + first) as u32,
+                ));
+                if i < boxes.len() {
+                    first = i;
+                    cluster = boxes[i];
+                }
+            }
+            clusters
+        })
+        .collect();
+    chunks.concat()
 }
 
 /// Number of leaves (occupied child slots that are not inner nodes) in `nodes`.
@@ -140,9 +215,13 @@ pub(crate) fn collapse_to_wide(bvh2: &Bvh2, sizing: LeafSizing) -> (Vec<CwBvhNod
     if bvh2.nodes.is_empty() {
         return (Vec::new(), Vec::new());
     }
-    // A binary leaf of several primitives would be taken for an inner node (PLOC makes one
-    // primitive per leaf, and reinsertion keeps it so).
-    debug_assert!(bvh2.nodes.iter().all(|node| node.prim_count <= 1));
+    // A binary leaf too large for a wide leaf would be taken for an inner node (leaves come
+    // from `neighbour_clusters` or hold one primitive, and reinsertion keeps them whole).
+    debug_assert!(
+        bvh2.nodes
+            .iter()
+            .all(|node| node.prim_count <= MAX_PRIMS_PER_LEAF)
+    );
     let mut root_primitives = Vec::new();
     let (mut root, inner_children) = wide_node(bvh2, 0, true, sizing, &mut root_primitives);
     let subtrees: Vec<Subtree> = inner_children
