@@ -29,8 +29,10 @@ pub(crate) fn is_usable_box(aabb: &Aabb) -> bool {
         && aabb.max.abs().max_element() <= MAX_COORDINATE
 }
 
-/// A triangle stored per axis: `rows[axis] = (v0[axis], v1[axis], v2[axis], 0)`, so that the
-/// three vertices are sheared with a few four-wide operations.
+/// A triangle stored per axis: `rows[axis] = (v0[axis], v1[axis], v2[axis], normal[axis])`, so
+/// that the three vertices are sheared with a few four-wide operations. The unit normal fills
+/// the lane that would be padding: packet tests record it with each hit, so that hit records
+/// need not load the triangle again.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct PackedTriangle {
     pub rows: [Vec4; 3],
@@ -52,11 +54,12 @@ impl PackedTriangle {
 
     /// Packs vertices that [`Self::new`] has already accepted, without checking them again.
     pub fn from_usable(v0: Vec3, v1: Vec3, v2: Vec3) -> PackedTriangle {
+        let normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
         PackedTriangle {
             rows: [
-                Vec4::new(v0.x, v1.x, v2.x, 0.0),
-                Vec4::new(v0.y, v1.y, v2.y, 0.0),
-                Vec4::new(v0.z, v1.z, v2.z, 0.0),
+                Vec4::new(v0.x, v1.x, v2.x, normal.x),
+                Vec4::new(v0.y, v1.y, v2.y, normal.y),
+                Vec4::new(v0.z, v1.z, v2.z, normal.z),
             ],
         }
     }
@@ -76,9 +79,10 @@ impl PackedTriangle {
     }
 
     /// Unit normal `(v1 - v0) x (v2 - v0)`; non-zero for every constructed triangle.
+    #[inline]
     pub fn normal(&self) -> Vec3 {
-        let [v0, v1, v2] = self.vertices();
-        (v1 - v0).cross(v2 - v0).normalize_or_zero()
+        let [x, y, z] = self.rows;
+        Vec3::new(x.w, y.w, z.w)
     }
 }
 
@@ -107,7 +111,7 @@ fn triangle_hit<const WITH_UV: bool>(
     let z = triangle.rows[kz] - Vec4::splat(origin.z);
     let x = (triangle.rows[kx] - Vec4::splat(origin.x)) - Vec4::splat(ray.shear.x) * z;
     let y = (triangle.rows[ky] - Vec4::splat(origin.y)) - Vec4::splat(ray.shear.y) * z;
-    // Lanes: U (weight of v0), V (v1), W (v2); lane 3 is unused.
+    // Lanes: U (weight of v0), V (v1), W (v2); lane 3 (from the normal) is unused.
     let mut weights = x.zxyw() * y.yzxw() - y.zxyw() * x.yzxw();
     if weights.cmpeq(Vec4::ZERO).bitmask() & 0b111 != 0 {
         weights = edge_functions_f64(x, y);

@@ -1997,6 +1997,12 @@ fn single_transformed_instance_packets_match_single_rays() {
             let single = scene.intersect(ray);
             assert_eq!(single.map(|hit| hit.t), packet_hit.map(|hit| hit.t));
             assert_eq!(scene.occluded(ray), single.is_some());
+            // Same primitive: the same record, down to the normal the packet test kept.
+            if let (Some(single), Some(packet_hit)) = (single, packet_hit)
+                && single.primitive == packet_hit.primitive
+            {
+                assert_eq!(single, *packet_hit);
+            }
             hit_count += usize::from(single.is_some());
         }
         assert!(hit_count > rays.len() / 10, "{hit_count}");
