@@ -432,18 +432,22 @@ impl GeometryBvh {
             active,
             prefetch_primitive,
             |first, count, lanes, frustum| {
-                for (group_index, lanes) in lanes.iter().enumerate() {
-                    if *lanes == 0 {
-                        continue;
-                    }
-                    let group = &mut frustum.groups[group_index];
-                    let mut found = [None; LANES];
-                    self.test_leaf_packet(first, count, group, *lanes, &mut found);
-                    for (lane, slot) in found.iter().enumerate() {
-                        if slot.is_some() {
-                            closest[group_index * LANES + lane] = *slot;
-                        }
-                    }
+                // Usually one or two of the sixteen groups reach a leaf: visit just those.
+                let mut groups = 0u32;
+                for (group, lanes) in lanes.iter().enumerate() {
+                    groups |= u32::from(*lanes != 0) << group;
+                }
+                let (closest_by_group, _) = closest.as_chunks_mut::<LANES>();
+                while groups != 0 {
+                    let group = groups.trailing_zeros() as usize;
+                    groups &= groups - 1;
+                    self.test_leaf_packet(
+                        first,
+                        count,
+                        &mut frustum.groups[group],
+                        lanes[group],
+                        &mut closest_by_group[group],
+                    );
                 }
             },
         );

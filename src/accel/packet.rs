@@ -854,7 +854,7 @@ pub(crate) fn traverse_frustum<F, P>(
                 let child = remaining.trailing_zeros();
                 remaining &= remaining - 1;
                 let lanes = masks.map(|mask| (mask >> (4 * child)) & 0xf);
-                if lanes.iter().any(|lanes| *lanes != 0) {
+                if lanes.iter().fold(0, |any, lanes| any | lanes) != 0 {
                     let meta = node.child_meta[child as usize] as u32;
                     let first = node.primitive_base_idx + (meta & 31);
                     test_leaf(first, (meta >> 5).count_ones(), &lanes, frustum);
