@@ -683,10 +683,12 @@ fn render_tile(
                     };
                     let (x, y) = (bx + dx, by + dy);
                     // The sample's position in the frame places the background image.
-                    let screen = Vec2::new(
-                        (x as f32 + offset.x) / setup.width as f32,
-                        (y as f32 + offset.y) / setup.height as f32,
-                    );
+                    let screen = || {
+                        Vec2::new(
+                            (x as f32 + offset.x) / setup.width as f32,
+                            (y as f32 + offset.y) / setup.height as f32,
+                        )
+                    };
                     let k = ((y - ty) * tile_width + x - tx) as usize;
                     covered[k] = true;
                     if colour_only_fast {
@@ -704,7 +706,7 @@ fn render_tile(
                         &setup.settings,
                         &rays[lane],
                         hits[lane],
-                        Some(screen),
+                        Some(screen()),
                         &LightSampling::for_pixel(index, x, y),
                     );
                     colors[k] += sample.color;

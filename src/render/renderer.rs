@@ -497,12 +497,12 @@ pub fn fast_surface_color(
     settings: &RendererSettings,
     ray: &Ray,
     hit: Option<&SceneHit>,
-    screen: Vec2,
+    screen: impl FnOnce() -> Vec2,
 ) -> Vec4 {
     debug_assert!(settings.fast && scene.volumes.is_empty());
     match hit {
         Some(hit) => eye_light(ray, &shading_point(scene, ray, hit)).extend(1.0),
-        None => settings.background_for(Some(screen)),
+        None => settings.background_for(Some(screen())),
     }
 }
 
