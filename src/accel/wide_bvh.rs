@@ -36,12 +36,13 @@ const PLOC_SEARCH_DISTANCE: usize = 2;
 /// through rayon with obvhs' `parallel` feature), for whole leaves starting from the runs of
 /// [`neighbour_clusters`]; [`collapse_to_wide`] then packs it into
 /// obvhs' CWBVH node format. obvhs' own converter optimizes the collapse by dynamic
-/// programming and costs about as much as the binary build (~300 ms for 1M triangles, single
-/// threaded); the greedy collapse runs in parallel and takes a fraction of that, for a BVH that
-/// traces single rays a few percent slower. Measured on a 1M-triangle mesh (2 cores): the 1%
-/// reinsertion costs 15 ms of a ~300 ms build and gains 4% on the default renderer's shadow
-/// rays (none on packets of primary rays), so it stays; search distance 6 or 5% reinsertion
-/// cost another 40-50 ms for at most 2%, search distance 1 lost 2%.
+/// programming and costs about as much as obvhs' binary build (~300 ms for 1M triangles,
+/// single threaded); the greedy collapse runs in parallel and takes a fraction of that, for a
+/// BVH that traces single rays a few percent slower. Measured on a 1M-triangle mesh (2 cores,
+/// before the runs, when the whole build took ~300 ms): the 1% reinsertion cost 15 ms and
+/// gained 4% on the default renderer's shadow rays (none on packets of primary rays), so it
+/// stays; search distance 6 or 5% reinsertion cost another 40-50 ms for at most 2%, search
+/// distance 1 lost 2%.
 pub(crate) fn build_wide_bvh(boxes: &[Aabb], sizing: LeafSizing) -> (Vec<CwBvhNode>, Vec<u32>) {
     if boxes.is_empty() {
         return (Vec::new(), Vec::new());
@@ -81,7 +82,7 @@ pub(crate) fn build_wide_bvh(boxes: &[Aabb], sizing: LeafSizing) -> (Vec<CwBvhNo
 /// boxes touch one after the other and stay compact together (in a mesh: neighbouring
 /// triangles, such as the two halves of a quad), else single primitives. Meshes list
 /// neighbours next to each other, so the binary build starts from about half as many leaves.
-/// On the benchmark's 1M-triangle height field (2 cores) the BVH build went from 290 to 220 ms
+/// On the benchmark's 1M-triangle height field (2 cores) the BVH build went from 290 to 215 ms
 /// and packets of primary rays got 6 % faster; single rays were about 4 % slower. Runs of three
 /// regardless of shape built in 200 ms but cost single rays 8 %. Boxes are scanned in chunks in
 /// parallel; a run never crosses a chunk boundary.
@@ -206,7 +207,7 @@ struct Subtree {
     primitives: Vec<u32>,
 }
 
-/// Packs a binary BVH (one primitive per leaf) into CWBVH nodes: each wide node takes its
+/// Packs a binary BVH (leaves of at most three primitives) into CWBVH nodes: each wide node takes its
 /// binary node's two children and keeps opening the largest child (by surface area) that is
 /// too big for a leaf until it has eight or none is left (then, with `LeafSizing::Split`, the
 /// largest that fits a leaf); subtrees of at most three primitives become leaves. The subtrees below the root are collapsed in parallel on the

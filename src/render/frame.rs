@@ -107,14 +107,6 @@ struct ChannelFormat {
 /// camera ray and eye, `None` where nothing was hit.
 type PixelHit<'a> = Option<(&'a PrimaryHit, &'a CameraRay, &'a EyeRays)>;
 
-/// Writes `pixel(k)` as pixel `k` of `out` (N bytes each).
-#[inline(always)]
-fn encode_pixels<const N: usize>(out: &mut [u8], pixel: impl Fn(usize) -> [u8; N]) {
-    for (k, chunk) in out.chunks_exact_mut(N).enumerate() {
-        chunk.copy_from_slice(&pixel(k));
-    }
-}
-
 /// `values` as native-endian bytes (`B` = 4·`N`).
 #[inline(always)]
 fn f32_bytes<const N: usize, const B: usize>(values: [f32; N]) -> [u8; B] {
@@ -126,6 +118,15 @@ fn f32_bytes<const N: usize, const B: usize>(values: [f32; N]) -> [u8; B] {
 }
 
 impl ChannelFormat {
+    /// Writes `pixel(k)` as pixel `k` of `out` (N bytes each, which must be the type's size).
+    #[inline(always)]
+    fn encode_pixels<const N: usize>(&self, out: &mut [u8], pixel: impl Fn(usize) -> [u8; N]) {
+        debug_assert_eq!(N, self.pixel_bytes, "pixel size of {:?}", self.data_type);
+        for (k, chunk) in out.chunks_exact_mut(N).enumerate() {
+            chunk.copy_from_slice(&pixel(k));
+        }
+    }
+
     /// Encodes the pixels of a tile into `out` (`pixel_bytes` each, in the order of `colors`):
     /// `colors` are their final colours, `hit(k)` pixel `k`'s first hit. The match on the type
     /// is made once per tile, not per pixel.
@@ -138,47 +139,47 @@ impl ChannelFormat {
         match (self.kind, self.data_type) {
             (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB) => {
                 let srgb = srgb8_encoder();
-                encode_pixels(out, |k| {
+                self.encode_pixels(out, |k| {
                     let c = color(k);
                     [srgb(c.x), srgb(c.y), srgb(c.z), to_unorm8(c.w)]
                 })
             }
             (ChannelKind::Color, ANARI_UFIXED8_VEC4) => {
-                encode_pixels(out, |k| color(k).to_array().map(to_unorm8))
+                self.encode_pixels(out, |k| color(k).to_array().map(to_unorm8))
             }
             (ChannelKind::Color, _) => {
-                encode_pixels(out, |k| f32_bytes::<4, 16>(color(k).to_array()))
+                self.encode_pixels(out, |k| f32_bytes::<4, 16>(color(k).to_array()))
             }
-            (ChannelKind::Depth, _) => encode_pixels(out, |k| {
+            (ChannelKind::Depth, _) => self.encode_pixels(out, |k| {
                 f32_bytes::<1, 4>([
                     hit(k).map_or(f32::INFINITY, |(h, ray, eye)| eye.depth(ray, h.t))
                 ])
             }),
-            (ChannelKind::WindowDepth, _) => encode_pixels(out, |k| {
+            (ChannelKind::WindowDepth, _) => self.encode_pixels(out, |k| {
                 f32_bytes::<1, 4>([hit(k).map_or(1.0, |(h, _, eye)| eye.window_depth(h.point))])
             }),
-            (ChannelKind::PrimitiveId, _) => encode_pixels(out, |k| id(k, |h| h.primitive_id)),
-            (ChannelKind::ObjectId, _) => encode_pixels(out, |k| id(k, |h| h.object_id)),
-            (ChannelKind::InstanceId, _) => encode_pixels(out, |k| id(k, |h| h.instance_id)),
+            (ChannelKind::PrimitiveId, _) => self.encode_pixels(out, |k| id(k, |h| h.primitive_id)),
+            (ChannelKind::ObjectId, _) => self.encode_pixels(out, |k| id(k, |h| h.object_id)),
+            (ChannelKind::InstanceId, _) => self.encode_pixels(out, |k| id(k, |h| h.instance_id)),
             (ChannelKind::Albedo, data_type) => {
                 let albedo = |k: usize| hit(k).map_or(Vec3::ZERO, |(h, _, _)| h.albedo).to_array();
                 match data_type {
                     ANARI_UFIXED8_RGB_SRGB => {
                         let srgb = srgb8_encoder();
-                        encode_pixels(out, |k| albedo(k).map(srgb))
+                        self.encode_pixels(out, |k| albedo(k).map(srgb))
                     }
-                    ANARI_UFIXED8_VEC3 => encode_pixels(out, |k| albedo(k).map(to_unorm8)),
-                    _ => encode_pixels(out, |k| f32_bytes::<3, 12>(albedo(k))),
+                    ANARI_UFIXED8_VEC3 => self.encode_pixels(out, |k| albedo(k).map(to_unorm8)),
+                    _ => self.encode_pixels(out, |k| f32_bytes::<3, 12>(albedo(k))),
                 }
             }
             (ChannelKind::Normal, data_type) => {
                 let normal = |k: usize| hit(k).map_or(Vec3::ZERO, |(h, _, _)| h.normal).to_array();
                 match data_type {
-                    ANARI_FIXED16_VEC3 => encode_pixels(out, |k| {
+                    ANARI_FIXED16_VEC3 => self.encode_pixels(out, |k| {
                         let [x, y, z] = normal(k).map(|v| to_snorm16(v).to_ne_bytes());
                         [x[0], x[1], y[0], y[1], z[0], z[1]]
                     }),
-                    _ => encode_pixels(out, |k| f32_bytes::<3, 12>(normal(k))),
+                    _ => self.encode_pixels(out, |k| f32_bytes::<3, 12>(normal(k))),
                 }
             }
         }
