@@ -98,14 +98,32 @@ impl RayPacket {
         let mut t_min = Vec4::INFINITY;
         let mut t_max = Vec4::NEG_INFINITY;
         let mut present = 0;
-        for (lane, ray) in rays.iter().take(LANES).enumerate() {
-            present |= 1 << lane;
-            for axis in 0..3 {
-                origin[axis][lane] = ray.origin[axis];
-                direction[axis][lane] = ray.direction[axis];
+        if let [r0, r1, r2, r3, ..] = rays {
+            // A full group (the usual case) is transposed straight into vectors.
+            let lanes = |of: fn(&Ray) -> f32| Vec4::new(of(r0), of(r1), of(r2), of(r3));
+            origin = [
+                lanes(|r| r.origin.x),
+                lanes(|r| r.origin.y),
+                lanes(|r| r.origin.z),
+            ];
+            direction = [
+                lanes(|r| r.direction.x),
+                lanes(|r| r.direction.y),
+                lanes(|r| r.direction.z),
+            ];
+            t_min = lanes(|r| r.t_min);
+            t_max = lanes(|r| r.t_max);
+            present = 0b1111;
+        } else {
+            for (lane, ray) in rays.iter().enumerate() {
+                present |= 1 << lane;
+                for axis in 0..3 {
+                    origin[axis][lane] = ray.origin[axis];
+                    direction[axis][lane] = ray.direction[axis];
+                }
+                t_min[lane] = ray.t_min;
+                t_max[lane] = ray.t_max;
             }
-            t_min[lane] = ray.t_min;
-            t_max[lane] = ray.t_max;
         }
         let finite =
             |v: &[Vec4; 3]| v[0].is_finite_mask() & v[1].is_finite_mask() & v[2].is_finite_mask();
