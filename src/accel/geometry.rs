@@ -8,8 +8,10 @@ use crate::accel::primitives::{
     PackedSphere, PackedTriangle, sphere_surface, sphere_t, triangle_t, triangle_t_uv,
 };
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
-use crate::accel::wide_bvh::{LeafSizing, TraversalRay, build_wide_bvh, prefetch, traverse};
-use crate::accel::{EMPTY_BOUNDS, GeometryPrims, PrimHit, Ray};
+use crate::accel::wide_bvh::{
+    LeafSizing, TraversalRay, WideBvh, build_wide_bvh, prefetch, traverse,
+};
+use crate::accel::{GeometryPrims, PrimHit, Ray};
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::node::CwBvhNode;
@@ -135,26 +137,6 @@ fn usable_boxes(
     (usable, Some(source_ids))
 }
 
-/// Builds the BVH over `boxes`; returns its nodes, the indices into `boxes` in BVH slot order
-/// and the union of the boxes.
-fn build_over_boxes(
-    boxes: &[Aabb],
-    sizing: LeafSizing,
-) -> (Vec<CwBvhNode>, Vec<u32>, (Vec3, Vec3)) {
-    let total = boxes
-        .par_iter()
-        .fold(
-            || EMPTY_BOUNDS,
-            |(min, max), aabb| (min.min(aabb.min.into()), max.max(aabb.max.into())),
-        )
-        .reduce(
-            || EMPTY_BOUNDS,
-            |(min_a, max_a), (min_b, max_b)| (min_a.min(min_b), max_a.max(max_b)),
-        );
-    let (nodes, order) = build_wide_bvh(boxes, sizing);
-    (nodes, order, total)
-}
-
 /// Builds the BVH over the collected primitives, stores them in BVH slot order (wrapped by
 /// `wrap`) and counts `input_count - accepted` primitives as skipped.
 fn bvh_over_collected<P: Copy + Send + Sync>(
@@ -165,7 +147,11 @@ fn bvh_over_collected<P: Copy + Send + Sync>(
     (accepted, input_count): (usize, usize),
 ) -> GeometryBvh {
     let boxes: Vec<Aabb> = collected.primitives.par_iter().map(bounds_of).collect();
-    let (nodes, order, bounds) = build_over_boxes(&boxes, sizing);
+    let WideBvh {
+        nodes,
+        order,
+        bounds,
+    } = build_wide_bvh(&boxes, sizing);
     drop(boxes);
     let primitives = order
         .par_iter()
@@ -203,7 +189,11 @@ impl GeometryBvh {
                     triangle_from(&positions, candidates[id].to_array()).map(|t| t.bounds())
                 });
                 let accepted = boxes.len();
-                let (nodes, order, bounds) = build_over_boxes(&boxes, LeafSizing::Whole);
+                let WideBvh {
+                    nodes,
+                    order,
+                    bounds,
+                } = build_wide_bvh(&boxes, LeafSizing::Whole);
                 drop(boxes);
                 let source_ids = match usable_ids {
                     None => order,

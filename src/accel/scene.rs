@@ -9,7 +9,7 @@ use crate::accel::geometry::{GeometryBvh, prepare};
 use crate::accel::packet::{
     FRUSTUM_RAYS, FrustumPacket, LANES, PacketScratch, RayPacket, traverse_frustum, traverse_packet,
 };
-use crate::accel::wide_bvh::{LeafSizing, TraversalRay, build_wide_bvh, traverse};
+use crate::accel::wide_bvh::{LeafSizing, TraversalRay, WideBvh, build_wide_bvh, traverse};
 use crate::accel::{EMPTY_BOUNDS, InstanceDesc, PrimHit, Ray, SceneHit, bounds_are_empty};
 use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
@@ -91,7 +91,6 @@ impl SceneBvh {
     pub fn build(instances: Vec<InstanceDesc>) -> SceneBvh {
         let mut placements = Vec::new();
         let mut boxes = Vec::new();
-        let mut bounds = EMPTY_BOUNDS;
         for (instance_index, instance) in instances.into_iter().enumerate() {
             let Some(inverse) = usable_inverse(&instance.transform) else {
                 continue;
@@ -106,7 +105,6 @@ impl SceneBvh {
                 if !world.0.is_finite() || !world.1.is_finite() {
                     continue;
                 }
-                bounds = (bounds.0.min(world.0), bounds.1.max(world.1));
                 boxes.push(Aabb::new(world.0.into(), world.1.into()));
                 placements.push(Placement {
                     geometry,
@@ -117,7 +115,11 @@ impl SceneBvh {
                 });
             }
         }
-        let (nodes, order) = build_wide_bvh(&boxes, LeafSizing::Split);
+        let WideBvh {
+            nodes,
+            order,
+            bounds,
+        } = build_wide_bvh(&boxes, LeafSizing::Split);
         let mut slots: Vec<Option<Placement>> = placements.into_iter().map(Some).collect();
         let placements = order
             .iter()

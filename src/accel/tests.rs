@@ -1544,7 +1544,7 @@ fn sse2_box_test_matches_portable_version() {
             obvhs::aabb::Aabb::new(a.min(b).min(d).into(), a.max(b).max(d).into())
         })
         .collect();
-    let (nodes, _) = crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole);
+    let nodes = crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole).nodes;
     let mut mismatches = 0;
     for test_ray in random_rays(&mut rng, 500, 10.0) {
         let prepared = traversal_ray(&test_ray);
@@ -1735,7 +1735,8 @@ fn wide_bvh_contains_every_primitive_once_inside_its_quantized_boxes() {
                 Aabb::new(low.into(), (low + rng.point(0.0, 3.0)).into())
             })
             .collect();
-        let (nodes, order) = crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole);
+        let crate::accel::wide_bvh::WideBvh { nodes, order, .. } =
+            crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole);
         let mut seen = vec![0; count];
         for &index in &order {
             seen[index as usize] += 1;
@@ -2301,7 +2302,7 @@ mod packet_and_structure {
     }
 
     fn check_structure_with(boxes: &[Aabb], sizing: LeafSizing) {
-        let (nodes, order) = build_wide_bvh(boxes, sizing);
+        let crate::accel::wide_bvh::WideBvh { nodes, order, .. } = build_wide_bvh(boxes, sizing);
         let n = boxes.len();
         if n == 0 {
             assert!(nodes.is_empty() && order.is_empty());
@@ -2463,8 +2464,8 @@ fn triangle_leaves_stay_whole_and_sphere_and_tube_leaves_split() {
             obvhs::aabb::Aabb::new(low.into(), (low + rng.point(0.0, 1.0)).into())
         })
         .collect();
-    let whole = leaf_count(&build_wide_bvh(&boxes, LeafSizing::Whole).0);
-    let split = leaf_count(&build_wide_bvh(&boxes, LeafSizing::Split).0);
+    let whole = leaf_count(&build_wide_bvh(&boxes, LeafSizing::Whole).nodes);
+    let split = leaf_count(&build_wide_bvh(&boxes, LeafSizing::Split).nodes);
     // Whole: leaves of up to three boxes; split: spare slots break them up.
     assert!(whole * 3 >= 3000 && whole < 1500, "{whole}");
     assert!(split > 2 * whole, "{split} vs {whole}");

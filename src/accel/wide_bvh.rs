@@ -16,7 +16,7 @@ use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ploc::{PlocBuilder, SortPrecision};
 
-use crate::accel::MAX_COORDINATE;
+use crate::accel::{EMPTY_BOUNDS, MAX_COORDINATE};
 use rayon::iter::{
     IndexedParallelIterator, IntoParallelIterator, IntoParallelRefIterator, ParallelIterator,
 };
@@ -28,9 +28,17 @@ const MAX_PRIMS_PER_LEAF: u32 = 3;
 /// How far PLOC looks for a node's nearest neighbour (obvhs' `PlocSearchDistance::VeryLow`).
 const PLOC_SEARCH_DISTANCE: usize = 2;
 
-/// Builds a wide BVH over `boxes`. Returns the nodes and, for every primitive slot the leaves
-/// refer to, the index into `boxes` it stands for (callers reorder their primitives by it).
-/// `boxes` must be finite; an empty input gives no nodes.
+/// A wide BVH built over boxes.
+pub(crate) struct WideBvh {
+    pub nodes: Vec<CwBvhNode>,
+    /// For every primitive slot the leaves refer to, the index into the boxes it stands for
+    /// (callers reorder their primitives by it).
+    pub order: Vec<u32>,
+    /// The union of the boxes ([`EMPTY_BOUNDS`] for none).
+    pub bounds: (Vec3, Vec3),
+}
+
+/// Builds a wide BVH over `boxes`, which must be finite; an empty input gives no nodes.
 ///
 /// obvhs builds the binary BVH (PLOC with search distance 2 plus 1% reinsertion, parallel
 /// through rayon with obvhs' `parallel` feature), for whole leaves starting from the runs of
@@ -43,9 +51,13 @@ const PLOC_SEARCH_DISTANCE: usize = 2;
 /// gained 4% on the default renderer's shadow rays (none on packets of primary rays), so it
 /// stays; search distance 6 or 5% reinsertion cost another 40-50 ms for at most 2%, search
 /// distance 1 lost 2%.
-pub(crate) fn build_wide_bvh(boxes: &[Aabb], sizing: LeafSizing) -> (Vec<CwBvhNode>, Vec<u32>) {
+pub(crate) fn build_wide_bvh(boxes: &[Aabb], sizing: LeafSizing) -> WideBvh {
     if boxes.is_empty() {
-        return (Vec::new(), Vec::new());
+        return WideBvh {
+            nodes: Vec::new(),
+            order: Vec::new(),
+            bounds: EMPTY_BOUNDS,
+        };
     }
     // obvhs' PLOC merges the leaves it is given: runs of neighbours for whole leaves, else one
     // per box (what its `build` would make).
@@ -75,7 +87,12 @@ pub(crate) fn build_wide_bvh(boxes: &[Aabb], sizing: LeafSizing) -> (Vec<CwBvhNo
         1,
     );
     ReinsertionOptimizer::default().run(&mut bvh2, 0.01, None);
-    collapse_to_wide(&bvh2, sizing)
+    let (nodes, order) = collapse_to_wide(&bvh2, sizing);
+    WideBvh {
+        nodes,
+        order,
+        bounds: (total.min.into(), total.max.into()),
+    }
 }
 
 /// Binary leaves for a build over `boxes`: runs of up to three consecutive primitives whose
@@ -207,11 +224,12 @@ struct Subtree {
     primitives: Vec<u32>,
 }
 
-/// Packs a binary BVH (leaves of at most three primitives) into CWBVH nodes: each wide node takes its
-/// binary node's two children and keeps opening the largest child (by surface area) that is
-/// too big for a leaf until it has eight or none is left (then, with `LeafSizing::Split`, the
-/// largest that fits a leaf); subtrees of at most three primitives become leaves. The subtrees below the root are collapsed in parallel on the
-/// current rayon pool.
+/// Packs a binary BVH (leaves of at most three primitives) into CWBVH nodes: each wide node
+/// takes its binary node's two children and keeps opening the largest child (by surface area)
+/// that is too big for a leaf until it has eight or none is left (then, with
+/// `LeafSizing::Split`, the largest that fits a leaf); subtrees of at most three primitives
+/// become leaves. The subtrees below the root are collapsed in parallel on the current rayon
+/// pool.
 pub(crate) fn collapse_to_wide(bvh2: &Bvh2, sizing: LeafSizing) -> (Vec<CwBvhNode>, Vec<u32>) {
     if bvh2.nodes.is_empty() {
         return (Vec::new(), Vec::new());
