@@ -605,17 +605,19 @@ fn viewport_holds(
 
 /// A worker's working memory, kept from one tile to the next.
 #[derive(Default)]
-struct TileScratch {
+struct TileScratch<'a> {
     packets: PacketScratch,
+    /// Per pixel of a tile, its first hit (only when a channel other than colour needs it).
+    first_hits: Vec<Option<FirstHit<'a>>>,
     /// One channel's pixels of a tile, encoded.
     encoded: Vec<u8>,
 }
 
-fn render_tile(
+fn render_tile<'a>(
     job: &Job,
-    eyes: &[(crate::camera::EyeViewport, EyeRays)],
+    eyes: &'a [(crate::camera::EyeViewport, EyeRays)],
     tile: usize,
-    scratch: &mut TileScratch,
+    scratch: &mut TileScratch<'a>,
 ) {
     let setup = &job.setup;
     let tx = (tile as u32 % job.tiles_x) * TILE_SIZE;
@@ -630,11 +632,11 @@ fn render_tile(
     // Colour summed over the samples, and whether any eye covers the pixel.
     let mut colors = [Vec4::ZERO; TILE_PIXELS];
     let mut covered = [false; TILE_PIXELS];
-    let mut first_hits: Vec<Option<FirstHit>> = if job.keeps_hits {
-        vec![None; pixel_count]
-    } else {
-        Vec::new()
-    };
+    let first_hits = &mut scratch.first_hits;
+    first_hits.clear();
+    if job.keeps_hits {
+        first_hits.resize(pixel_count, None);
+    }
     let mut rays = [NO_RAY; 64];
     let mut camera_rays = [None; 64];
     let mut hits = [None; 64];

@@ -468,7 +468,6 @@ fn array<'p>(params: &'p ParamSet, name: &str) -> Option<&'p crate::scene::array
     params.get_object(name).and_then(|o| o.array.as_ref())
 }
 
-/// Groups a flat index list into vectors of `n` (an unreadable array reads as empty).
 fn finite(v: Vec3) -> bool {
     v.is_finite()
 }
