@@ -14,6 +14,7 @@ use crate::camera::{Camera, CameraRay, EyeRays};
 use crate::device::datatype::*;
 use crate::device::property::PropertyValue;
 use crate::render::color::{srgb8_encoder, to_snorm16, to_unorm8};
+use crate::render::progressive::{Area, Lattice, Plan, Throughput};
 use crate::render::renderer::{PrimaryHit, RendererSettings, fast_surface_color, shade_primary_at};
 use crate::scene::light::LightSampling;
 use crate::scene::world::SceneSnapshot;
@@ -64,6 +65,18 @@ pub struct RenderSetup {
     /// Device-wide commit count: accumulation restarts whenever it changes.
     pub scene_version: u64,
     pub completion: Option<(ANARIFrameCompletionCallback, usize, usize, usize)>,
+    /// Frame-time budget (`ANARI_CAVETRACE_FRAME_BUDGET`); `None` renders every pixel.
+    pub budget: Option<Budget>,
+}
+
+/// A budgeted render traces a subset of the pixels (see [`crate::render::progressive`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Budget {
+    /// Wall-clock seconds a render should take.
+    pub seconds: f32,
+    /// Pixels to trace per render instead of what the measured speed allows (`budgetPixels`),
+    /// for reproducible progressive renders.
+    pub pixels: Option<u32>,
 }
 
 /// What a channel holds.
@@ -195,6 +208,27 @@ struct Channel {
 }
 
 impl Channel {
+    /// Copies the encoded pixels of `area` (in its order) to their places in a frame
+    /// `frame_width` pixels wide.
+    fn write_area(&mut self, area: &Area, frame_width: u32, tile: &[u8]) {
+        if area.lattice.stride == 1 {
+            let (x0, y0) = area.lattice.pixel(area.s0, area.t0);
+            self.write_tile(x0, y0, area.s1 - area.s0, frame_width, tile);
+            return;
+        }
+        let bytes = self.format.pixel_bytes;
+        let width = (area.s1 - area.s0) as usize;
+        for (k, source) in tile.chunks_exact(bytes).enumerate() {
+            let s = area.s0 + (k % width) as u32;
+            let t = area.t0 + (k / width) as u32;
+            let (x, y) = area.lattice.pixel(s, t);
+            let start = (y as usize * frame_width as usize + x as usize) * bytes;
+            if let Some(target) = self.bytes.get_mut(start..start + bytes) {
+                target.copy_from_slice(source);
+            }
+        }
+    }
+
     /// Copies a tile encoded by [`ChannelFormat::encode`] (`tile_width` pixels per row, rows
     /// from `y0` up) to its place in a frame `frame_width` pixels wide.
     fn write_tile(&mut self, x0: u32, y0: u32, tile_width: u32, frame_width: u32, tile: &[u8]) {
@@ -271,6 +305,60 @@ struct Job {
     /// Running colour sum over the accumulated passes (accumulation only).
     color_sum: Option<Mutex<Vec<Vec4>>>,
     started: Instant,
+    /// A budgeted render: which units it traces (`next_tile` counts from `start`).
+    budgeted: Option<BudgetedRun>,
+}
+
+/// What a budgeted render traces: units `start..` of its plan, as far as time allows.
+struct BudgetedRun {
+    plan: Plan,
+    /// Units traced by earlier renders of the unchanged frame.
+    start: usize,
+    /// Units the measured speed allows (the mandatory units, and at least one more than
+    /// `start` so that refinement always progresses, are traced whatever the time).
+    planned_end: usize,
+    deadline: Option<Instant>,
+    /// The first unit a worker declined: units `start..first_declined` are traced.
+    first_declined: AtomicUsize,
+}
+
+impl BudgetedRun {
+    /// Whether unit `index` is not traced in this render. Monotonic in `index` and in time, so
+    /// the traced units always form a prefix.
+    fn declines(&self, index: usize) -> bool {
+        index >= self.plan.units.len()
+            || (index >= self.plan.mandatory_units().max(self.start + 1)
+                && (index >= self.planned_end
+                    || self
+                        .deadline
+                        .is_some_and(|deadline| Instant::now() >= deadline)))
+    }
+}
+
+/// How far the budgeted renders of an unchanged frame got.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Refinement {
+    scene_version: u64,
+    width: u32,
+    height: u32,
+    /// Units traced so far.
+    done: usize,
+    total: usize,
+}
+
+impl Job {
+    /// Tile `tile` of an unbudgeted render: a square of the whole frame.
+    fn tile_area(&self, tile: usize) -> Area {
+        let s0 = (tile as u32 % self.tiles_x) * TILE_SIZE;
+        let t0 = (tile as u32 / self.tiles_x) * TILE_SIZE;
+        Area {
+            lattice: Lattice::WHOLE_FRAME,
+            s0,
+            t0,
+            s1: (s0 + TILE_SIZE).min(self.setup.width),
+            t1: (t0 + TILE_SIZE).min(self.setup.height),
+        }
+    }
 }
 
 fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -290,6 +378,11 @@ struct Inner {
     duration: f32,
     /// Accumulation state: colour sum, passes so far and what they were rendered with.
     accumulation: Option<(Vec<Vec4>, u32, u64, u32, u32)>,
+    /// Budgeted renders: how far refinement got, and how fast tracing was.
+    refinement: Option<Refinement>,
+    throughput: Throughput,
+    /// Fraction of the pixels of the last image that were traced (not filled).
+    progress: f32,
 }
 
 impl Inner {
@@ -335,6 +428,7 @@ impl FrameState {
         }
         match name {
             "duration" => Some(PropertyValue::Float32(self.lock().duration)),
+            "progress" => Some(PropertyValue::Float32(self.lock().progress)),
             _ => None,
         }
     }
@@ -348,8 +442,10 @@ impl FrameState {
         // One render per frame at a time: a second request waits for the first.
         self.wait();
         let pixels = setup.width as usize * setup.height as usize;
-        let (pass, color_sum, previous_output) = {
+        let threads = pool.thread_count();
+        let (pass, color_sum, previous_output, budgeted) = {
             let mut inner = self.lock();
+            let budgeted = budgeted_run(&setup, &mut inner, threads);
             let (pass, sum) = match inner.accumulation.take() {
                 Some((sum, passes, version, w, h))
                     if setup.accumulate
@@ -369,23 +465,30 @@ impl FrameState {
                 }
                 _ => (0, None),
             };
-            // The last image's buffers are reused unless the application has them mapped.
+            // The last image's buffers are reused unless the application has them mapped; a
+            // render that refines the last image copies them then.
+            let continues = budgeted.as_ref().is_some_and(|run| run.start > 0);
             let previous = match inner.output.take().map(Arc::try_unwrap) {
                 Some(Ok(output)) => Some(output),
                 Some(Err(shared)) => {
+                    let copy = continues.then(|| Output {
+                        width: shared.width,
+                        height: shared.height,
+                        channels: shared.channels.clone(),
+                    });
                     inner.output = Some(shared);
-                    None
+                    copy
                 }
                 None => None,
             };
-            (pass, sum, previous)
+            (pass, sum, previous, budgeted)
         };
         let Some(channels) = allocate_channels(&setup, previous_output) else {
             return false;
         };
         let tiles_x = setup.width.div_ceil(TILE_SIZE);
         let tiles_y = setup.height.div_ceil(TILE_SIZE);
-        let workers = pool.thread_count();
+        let workers = threads;
         let job = Arc::new(Job {
             setup,
             cancel: AtomicBool::new(false),
@@ -399,6 +502,7 @@ impl FrameState {
             pass,
             color_sum: color_sum.map(Mutex::new),
             started: Instant::now(),
+            budgeted,
         });
         self.lock().running = Some(Arc::clone(&job));
         for _ in 0..workers {
@@ -414,11 +518,20 @@ impl FrameState {
         let eyes = prepare_eyes(&job.setup);
         let mut scratch = TileScratch::default();
         while !job.cancel.load(Ordering::Acquire) {
-            let tile = job.next_tile.fetch_add(1, Ordering::AcqRel);
-            if tile >= job.tile_count {
-                break;
-            }
-            render_tile(job, &eyes, tile, &mut scratch);
+            let next = job.next_tile.fetch_add(1, Ordering::AcqRel);
+            let area = match &job.budgeted {
+                None if next >= job.tile_count => break,
+                None => job.tile_area(next),
+                Some(run) => {
+                    let index = run.start + next;
+                    if run.declines(index) {
+                        run.first_declined.fetch_min(index, Ordering::AcqRel);
+                        break;
+                    }
+                    run.plan.units[index]
+                }
+            };
+            render_tile(job, &eyes, area, &mut scratch);
         }
         if job.workers_left.fetch_sub(1, Ordering::AcqRel) == 1 {
             self.finish(job);
@@ -427,7 +540,22 @@ impl FrameState {
 
     fn finish(&self, job: &Job) {
         let setup = &job.setup;
-        let channels = std::mem::take(&mut *lock(&job.channels));
+        let mut channels = std::mem::take(&mut *lock(&job.channels));
+        let traced_until = Instant::now();
+        let cancelled = job.cancel.load(Ordering::Acquire);
+        // How far a budgeted render got, and the untraced pixels filled.
+        let refined = job.budgeted.as_ref().map(|run| {
+            let done = run.first_declined.load(Ordering::Acquire);
+            run.plan.fill(setup.width, done, |target, source| {
+                for channel in channels.iter_mut() {
+                    let bytes = channel.format.pixel_bytes;
+                    channel
+                        .bytes
+                        .copy_within(source * bytes..(source + 1) * bytes, target * bytes);
+                }
+            });
+            (run, done)
+        });
         let output = Arc::new(Output {
             width: setup.width,
             height: setup.height,
@@ -436,10 +564,12 @@ impl FrameState {
                 .map(|channel| (channel.name, (channel.format.data_type, channel.bytes)))
                 .collect(),
         });
+        // A pass is complete when every pixel has been traced.
+        let complete = refined.is_none_or(|(run, done)| done == run.plan.units.len());
         let accumulation = job.color_sum.as_ref().map(|sum| {
             (
                 std::mem::take(&mut *lock(sum)),
-                job.pass + 1,
+                job.pass + u32::from(complete),
                 setup.scene_version,
                 setup.width,
                 setup.height,
@@ -451,6 +581,30 @@ impl FrameState {
             inner.duration = job.started.elapsed().as_secs_f32();
             inner.accumulation = accumulation;
             inner.callback_thread = Some(std::thread::current().id());
+            match refined {
+                Some((run, done)) => {
+                    let pixels = run.plan.traced_pixels(done);
+                    inner.progress = pixels as f32 / (setup.width * setup.height) as f32;
+                    if done == run.plan.units.len() {
+                        inner.progress = 1.0;
+                    }
+                    let traced_now = pixels - run.plan.traced_pixels(run.start);
+                    let tracing = traced_until.duration_since(job.started).as_secs_f64();
+                    inner.throughput.record(traced_now, tracing);
+                    inner.throughput.fill_seconds = traced_until.elapsed().as_secs_f64();
+                    inner.refinement = (!cancelled).then_some(Refinement {
+                        scene_version: setup.scene_version,
+                        width: setup.width,
+                        height: setup.height,
+                        done,
+                        total: run.plan.units.len(),
+                    });
+                }
+                None => {
+                    inner.progress = 1.0;
+                    inner.refinement = None;
+                }
+            }
         }
         // The callback runs before the frame counts as ready for other threads, so that an
         // application waiting on the frame knows the callback is done with whatever it touches.
@@ -514,6 +668,63 @@ impl FrameState {
         }
         true
     }
+}
+
+/// The budgeted part of a render, if it has a budget: where refinement of the unchanged frame
+/// goes on, and how many units the measured speed allows. `None` renders every pixel (no
+/// budget, no camera, or an image already complete that accumulation refines further).
+fn budgeted_run(setup: &RenderSetup, inner: &mut Inner, threads: usize) -> Option<BudgetedRun> {
+    let budget = setup.budget?;
+    let camera = setup.camera.as_ref()?;
+    let plan = Plan::new(&camera.viewports(setup.width, setup.height));
+    let start = inner
+        .refinement
+        .filter(|r| {
+            r.scene_version == setup.scene_version
+                && r.width == setup.width
+                && r.height == setup.height
+                && r.total == plan.units.len()
+                && inner.output.is_some()
+        })
+        .map_or(0, |r| r.done);
+    if start == plan.units.len() && setup.accumulate {
+        return None;
+    }
+    let planned_pixels = match budget.pixels {
+        Some(pixels) => f64::from(pixels),
+        None => {
+            let primitives = setup
+                .scene
+                .instances
+                .iter()
+                .flat_map(|instance| &instance.surfaces)
+                .map(|surface| surface.geometry.bvh.primitive_count())
+                .sum();
+            inner.throughput.pixels_for(
+                f64::from(budget.seconds),
+                primitives,
+                setup.settings.fast,
+                threads,
+            )
+        }
+    };
+    // Units after `start` until their pixels reach the plan.
+    let mut planned_end = start;
+    let mut pixels = 0.0;
+    while planned_end < plan.units.len() && pixels < planned_pixels {
+        pixels += plan.units[planned_end].pixel_count() as f64;
+        planned_end += 1;
+    }
+    let deadline = budget.pixels.is_none().then(|| {
+        Instant::now() + std::time::Duration::from_secs_f64(f64::from(budget.seconds) * 0.85)
+    });
+    Some(BudgetedRun {
+        first_declined: AtomicUsize::new(plan.units.len()),
+        plan,
+        start,
+        planned_end,
+        deadline,
+    })
 }
 
 /// Per-eye ray generators for the frame's viewports.
@@ -616,16 +827,16 @@ struct TileScratch<'a> {
 fn render_tile<'a>(
     job: &Job,
     eyes: &'a [(crate::camera::EyeViewport, EyeRays)],
-    tile: usize,
+    area: Area,
     scratch: &mut TileScratch<'a>,
 ) {
     let setup = &job.setup;
-    let tx = (tile as u32 % job.tiles_x) * TILE_SIZE;
-    let ty = (tile as u32 / job.tiles_x) * TILE_SIZE;
-    let x_end = (tx + TILE_SIZE).min(setup.width);
-    let y_end = (ty + TILE_SIZE).min(setup.height);
+    // The area's pixels are lattice points (sx, sy) of [tx, x_end) × [ty, y_end); the whole
+    // frame's lattice (stride 1) makes them plain pixel coordinates.
+    let lattice = area.lattice;
+    let (tx, ty, x_end, y_end) = (area.s0, area.t0, area.s1, area.t1);
     let tile_width = x_end - tx;
-    let pixel_count = (tile_width * (y_end - ty)) as usize;
+    let pixel_count = area.pixel_count();
     let samples = setup.settings.pixel_samples;
     // The fast renderer's lean path: nothing but colour to compute.
     let colour_only_fast = setup.settings.fast && !job.keeps_hits && setup.scene.volumes.is_empty();
@@ -643,21 +854,24 @@ fn render_tile<'a>(
     for by in (ty..y_end).step_by(PACKET_SIDE as usize) {
         for bx in (tx..x_end).step_by(PACKET_SIDE as usize) {
             let (bx_end, by_end) = ((bx + PACKET_SIDE).min(x_end), (by + PACKET_SIDE).min(y_end));
+            let (x0, y0) = lattice.pixel(bx, by);
+            let (x1, y1) = lattice.pixel(bx_end - 1, by_end - 1);
             // Usually one eye's viewport holds the whole block; otherwise look per pixel.
             let block_eye = eyes
                 .iter()
-                .find(|(viewport, _)| viewport_holds(viewport, bx, by, bx_end, by_end));
+                .find(|(viewport, _)| viewport_holds(viewport, x0, y0, x1 + 1, y1 + 1));
             for s in 0..samples {
                 let index = job.pass * samples + s;
                 let offset = jitter(index);
                 let lens = lens_sample(index);
                 for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
-                    let (x, y) = (bx + dx, by + dy);
+                    let (sx, sy) = (bx + dx, by + dy);
                     rays[lane] = NO_RAY;
                     camera_rays[lane] = None;
-                    if x >= x_end || y >= y_end {
+                    if sx >= x_end || sy >= y_end {
                         continue;
                     }
+                    let (x, y) = lattice.pixel(sx, sy);
                     let eye = block_eye.or_else(|| {
                         eyes.iter()
                             .find(|(viewport, _)| viewport_holds(viewport, x, y, x + 1, y + 1))
@@ -684,7 +898,8 @@ fn render_tile<'a>(
                     let Some((camera_ray, eye_rays)) = camera_rays[lane] else {
                         continue;
                     };
-                    let (x, y) = (bx + dx, by + dy);
+                    let (sx, sy) = (bx + dx, by + dy);
+                    let (x, y) = lattice.pixel(sx, sy);
                     // The sample's position in the frame places the background image.
                     let screen = || {
                         Vec2::new(
@@ -692,7 +907,7 @@ fn render_tile<'a>(
                             (y as f32 + offset.y) / setup.height as f32,
                         )
                     };
-                    let k = ((y - ty) * tile_width + x - tx) as usize;
+                    let k = ((sy - ty) * tile_width + sx - tx) as usize;
                     covered[k] = true;
                     if colour_only_fast {
                         colors[k] += fast_surface_color(
@@ -725,7 +940,7 @@ fn render_tile<'a>(
     // mean over the passes when accumulating.
     let mut color_sum = job.color_sum.as_ref().map(lock);
     for (k, color) in colors[..pixel_count].iter_mut().enumerate() {
-        let (x, y) = (tx + k as u32 % tile_width, ty + k as u32 / tile_width);
+        let (x, y) = lattice.pixel(tx + k as u32 % tile_width, ty + k as u32 / tile_width);
         *color = if covered[k] {
             *color / samples as f32
         } else {
@@ -754,7 +969,7 @@ fn render_tile<'a>(
         encoded.resize(pixel_count * format.pixel_bytes, 0);
         format.encode(&colors[..pixel_count], hit, encoded);
         if let Some(channel) = lock(&job.channels).get_mut(index) {
-            channel.write_tile(tx, ty, tile_width, setup.width, encoded);
+            channel.write_area(&area, setup.width, encoded);
         }
     }
 }

@@ -2,6 +2,7 @@
 
 pub mod color;
 pub mod frame;
+pub mod progressive;
 pub mod renderer;
 
 use std::collections::HashMap;
@@ -10,7 +11,7 @@ use std::sync::Arc;
 use crate::device::Device;
 use crate::device::datatype::*;
 use crate::device::object::Object;
-use crate::device::spec::{ObjectSpec, ParamSpec};
+use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::*;
 use crate::render::frame::{CHANNELS, RenderSetup};
 use crate::render::renderer::RendererSettings;
@@ -77,6 +78,22 @@ pub const FRAME: ObjectSpec = ObjectSpec::new(
             "refine progressively over repeated renders while nothing changes",
         ),
         ParamSpec::new(
+            "budget",
+            &[ANARI_FLOAT32],
+            "seconds a render may take: a render traces as many pixels as fit, spread evenly, \
+             fills the rest from traced neighbours, and later renders of the unchanged frame \
+             refine it until it equals the unbudgeted image (0: every pixel, every render)",
+        )
+        .default(SpecValue::Float(0.0))
+        .range(SpecValue::Float(0.0), SpecValue::Float(3600.0)),
+        ParamSpec::new(
+            "budgetPixels",
+            &[ANARI_UINT32],
+            "with a budget: pixels to trace per render instead of what the measured speed \
+             allows (reproducible progressive renders); 0 or unset: from the measured speed",
+        )
+        .default(SpecValue::UInt(0)),
+        ParamSpec::new(
             "frameCompletionCallback",
             &[ANARI_FRAME_COMPLETION_CALLBACK],
             "called on a render thread when a render completes",
@@ -105,6 +122,7 @@ pub const FRAME: ObjectSpec = ObjectSpec::new(
     "ANARI_KHR_FRAME_ACCUMULATION",
     "ANARI_KHR_FRAME_COMPLETION_CALLBACK",
     "ANARI_CAVETRACE_FRAME_CHANNEL_WINDOW_DEPTH",
+    "ANARI_CAVETRACE_FRAME_BUDGET",
 ]);
 
 pub const SPECS: &[ObjectSpec] = &[renderer::DEFAULT, renderer::FAST, FRAME];
@@ -139,6 +157,18 @@ pub fn commit(device: &Device, object: &Object) {
                     );
                 }
             }
+            if let Some(budget) = params.get_f32("budget")
+                && !(budget.is_finite() && budget >= 0.0)
+            {
+                device.error(
+                    ANARI_STATUS_INVALID_ARGUMENT,
+                    Some(object),
+                    format!(
+                        "anariCommitParameters: frame parameter 'budget': {budget} is not a \
+                         finite number of seconds ≥ 0; every pixel is rendered"
+                    ),
+                );
+            }
             if let Some(size) = params.get_uvec2("size")
                 && (size.x == 0 || size.y == 0)
             {
@@ -154,6 +184,17 @@ pub fn commit(device: &Device, object: &Object) {
         }
         _ => {}
     }
+}
+
+/// The frame's budget: a finite positive `budget` (seconds), with `budgetPixels` if non-zero.
+fn budget(params: &crate::device::params::ParamSet) -> Option<frame::Budget> {
+    let seconds = params
+        .get_f32("budget")
+        .filter(|s| s.is_finite() && *s > 0.0)?;
+    Some(frame::Budget {
+        seconds,
+        pixels: params.get_u32("budgetPixels").filter(|p| *p > 0),
+    })
 }
 
 /// anariRenderFrame: snapshots the committed scene and starts rendering on the device's threads.
@@ -244,6 +285,7 @@ pub fn render_frame(device: &Device, frame: &Object) {
         accumulate: params.get_bool("accumulation").unwrap_or(false),
         scene_version: device.commit_epoch(),
         completion,
+        budget: budget(&params),
     };
     if !state.start(setup, &device.pool()) {
         fail(

@@ -1,0 +1,362 @@
+//! Frame-time budgets (`ANARI_CAVETRACE_FRAME_BUDGET`): a budgeted render traces an evenly
+//! spread subset of the pixels and fills the rest from traced neighbours; renders of the
+//! unchanged frame refine it until it equals the unbudgeted image in every channel.
+mod common;
+use common::*;
+
+/// The front wall of a 3 m CAVE and a tracked head, as in the camera tests.
+const LL: [f32; 3] = [-1.5, 0.0, -1.5];
+const LR: [f32; 3] = [1.5, 0.0, -1.5];
+const UR: [f32; 3] = [1.5, 3.0, -1.5];
+const HEAD: [f32; 3] = [0.45, 1.62, 0.3];
+
+/// Every channel a frame can produce, with its type and pixel size.
+const CHANNELS: &[(&str, ANARIDataType, usize)] = &[
+    ("channel.color", ANARI_FLOAT32_VEC4, 16),
+    ("channel.depth", ANARI_FLOAT32, 4),
+    ("channel.primitiveId", ANARI_UINT32, 4),
+    ("channel.objectId", ANARI_UINT32, 4),
+    ("channel.instanceId", ANARI_UINT32, 4),
+    ("channel.albedo", ANARI_FLOAT32_VEC3, 12),
+    ("channel.normal", ANARI_FLOAT32_VEC3, 12),
+    ("channel.windowDepth", ANARI_FLOAT32, 4),
+];
+
+/// Triangles at several depths and a few spheres, lit by a directional light.
+fn scene(dev: ANARIDevice) -> ANARIWorld {
+    let mut positions = Vec::new();
+    for k in 0..12 {
+        let x = -1.2 + 0.22 * k as f32;
+        let y = 0.4 + 0.19 * k as f32;
+        let z = -0.6 - 0.35 * k as f32;
+        positions.extend([[x, y, z], [x + 0.6, y, z], [x + 0.2, y + 0.7, z - 0.1]]);
+    }
+    let triangles = triangle_geometry(dev, &positions);
+    let spheres = sphere_geometry(
+        dev,
+        &[[-0.8, 2.2, -1.0], [0.3, 0.9, -2.0], [0.9, 2.0, -0.4]],
+        0.3,
+    );
+    let a = matte_surface(dev, triangles, [0.8, 0.5, 0.2]);
+    let b = matte_surface(dev, spheres, [0.2, 0.6, 0.9]);
+    set(dev, b, "id", ANARI_UINT32, &7u32);
+    commit(dev, b);
+    let world = world_of(dev, &[a, b]);
+    let light = anariNewLight(dev, c("directional").as_ptr());
+    set(
+        dev,
+        light,
+        "direction",
+        ANARI_FLOAT32_VEC3,
+        &[-0.3f32, -1.0, -0.5],
+    );
+    commit(dev, light);
+    let lights = object_array(dev, ANARI_LIGHT, &[light]);
+    set_object(dev, world, "light", ANARI_ARRAY1D, lights);
+    commit(dev, world);
+    release_all(dev, &[triangles, spheres, a, b, light, lights]);
+    world
+}
+
+fn off_axis(dev: ANARIDevice, stereo: &str, head: [f32; 3]) -> ANARICamera {
+    let camera = anariNewCamera(dev, c("offAxis").as_ptr());
+    set(dev, camera, "screen.lowerLeft", ANARI_FLOAT32_VEC3, &LL);
+    set(dev, camera, "screen.lowerRight", ANARI_FLOAT32_VEC3, &LR);
+    set(dev, camera, "screen.upperRight", ANARI_FLOAT32_VEC3, &UR);
+    set(dev, camera, "position", ANARI_FLOAT32_VEC3, &head);
+    set_string(dev, camera, "stereoMode", stereo);
+    commit(dev, camera);
+    camera
+}
+
+/// A frame with every channel; `budget` seconds and `pixels` per render when given.
+fn frame(
+    dev: ANARIDevice,
+    world: ANARIWorld,
+    camera: ANARICamera,
+    renderer: ANARIRenderer,
+    size: [u32; 2],
+    budget: Option<(f32, u32)>,
+) -> ANARIFrame {
+    let frame = frame_for(dev, world, camera, renderer, size);
+    for &(name, ty, _) in CHANNELS {
+        set(dev, frame, name, ANARI_DATA_TYPE, &ty);
+    }
+    if let Some((seconds, pixels)) = budget {
+        set(dev, frame, "budget", ANARI_FLOAT32, &seconds);
+        set(dev, frame, "budgetPixels", ANARI_UINT32, &pixels);
+    }
+    commit(dev, frame);
+    frame
+}
+
+/// Every channel's bytes, in the order of [`CHANNELS`].
+fn channels(dev: ANARIDevice, frame: ANARIFrame) -> Vec<Vec<u8>> {
+    CHANNELS
+        .iter()
+        .map(|&(name, _, bytes)| {
+            let (mut w, mut h, mut t) = (0u32, 0u32, 0);
+            let name = c(name);
+            let p = anariMapFrame(dev, frame, name.as_ptr(), &mut w, &mut h, &mut t) as *const u8;
+            assert!(!p.is_null());
+            // SAFETY: the mapped channel holds w×h pixels of `bytes` bytes while mapped.
+            let pixels =
+                unsafe { std::slice::from_raw_parts(p, (w * h) as usize * bytes) }.to_vec();
+            anariUnmapFrame(dev, frame, name.as_ptr());
+            pixels
+        })
+        .collect()
+}
+
+fn progress(dev: ANARIDevice, frame: ANARIFrame) -> f32 {
+    let mut value = -1.0f32;
+    let written = anariGetProperty(
+        dev,
+        frame,
+        c("progress").as_ptr(),
+        ANARI_FLOAT32,
+        (&mut value as *mut f32).cast(),
+        4,
+        ANARI_WAIT,
+    );
+    assert_eq!(written, 1, "progress property");
+    value
+}
+
+/// Renders until `progress` is 1; returns the progress after each render.
+fn refine(dev: ANARIDevice, frame: ANARIFrame, most: usize) -> Vec<f32> {
+    let mut seen = Vec::new();
+    while seen.last() != Some(&1.0) {
+        assert!(
+            seen.len() < most,
+            "not complete after {most} renders: {seen:?}"
+        );
+        render_and_wait(dev, frame);
+        seen.push(progress(dev, frame));
+    }
+    seen
+}
+
+fn assert_same_channels(a: &[Vec<u8>], b: &[Vec<u8>], what: &str) {
+    for ((name, _, _), (a, b)) in CHANNELS.iter().zip(a.iter().zip(b)) {
+        assert!(a == b, "{what}: {name} differs");
+    }
+}
+
+#[test]
+fn a_converged_budgeted_frame_equals_the_unbudgeted_frame_in_every_channel() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let world = scene(dev);
+    let size = [70, 45];
+    for renderer_type in ["fast", "default"] {
+        for stereo in ["none", "sideBySide", "topBottom"] {
+            let what = format!("{renderer_type} {stereo}");
+            let camera = off_axis(dev, stereo, HEAD);
+            let renderer = plain_renderer(dev, renderer_type);
+            let plain = frame(dev, world, camera, renderer, size, None);
+            render_and_wait(dev, plain);
+            assert_eq!(progress(dev, plain), 1.0);
+            let expected = channels(dev, plain);
+            let budgeted = frame(dev, world, camera, renderer, size, Some((0.01, 300)));
+            let steps = refine(dev, budgeted, 100);
+            // 3150 pixels, about 300 more per render (whole units of up to 32×32 lattice
+            // points), the first render at least one pixel per 8×8 block.
+            assert!(steps.len() >= 5, "{what}: {steps:?}");
+            assert!(steps.windows(2).all(|p| p[0] < p[1]), "{what}: {steps:?}");
+            assert_same_channels(&channels(dev, budgeted), &expected, &what);
+            // Nothing changed: a further render keeps the complete image.
+            render_and_wait(dev, budgeted);
+            assert_eq!(progress(dev, budgeted), 1.0);
+            assert_same_channels(&channels(dev, budgeted), &expected, &what);
+            release_all(dev, &[plain, budgeted, camera, renderer]);
+        }
+    }
+    anariRelease(dev, world);
+    assert!(log.errors().is_empty(), "{:?}", log.errors());
+    release_device(lib, dev);
+}
+
+/// Offset from a pixel's block position to the pixel it copies when only each 8×8 block's
+/// first pixel is traced: the nearest block corner, the own block's on ties and at the
+/// viewport's far edges.
+fn corner_source(x: u32, y: u32, width: u32, height: u32) -> (u32, u32) {
+    let near = |p: u32, extent: u32| {
+        let (block, d) = (p - p % 8, p % 8);
+        if d > 4 && block + 8 < extent {
+            block + 8
+        } else {
+            block
+        }
+    };
+    // Beyond an edge in one axis, the copy falls back to the own block's corner in both.
+    let (sx, sy) = (near(x, width), near(y, height));
+    let beyond = |p: u32, extent: u32| p % 8 > 4 && p - p % 8 + 8 >= extent;
+    if beyond(x, width) || beyond(y, height) {
+        (x - x % 8, y - y % 8)
+    } else {
+        (sx, sy)
+    }
+}
+
+#[test]
+fn a_partial_frame_copies_ids_and_depths_from_the_nearest_traced_pixel() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let world = scene(dev);
+    let size = [83, 51];
+    let camera = off_axis(dev, "none", HEAD);
+    let renderer = plain_renderer(dev, "fast");
+    let plain = frame(dev, world, camera, renderer, size, None);
+    render_and_wait(dev, plain);
+    let expected = channels(dev, plain);
+    // One pixel per render: only the mandatory first pixel of every block is traced.
+    let budgeted = frame(dev, world, camera, renderer, size, Some((0.01, 1)));
+    render_and_wait(dev, budgeted);
+    let blocks = 83u32.div_ceil(8) * 51u32.div_ceil(8);
+    assert_eq!(progress(dev, budgeted), blocks as f32 / (83.0 * 51.0));
+    let partial = channels(dev, budgeted);
+    let mut differ = 0;
+    for y in 0..51 {
+        for x in 0..83 {
+            let k = (y * 83 + x) as usize;
+            let (sx, sy) = corner_source(x, y, 83, 51);
+            let source = (sy * 83 + sx) as usize;
+            for (channel, &(name, _, bytes)) in CHANNELS.iter().enumerate() {
+                // Every channel, colour included, is a copy of the source's exact value.
+                assert_eq!(
+                    partial[channel][k * bytes..(k + 1) * bytes],
+                    expected[channel][source * bytes..(source + 1) * bytes],
+                    "{name} at ({x}, {y}) from ({sx}, {sy})"
+                );
+            }
+            differ += usize::from(
+                expected[2][k * 4..k * 4 + 4] != expected[2][source * 4..source * 4 + 4],
+            );
+        }
+    }
+    // The scene has edges, so the copies are not the exact image.
+    assert!(differ > 50, "only {differ} ids differ from the exact image");
+    release_all(dev, &[plain, budgeted, camera, renderer, world]);
+    assert!(log.errors().is_empty(), "{:?}", log.errors());
+    release_device(lib, dev);
+}
+
+#[test]
+fn a_change_restarts_refinement_at_the_coarsest_level() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let world = scene(dev);
+    let size = [64, 48];
+    let camera = off_axis(dev, "none", HEAD);
+    let renderer = plain_renderer(dev, "fast");
+    // One pixel per render: the coarsest level, then one unit (48 pixels) per render.
+    let budgeted = frame(dev, world, camera, renderer, size, Some((0.01, 1)));
+    let coarsest = 64.0 * 48.0 / 64.0 / (64.0 * 48.0);
+    render_and_wait(dev, budgeted);
+    assert_eq!(progress(dev, budgeted), coarsest);
+    render_and_wait(dev, budgeted);
+    render_and_wait(dev, budgeted);
+    assert_eq!(progress(dev, budgeted), 3.0 * coarsest);
+    // The head moves: the next render starts again with one pixel per block.
+    set(
+        dev,
+        camera,
+        "position",
+        ANARI_FLOAT32_VEC3,
+        &[0.2f32, 1.5, 0.4],
+    );
+    commit(dev, camera);
+    render_and_wait(dev, budgeted);
+    assert_eq!(progress(dev, budgeted), coarsest);
+    // The restarted refinement converges to the new view's exact image.
+    refine(dev, budgeted, 100);
+    let plain = frame(dev, world, camera, renderer, size, None);
+    render_and_wait(dev, plain);
+    assert_same_channels(
+        &channels(dev, budgeted),
+        &channels(dev, plain),
+        "moved head",
+    );
+    release_all(dev, &[plain, budgeted, camera, renderer, world]);
+    assert!(log.errors().is_empty(), "{:?}", log.errors());
+    release_device(lib, dev);
+}
+
+#[test]
+fn budget_zero_renders_every_pixel_and_a_timed_budget_converges() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let world = scene(dev);
+    let size = [90, 60];
+    let camera = off_axis(dev, "sideBySide", HEAD);
+    let renderer = plain_renderer(dev, "default");
+    let plain = frame(dev, world, camera, renderer, size, None);
+    render_and_wait(dev, plain);
+    let expected = channels(dev, plain);
+    let zero = frame(dev, world, camera, renderer, size, Some((0.0, 1)));
+    render_and_wait(dev, zero);
+    assert_eq!(progress(dev, zero), 1.0);
+    assert_same_channels(&channels(dev, zero), &expected, "budget 0");
+    // A budget far below what the frame needs, timed: each render traces at least one pixel
+    // per block and the image still converges to the exact one.
+    let timed = frame(dev, world, camera, renderer, size, Some((1e-6, 0)));
+    // 64 block positions × 2 eyes, one unit each: at most 127 renders.
+    let steps = refine(dev, timed, 127);
+    assert!(steps[0] > 0.0 && steps[0] < 1.0, "{steps:?}");
+    assert_same_channels(&channels(dev, timed), &expected, "timed budget");
+    release_all(dev, &[plain, zero, timed, camera, renderer, world]);
+    assert!(log.errors().is_empty(), "{:?}", log.errors());
+    release_device(lib, dev);
+}
+
+#[test]
+fn accumulation_goes_on_after_a_budgeted_frame_converges() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let world = scene(dev);
+    let size = [40, 32];
+    let camera = off_axis(dev, "none", HEAD);
+    let renderer = plain_renderer(dev, "default");
+    let plain = frame(dev, world, camera, renderer, size, None);
+    let budgeted = frame(dev, world, camera, renderer, size, Some((0.01, 250)));
+    for frame in [plain, budgeted] {
+        set(dev, frame, "accumulation", ANARI_BOOL, &1u8);
+        commit(dev, frame);
+    }
+    render_and_wait(dev, plain);
+    let first = channels(dev, plain);
+    refine(dev, budgeted, 100);
+    assert_same_channels(&channels(dev, budgeted), &first, "first pass");
+    // The second pass is jittered: both frames accumulate it alike.
+    render_and_wait(dev, plain);
+    render_and_wait(dev, budgeted);
+    assert_eq!(progress(dev, budgeted), 1.0);
+    let second = channels(dev, plain);
+    assert!(second[0] != first[0], "the second pass changed nothing");
+    assert_same_channels(&channels(dev, budgeted), &second, "second pass");
+    release_all(dev, &[plain, budgeted, camera, renderer, world]);
+    assert!(log.errors().is_empty(), "{:?}", log.errors());
+    release_device(lib, dev);
+}
+
+#[test]
+fn a_negative_budget_is_reported_and_renders_every_pixel() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let world = scene(dev);
+    let camera = off_axis(dev, "none", HEAD);
+    let renderer = plain_renderer(dev, "fast");
+    let frame = frame(dev, world, camera, renderer, [16, 16], Some((-1.0, 0)));
+    let errors = log.errors();
+    assert!(
+        errors
+            .iter()
+            .any(|(_, e)| e.contains("'budget'") && e.contains("-1")),
+        "{errors:?}"
+    );
+    render_and_wait(dev, frame);
+    assert_eq!(progress(dev, frame), 1.0);
+    release_all(dev, &[frame, camera, renderer, world]);
+    release_device(lib, dev);
+}
