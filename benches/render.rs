@@ -3,6 +3,8 @@
 //!     cargo bench --bench render            (full size: 1M triangles at 1600×1600)
 //!     CAVETRACE_BENCH_QUICK=1 cargo bench --bench render   (small, for a smoke run)
 //!     cargo bench --bench render -- fast    (only (a) and the same-rays comparison)
+//!     cargo bench --bench render -- budget  (frame-time budgets: frame times, pixels traced,
+//!                                            renders to convergence, image error)
 //!
 //! Scenes: a height field of ~1M triangles seen by a tracked head (the camera moves every
 //! frame), rendered (a) by the "fast" renderer and (b) by the "default" renderer with one
@@ -361,6 +363,98 @@ fn release(s: Setup) {
     }
 }
 
+/// Frame-time budgets (`cargo bench --bench render -- budget`): with the head moving every
+/// frame, per budget the median and 95th-percentile frame time and the fraction of pixels
+/// traced; with the head still, the renders until the image is complete; and the image error
+/// of the first (coarsest) budgeted frame against the full frame.
+fn budget_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: u32) {
+    let progress = |s: &Setup| {
+        let mut value = 0.0f32;
+        anariGetProperty(
+            s.dev,
+            s.frame,
+            c("progress").as_ptr(),
+            ANARI_FLOAT32,
+            (&mut value as *mut f32).cast(),
+            4,
+            ANARI_WAIT,
+        );
+        value
+    };
+    let colors = |s: &Setup| read_channel::<[u8; 4]>(s.dev, s.frame, "channel.color").0;
+    for renderer in ["fast", "default"] {
+        let s = setup(dev, geometry, renderer, size);
+        track_head(&s, 0);
+        let full_ms = render_once(&s);
+        let full_ms = full_ms.min(render_once(&s));
+        let full = colors(&s);
+        // The cheapest complete image: the first level alone (one pixel per 8×8 block).
+        set(s.dev, s.frame, "budget", ANARI_FLOAT32, &10.0f32);
+        set(s.dev, s.frame, "budgetPixels", ANARI_UINT32, &1u32);
+        commit(s.dev, s.frame);
+        let (coarsest_ms, _, _) = timed(5, || {
+            commit(s.dev, s.frame);
+            render_once(&s)
+        });
+        set(s.dev, s.frame, "budgetPixels", ANARI_UINT32, &0u32);
+        println!(
+            "budget, {renderer} renderer: full frame {full_ms:.1} ms; first level alone (1/256 \
+             of the pixels traced, the rest filled) {coarsest_ms:.1} ms"
+        );
+        for budget_ms in [16.0f32, 33.0, 50.0] {
+            set(s.dev, s.frame, "budget", ANARI_FLOAT32, &(budget_ms / 1e3));
+            commit(s.dev, s.frame);
+            let mut times = Vec::new();
+            let mut traced = Vec::new();
+            // A few frames to measure the speed, then the moving head.
+            for step in 1..=frames + 5 {
+                track_head(&s, step);
+                let ms = render_once(&s);
+                if step > 5 {
+                    times.push(ms);
+                    traced.push(f64::from(progress(&s)));
+                }
+            }
+            times.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            let p95 = times[((times.len() as f64 * 0.95).ceil() as usize).min(times.len()) - 1];
+            let median_ms = times[times.len() / 2];
+            let mean_traced = traced.iter().sum::<f64>() / traced.len() as f64;
+            // The same head pose as the full frame: the error of a first, partial frame.
+            track_head(&s, 0);
+            render_once(&s);
+            let first_traced = progress(&s);
+            let partial = colors(&s);
+            let error = full
+                .iter()
+                .zip(&partial)
+                .map(|(a, b)| {
+                    (0..3)
+                        .map(|i| (a[i] as f64 - b[i] as f64).abs())
+                        .sum::<f64>()
+                })
+                .sum::<f64>()
+                / (3.0 * full.len() as f64);
+            // Head still: renders until the image is complete.
+            let (mut renders, mut still_ms) = (1, 0.0);
+            while progress(&s) < 1.0 && renders < 1000 {
+                still_ms += render_once(&s);
+                renders += 1;
+            }
+            let converged_error = full.iter().zip(&colors(&s)).filter(|(a, b)| a != b).count();
+            println!(
+                "  budget {budget_ms:.0} ms, moving head: median {median_ms:.1} ms, p95 {p95:.1} ms \
+                 ({:.2}× budget), {:.1} % of pixels traced; first frame of a pose: {:.1} % traced, \
+                 mean |colour error| {error:.2}/255; head still: complete after {renders} renders \
+                 ({still_ms:.0} ms more), {converged_error} pixels differ from the full frame",
+                p95 / f64::from(budget_ms),
+                100.0 * mean_traced,
+                100.0 * first_traced,
+            );
+        }
+        release(s);
+    }
+}
+
 fn main() {
     if std::env::args().any(|a| a == "--list") {
         return;
@@ -392,6 +486,13 @@ fn main() {
         bytes as f64 / triangles as f64
     );
 
+    if std::env::args().skip(1).any(|a| a == "budget") {
+        budget_section(dev, geometry, size, if quick { 10 } else { 60 });
+        anariRelease(dev, geometry);
+        anariRelease(dev, dev);
+        anariUnloadLibrary(lib);
+        return;
+    }
     let fast = setup(dev, geometry, "fast", size);
     track_head(&fast, 0);
     let first = render_once(&fast);

@@ -183,6 +183,8 @@ out=$build/examples/out
 run_example "tutorial runs" "$build/examples/tutorial" "$out/tutorial.png"
 run_example "matrix_camera runs" "$build/examples/matrix_camera" "$out"
 run_example "cave runs (32×32 walls, one head position)" "$build/examples/cave" "$out/cave" 32 1
+run_example "cave runs with a 5 ms frame budget (32×32 walls, two head positions)" \
+  "$build/examples/cave" "$out/cave_budget" 32 2 5
 
 echo "total: $passed passed, $failed failed, $skipped skipped"
 [ "$failed" -eq 0 ]

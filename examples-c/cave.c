@@ -17,8 +17,15 @@
  * <wall>_<eye>_matrix.png for the five walls and two eyes, unfolded_<eye>.png (the CAVE opened
  * out as a cross), front_anaglyph.png (red-cyan) and front_stereo_pair.png (side by side).
  *
+ * With a frame-time budget in milliseconds (ANARI_CAVETRACE_FRAME_BUDGET), the front wall's
+ * stereo pair is also rendered as a head-tracked application would: one budgeted render per
+ * head position (printed: its time and the fraction of pixels traced; written:
+ * front_budget_pair.png), then, with the head still at the last position, renders until the
+ * image is complete.
+ *
  *   cc -std=c99 cave.c $(pkg-config --cflags --libs cavetrace) -lm -o cave
  *   ./cave [folder (default out/cave)] [wall resolution (default 256)] [head positions (4)]
+ *          [budget in ms (default 0: none)]
  */
 #define _POSIX_C_SOURCE 200809L
 
@@ -339,12 +346,28 @@ static double render(ANARIDevice device, ANARIFrame frame, ANARICamera camera,
   return elapsed;
 }
 
+/* Renders a budgeted frame without committing it (a commit would restart its refinement);
+ * returns the wall-clock seconds and writes the fraction of pixels traced. */
+static double render_budgeted(ANARIDevice device, ANARIFrame frame, float *progress) {
+  double start = seconds_now();
+  anariRenderFrame(device, frame);
+  anariFrameReady(device, frame, ANARI_WAIT);
+  double elapsed = seconds_now() - start;
+  *progress = 0;
+  anariGetProperty(device, frame, "progress", ANARI_FLOAT32, progress, sizeof *progress,
+                   ANARI_WAIT);
+  return elapsed;
+}
+
 int main(int argc, char **argv) {
   const char *folder = argc > 1 ? argv[1] : "out/cave";
   const uint32_t n = argc > 2 ? (uint32_t)atoi(argv[2]) : 256;
   const int steps = argc > 3 ? atoi(argv[3]) : 4;
-  if (n < 8 || n > 4096 || steps < 1 || steps > 100) {
-    fprintf(stderr, "usage: %s [folder] [wall resolution 8..4096] [head positions 1..100]\n",
+  const float budget_ms = argc > 4 ? (float)atof(argv[4]) : 0;
+  if (n < 8 || n > 4096 || steps < 1 || steps > 100 || !(budget_ms >= 0 && budget_ms <= 1000)) {
+    fprintf(stderr,
+            "usage: %s [folder] [wall resolution 8..4096] [head positions 1..100] "
+            "[budget 0..1000 ms]\n",
             argv[0]);
     return 2;
   }
@@ -368,6 +391,22 @@ int main(int argc, char **argv) {
   ANARIFrame eye_frame = color_frame(device, n, n, world, renderer);
   ANARICamera off_axis = anariNewCamera(device, "offAxis");
   ANARICamera matrix = anariNewCamera(device, "matrix");
+  /* The front wall's stereo pair under a frame-time budget, with a camera of its own. */
+  ANARIFrame budget_frame = color_frame(device, 2 * n, n, world, renderer);
+  ANARICamera budget_camera = anariNewCamera(device, "offAxis");
+  if (budget_ms > 0) {
+    float budget = budget_ms / 1000;
+    anariSetParameter(device, budget_frame, "budget", ANARI_FLOAT32, &budget);
+    anariSetParameter(device, budget_frame, "camera", ANARI_CAMERA, &budget_camera);
+    anariSetParameter(device, budget_camera, "screen.lowerLeft", ANARI_FLOAT32_VEC3,
+                      WALL[0].lower_left);
+    anariSetParameter(device, budget_camera, "screen.lowerRight", ANARI_FLOAT32_VEC3,
+                      WALL[0].lower_right);
+    anariSetParameter(device, budget_camera, "screen.upperRight", ANARI_FLOAT32_VEC3,
+                      WALL[0].upper_right);
+    anariSetParameter(device, budget_camera, "stereoMode", ANARI_STRING, "sideBySide");
+    anariCommitParameters(device, budget_frame);
+  }
 
   const size_t wall_bytes = 4 * (size_t)n * n;
   unsigned char *pair = malloc(2 * wall_bytes);
@@ -456,11 +495,39 @@ int main(int argc, char **argv) {
     }
     anaglyph(walls[0][0], walls[1][0], (size_t)n * n, composite);
     ok &= write_png(device, step_folder, "front_anaglyph.png", n, n, composite);
+    if (budget_ms > 0) {
+      /* As a tracked application does every frame: the newest head pose, one render. */
+      anariSetParameter(device, budget_camera, "position", ANARI_FLOAT32_VEC3, head);
+      anariSetParameter(device, budget_camera, "right", ANARI_FLOAT32_VEC3, right);
+      anariCommitParameters(device, budget_camera);
+      float progress;
+      double seconds = render_budgeted(device, budget_frame, &progress);
+      printf("head %d, budget %.0f ms: front wall pair (%u×%u) in %.1f ms, %.1f %% of the "
+             "pixels traced\n",
+             step, budget_ms, 2 * n, n, 1e3 * seconds, 100.0 * progress);
+      char path[2048];
+      snprintf(path, sizeof path, "%s/front_budget_pair.png", step_folder);
+      ok &= cavetraceWriteFramePNG(device, budget_frame, "channel.color", path) ==
+            ANARI_STATUS_NO_ERROR;
+    }
     printf("head %d at (%.2f, %.2f, %.2f): 5 walls × 2 eyes of %u×%u in %.0f ms with offAxis "
            "(%.1f ms per wall, both eyes), %.0f ms with matrix; largest matrix/offAxis "
            "difference %d/255\n",
            step, head[0], head[1], head[2], n, n, 1e3 * off_axis_seconds,
            1e3 * off_axis_seconds / WALLS, 1e3 * matrix_seconds, difference);
+  }
+  if (budget_ms > 0) {
+    /* The head stands still: keep rendering to refine until the image is complete. */
+    float progress = 0;
+    int renders = 0;
+    double seconds = 0;
+    while (progress < 1 && renders < 1000) {
+      seconds += render_budgeted(device, budget_frame, &progress);
+      renders++;
+    }
+    printf("head still: the front wall pair is complete after %d more renders (%.0f ms)\n",
+           renders, 1e3 * seconds);
+    ok &= progress == 1;
   }
   printf("images in %s/<head position>/\n", folder);
 
@@ -468,7 +535,8 @@ int main(int argc, char **argv) {
     for (int w = 0; w < WALLS; w++)
       free(walls[e][w]);
   free(pair), free(composite), free(matrix_image);
-  ANARIObject objects[] = {off_axis, matrix, pair_frame, eye_frame, renderer, world};
+  ANARIObject objects[] = {off_axis,     matrix,        pair_frame, eye_frame,
+                           budget_frame, budget_camera, renderer,   world};
   for (size_t i = 0; i < sizeof objects / sizeof objects[0]; i++)
     anariRelease(device, objects[i]);
   anariRelease(device, device);

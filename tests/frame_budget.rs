@@ -161,7 +161,7 @@ fn a_converged_budgeted_frame_equals_the_unbudgeted_frame_in_every_channel() {
             let budgeted = frame(dev, world, camera, renderer, size, Some((0.01, 300)));
             let steps = refine(dev, budgeted, 100);
             // 3150 pixels, about 300 more per render (whole units of up to 32×32 lattice
-            // points), the first render at least one pixel per 8×8 block.
+            // points), the first render at least one pixel per 16×16 block.
             assert!(steps.len() >= 5, "{what}: {steps:?}");
             assert!(steps.windows(2).all(|p| p[0] < p[1]), "{what}: {steps:?}");
             assert_same_channels(&channels(dev, budgeted), &expected, &what);
@@ -177,26 +177,19 @@ fn a_converged_budgeted_frame_equals_the_unbudgeted_frame_in_every_channel() {
     release_device(lib, dev);
 }
 
-/// Offset from a pixel's block position to the pixel it copies when only each 8×8 block's
-/// first pixel is traced: the nearest block corner, the own block's on ties and at the
-/// viewport's far edges.
+/// The pixel an untraced pixel copies when only every 16th row and column is traced: per
+/// axis the nearer traced line, the lower one on ties and where the upper one lies beyond
+/// the frame.
 fn corner_source(x: u32, y: u32, width: u32, height: u32) -> (u32, u32) {
     let near = |p: u32, extent: u32| {
-        let (block, d) = (p - p % 8, p % 8);
-        if d > 4 && block + 8 < extent {
-            block + 8
+        let (line, d) = (p - p % 16, p % 16);
+        if d > 8 && line + 16 < extent {
+            line + 16
         } else {
-            block
+            line
         }
     };
-    // Beyond an edge in one axis, the copy falls back to the own block's corner in both.
-    let (sx, sy) = (near(x, width), near(y, height));
-    let beyond = |p: u32, extent: u32| p % 8 > 4 && p - p % 8 + 8 >= extent;
-    if beyond(x, width) || beyond(y, height) {
-        (x - x % 8, y - y % 8)
-    } else {
-        (sx, sy)
-    }
+    (near(x, width), near(y, height))
 }
 
 #[test]
@@ -210,10 +203,10 @@ fn a_partial_frame_copies_ids_and_depths_from_the_nearest_traced_pixel() {
     let plain = frame(dev, world, camera, renderer, size, None);
     render_and_wait(dev, plain);
     let expected = channels(dev, plain);
-    // One pixel per render: only the mandatory first pixel of every block is traced.
+    // One pixel per render: only the mandatory coarsest level (every 16th row and column).
     let budgeted = frame(dev, world, camera, renderer, size, Some((0.01, 1)));
     render_and_wait(dev, budgeted);
-    let blocks = 83u32.div_ceil(8) * 51u32.div_ceil(8);
+    let blocks = 83u32.div_ceil(16) * 51u32.div_ceil(16);
     assert_eq!(progress(dev, budgeted), blocks as f32 / (83.0 * 51.0));
     let partial = channels(dev, budgeted);
     let mut differ = 0;
@@ -250,15 +243,16 @@ fn a_change_restarts_refinement_at_the_coarsest_level() {
     let size = [64, 48];
     let camera = off_axis(dev, "none", HEAD);
     let renderer = plain_renderer(dev, "fast");
-    // One pixel per render: the coarsest level, then one unit (48 pixels) per render.
+    // One pixel per render: the coarsest level, then one unit (here a whole level) per render.
     let budgeted = frame(dev, world, camera, renderer, size, Some((0.01, 1)));
-    let coarsest = 64.0 * 48.0 / 64.0 / (64.0 * 48.0);
+    let coarsest = 1.0 / 256.0;
     render_and_wait(dev, budgeted);
     assert_eq!(progress(dev, budgeted), coarsest);
     render_and_wait(dev, budgeted);
     render_and_wait(dev, budgeted);
-    assert_eq!(progress(dev, budgeted), 3.0 * coarsest);
-    // The head moves: the next render starts again with one pixel per block.
+    // The lattices of strides 16, 8 and 4 are traced: a sixteenth of the pixels.
+    assert_eq!(progress(dev, budgeted), 1.0 / 16.0);
+    // The head moves: the next render starts again with the coarsest level.
     set(
         dev,
         camera,
@@ -298,11 +292,11 @@ fn budget_zero_renders_every_pixel_and_a_timed_budget_converges() {
     render_and_wait(dev, zero);
     assert_eq!(progress(dev, zero), 1.0);
     assert_same_channels(&channels(dev, zero), &expected, "budget 0");
-    // A budget far below what the frame needs, timed: each render traces at least one pixel
-    // per block and the image still converges to the exact one.
+    // A budget far below what the frame needs, timed: each render traces at least the
+    // coarsest level or one more unit, and the image still converges to the exact one.
     let timed = frame(dev, world, camera, renderer, size, Some((1e-6, 0)));
-    // 64 block positions × 2 eyes, one unit each: at most 127 renders.
-    let steps = refine(dev, timed, 127);
+    // Levels of 1, 1, 1, 1 and 4 units per eye: at most 15 renders.
+    let steps = refine(dev, timed, 15);
     assert!(steps[0] > 0.0 && steps[0] < 1.0, "{steps:?}");
     assert_same_channels(&channels(dev, timed), &expected, "timed budget");
     release_all(dev, &[plain, zero, timed, camera, renderer, world]);
