@@ -68,7 +68,7 @@ impl Area {
     /// Whether lattice point (s, t) is left alone (the previous level traced it).
     #[inline]
     pub fn skips(&self, s: u32, t: u32) -> bool {
-        self.skips_coarser && s % 2 == 0 && t % 2 == 0
+        self.skips_coarser && s.is_multiple_of(2) && t.is_multiple_of(2)
     }
 
     /// Points this area traces.
@@ -228,7 +228,7 @@ impl Plan {
                 .collect();
             let (x0, x1) = (v.x as usize * N, (v.x + v.width) as usize * N);
             for y in v.y..v.y + v.height {
-                let lattice_row = (y - v.y) % stride == 0;
+                let lattice_row = (y - v.y).is_multiple_of(stride);
                 let source_row = nearest(y, v.y, v.height) as usize;
                 if !lattice_row && traced.is_empty() {
                     // The usual case: the whole row is copied from one traced row.
