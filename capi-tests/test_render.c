@@ -386,6 +386,57 @@ static void spheres_report_depth_and_primitive_index(void) {
   close_device(library, device);
 }
 
+/* A frame with a budget, rendered again and again without a change, refines to exactly the
+ * image rendered without one; `progress` tells how far it got. */
+static void budgeted_frame_refines_to_the_full_image(void) {
+  enum { W = 61, H = 47 };
+  ANARILibrary library;
+  ANARIDevice device = open_device(&library);
+  ANARIGeometry near_square = square_at(device, -0.4f, 0.1f, -3, 0.8f);
+  ANARIGeometry far_square = square_at(device, 0.3f, -0.2f, -6, 2.5f);
+  ANARISurface surfaces[2] = {matte_surface(device, near_square, 1, 0.2f, 0.1f, 1),
+                              matte_surface(device, far_square, 0.1f, 0.5f, 1, 2)};
+  ANARIWorld world = world_of_surfaces(device, surfaces, 2);
+  ANARICamera camera = perspective_camera(device, ORIGIN, FORWARD, 1.0f);
+  ANARIRenderer renderer = albedo_renderer(device);
+  ANARIFrame full = new_frame(device, W, H, world, camera, renderer);
+  ANARIFrame budgeted = new_frame(device, W, H, world, camera, renderer);
+  float budget = 0.005f;
+  uint32_t pixels_per_render = 400;
+  anariSetParameter(device, budgeted, "budget", ANARI_FLOAT32, &budget);
+  anariSetParameter(device, budgeted, "budgetPixels", ANARI_UINT32, &pixels_per_render);
+  anariCommitParameters(device, budgeted);
+  render_and_wait(device, full);
+  float progress = 0, first_progress = 0;
+  int renders = 0;
+  while (progress < 1 && renders < 100) {
+    render_and_wait(device, budgeted);
+    CHECK(anariGetProperty(device, budgeted, "progress", ANARI_FLOAT32, &progress,
+                           sizeof progress, ANARI_WAIT) == 1);
+    if (renders++ == 0)
+      first_progress = progress;
+  }
+  CHECK(first_progress > 0 && first_progress < 0.25f);
+  CHECK(progress == 1);
+  CHECK(renders > 3);
+  const char *channels[] = {"channel.color", "channel.depth", "channel.primitiveId",
+                            "channel.objectId"};
+  const ANARIDataType types[] = {ANARI_FLOAT32_VEC4, ANARI_FLOAT32, ANARI_UINT32, ANARI_UINT32};
+  const size_t sizes[] = {16, 4, 4, 4};
+  for (int c = 0; c < 4; c++) {
+    void *a = copy_channel(device, full, channels[c], types[c], sizes[c], NULL, NULL);
+    void *b = copy_channel(device, budgeted, channels[c], types[c], sizes[c], NULL, NULL);
+    CHECK(a && b && memcmp(a, b, sizes[c] * W * H) == 0);
+    free(a), free(b);
+  }
+  ANARIObject objects[] = {near_square, far_square, surfaces[0], surfaces[1], world,
+                           camera,      renderer,   full,        budgeted};
+  for (size_t i = 0; i < sizeof objects / sizeof objects[0]; i++)
+    anariRelease(device, objects[i]);
+  CHECK(log_error_count() == 0);
+  close_device(library, device);
+}
+
 int main(void) {
   run_test("poll_then_discard", poll_then_discard);
   run_test("poll_until_ready", poll_until_ready);
@@ -393,5 +444,6 @@ int main(void) {
   run_test("perspective_scene_matches_reference", perspective_scene_matches_reference);
   run_test("instances_move_groups_and_carry_ids", instances_move_groups_and_carry_ids);
   run_test("spheres_report_depth_and_primitive_index", spheres_report_depth_and_primitive_index);
+  run_test("budgeted_frame_refines_to_the_full_image", budgeted_frame_refines_to_the_full_image);
   return test_summary();
 }

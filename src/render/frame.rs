@@ -715,8 +715,10 @@ fn budgeted_run(setup: &RenderSetup, inner: &mut Inner, threads: usize) -> Optio
         pixels += plan.units[planned_end].pixel_count() as f64;
         planned_end += 1;
     }
+    // Tracing stops in time for the fill (as long as it took last time) and the rest.
     let deadline = budget.pixels.is_none().then(|| {
-        Instant::now() + std::time::Duration::from_secs_f64(f64::from(budget.seconds) * 0.85)
+        let tracing = 0.85 * f64::from(budget.seconds) - inner.throughput.fill_seconds;
+        Instant::now() + std::time::Duration::from_secs_f64(tracing.max(0.0))
     });
     Some(BudgetedRun {
         first_declined: AtomicUsize::new(plan.units.len()),

@@ -173,45 +173,37 @@ impl Plan {
         if levels == 0 || levels == LEVELS.len() {
             return;
         }
-        let stride = LEVELS[levels - 1];
-        // Pixels of the level the render stopped in the middle of (rows of flags).
+        // The pixels of the level the render stopped in the middle of are exact: kept aside
+        // while the rows are filled from the complete level, then put back.
         let partial = &self.units[self.first_unit[levels]..done];
-        let mut traced = Vec::new();
-        if !partial.is_empty() {
-            let height = self
-                .viewports
-                .iter()
-                .map(|v| v.y + v.height)
-                .max()
-                .unwrap_or(0);
-            traced = vec![false; width as usize * height as usize];
-            for unit in partial {
-                for t in unit.t0..unit.t1 {
-                    for s in unit.s0..unit.s1 {
-                        let (x, y) = unit.lattice.pixel(s, t);
-                        traced[(y * width + x) as usize] = true;
-                    }
-                }
+        let traced = |unit: &Area| byte_offsets(*unit, width, pixel_bytes);
+        let mut kept = Vec::new();
+        for unit in partial {
+            for start in traced(unit) {
+                kept.extend_from_slice(&bytes[start..start + pixel_bytes]);
             }
         }
+        let stride = LEVELS[levels - 1];
         match pixel_bytes {
-            4 => self.fill_pixels::<4>(width, stride, &traced, bytes),
-            6 => self.fill_pixels::<6>(width, stride, &traced, bytes),
-            12 => self.fill_pixels::<12>(width, stride, &traced, bytes),
-            16 => self.fill_pixels::<16>(width, stride, &traced, bytes),
-            3 => self.fill_pixels::<3>(width, stride, &traced, bytes),
+            4 => self.fill_pixels::<4>(width, stride, bytes),
+            6 => self.fill_pixels::<6>(width, stride, bytes),
+            12 => self.fill_pixels::<12>(width, stride, bytes),
+            16 => self.fill_pixels::<16>(width, stride, bytes),
+            3 => self.fill_pixels::<3>(width, stride, bytes),
             _ => debug_assert!(false, "no channel has {pixel_bytes}-byte pixels"),
+        }
+        let mut kept = kept.chunks_exact(pixel_bytes);
+        for unit in partial {
+            for start in traced(unit) {
+                if let Some(pixel) = kept.next() {
+                    bytes[start..start + pixel_bytes].copy_from_slice(pixel);
+                }
+            }
         }
     }
 
     /// [`Plan::fill`] for `N`-byte pixels (a fixed size makes each copy a few moves).
-    fn fill_pixels<const N: usize>(
-        &self,
-        width: u32,
-        stride: u32,
-        traced: &[bool],
-        bytes: &mut [u8],
-    ) {
+    fn fill_pixels<const N: usize>(&self, width: u32, stride: u32, bytes: &mut [u8]) {
         let nearest = |p: u32, start: u32, extent: u32| {
             let d = (p - start) % stride;
             let lower = p - d;
@@ -230,7 +222,7 @@ impl Plan {
             for y in v.y..v.y + v.height {
                 let lattice_row = (y - v.y).is_multiple_of(stride);
                 let source_row = nearest(y, v.y, v.height) as usize;
-                if !lattice_row && traced.is_empty() {
+                if !lattice_row {
                     // The usual case: the whole row is copied from one traced row.
                     let (y, s) = (y as usize, source_row);
                     let (source, target) = if s < y {
@@ -248,7 +240,7 @@ impl Plan {
                 }
                 for (x, &source_column) in (v.x..v.x + v.width).zip(&columns) {
                     let k = y as usize * w + x as usize;
-                    if (lattice_row && source_column == x) || traced.get(k) == Some(&true) {
+                    if source_column == x {
                         continue;
                     }
                     let source = (source_row * w + source_column as usize) * N;
@@ -260,6 +252,18 @@ impl Plan {
             }
         }
     }
+}
+
+/// Byte offsets of the pixels `area` traces in a frame `width` pixels wide.
+fn byte_offsets(area: Area, width: u32, pixel_bytes: usize) -> impl Iterator<Item = usize> {
+    (area.t0..area.t1).flat_map(move |t| {
+        (area.s0..area.s1)
+            .filter(move |&s| !area.skips(s, t))
+            .map(move |s| {
+                let (x, y) = area.lattice.pixel(s, t);
+                (y as usize * width as usize + x as usize) * pixel_bytes
+            })
+    })
 }
 
 /// Pixels per second a render can trace, measured on earlier budgeted renders of a frame.
