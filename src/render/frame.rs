@@ -3,7 +3,7 @@
 
 use std::collections::HashMap;
 use std::ffi::c_void;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::Instant;
 
@@ -298,6 +298,8 @@ struct Job {
     tiles_x: u32,
     tile_count: usize,
     workers_left: AtomicUsize,
+    /// Threads rendering this job.
+    workers: usize,
     channels: Mutex<Vec<Channel>>,
     /// The formats of `channels`, in the same order, readable without the lock.
     formats: Vec<ChannelFormat>,
@@ -323,6 +325,8 @@ struct BudgetedRun {
     deadline: Option<Instant>,
     /// The first unit a worker declined: units `start..first_declined` are traced.
     first_declined: AtomicUsize,
+    /// Nanoseconds the threads spent tracing units, summed.
+    tracing_nanos: AtomicU64,
 }
 
 impl BudgetedRun {
@@ -500,6 +504,7 @@ impl FrameState {
             tiles_x,
             tile_count: (tiles_x * tiles_y) as usize,
             workers_left: AtomicUsize::new(workers),
+            workers,
             keeps_hits: channels.iter().any(|c| c.format.kind != ChannelKind::Color),
             formats: channels.iter().map(|c| c.format).collect(),
             channels: Mutex::new(channels),
@@ -532,7 +537,11 @@ impl FrameState {
                         run.first_declined.fetch_min(index, Ordering::AcqRel);
                         break;
                     }
-                    run.plan.units[index]
+                    let started = Instant::now();
+                    render_tile(job, &eyes, run.plan.units[index], &mut scratch);
+                    let nanos = started.elapsed().as_nanos() as u64;
+                    run.tracing_nanos.fetch_add(nanos, Ordering::Relaxed);
+                    continue;
                 }
             };
             render_tile(job, &eyes, area, &mut scratch);
@@ -545,7 +554,6 @@ impl FrameState {
     fn finish(&self, job: &Job) {
         let setup = &job.setup;
         let mut channels = std::mem::take(&mut *lock(&job.channels));
-        let traced_until = Instant::now();
         let cancelled = job.cancel.load(Ordering::Acquire);
         // How far a budgeted render got, and the untraced pixels filled.
         let refined = job.budgeted.as_ref().map(|run| {
@@ -589,9 +597,12 @@ impl FrameState {
                         inner.progress = 1.0;
                     }
                     let traced_now = pixels - run.plan.traced_pixels(run.start);
-                    let tracing = traced_until.duration_since(job.started).as_secs_f64();
-                    inner.throughput.record(traced_now, tracing);
-                    inner.throughput.fill_seconds = traced_until.elapsed().as_secs_f64();
+                    let thread_seconds = run.tracing_nanos.load(Ordering::Relaxed) as f64 * 1e-9;
+                    inner.throughput.record(traced_now, thread_seconds);
+                    // What the render took beyond its threads' tracing time.
+                    let threads = job.workers as f64;
+                    inner.throughput.overhead_seconds =
+                        (job.started.elapsed().as_secs_f64() - thread_seconds / threads).max(0.0);
                     inner.refinement = (!cancelled).then_some(Refinement {
                         scene_version: setup.scene_version,
                         width: setup.width,
@@ -717,11 +728,12 @@ fn budgeted_run(setup: &RenderSetup, inner: &mut Inner, threads: usize) -> Optio
     }
     // Tracing stops in time for the fill (as long as it took last time) and the rest.
     let deadline = budget.pixels.is_none().then(|| {
-        let tracing = 0.85 * f64::from(budget.seconds) - inner.throughput.fill_seconds;
+        let tracing = 0.85 * f64::from(budget.seconds) - inner.throughput.overhead_seconds;
         Instant::now() + std::time::Duration::from_secs_f64(tracing.max(0.0))
     });
     Some(BudgetedRun {
         first_declined: AtomicUsize::new(plan.units.len()),
+        tracing_nanos: AtomicU64::new(0),
         plan,
         start,
         planned_end,

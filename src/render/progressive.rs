@@ -266,40 +266,44 @@ fn byte_offsets(area: Area, width: u32, pixel_bytes: usize) -> impl Iterator<Ite
     })
 }
 
-/// Pixels per second a render can trace, measured on earlier budgeted renders of a frame.
+/// How fast budgeted renders of a frame traced, measured on the earlier ones.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Throughput {
-    /// Traced pixels per second of wall time (all threads), if measured.
-    pub pixels_per_second: Option<f64>,
-    /// Seconds the fill took last time.
-    pub fill_seconds: f64,
+    /// Traced pixels per second of one thread's tracing time, if measured.
+    pub pixels_per_thread_second: Option<f64>,
+    /// Seconds of the last render spent other than tracing (set-up, fill, finish).
+    pub overhead_seconds: f64,
 }
 
 impl Throughput {
-    /// Blends in a new measurement (the newest counts most: head motion changes the view).
-    pub fn record(&mut self, pixels: usize, seconds: f64) {
-        if pixels < 1024 || seconds <= 0.0 {
+    /// Blends in a measurement: `pixels` traced in `thread_seconds` of tracing summed over
+    /// the threads (the newest counts most: head motion changes the view).
+    pub fn record(&mut self, pixels: usize, thread_seconds: f64) {
+        if pixels < 256 || thread_seconds <= 0.0 {
             return;
         }
-        let rate = pixels as f64 / seconds;
-        self.pixels_per_second = Some(match self.pixels_per_second {
+        let rate = pixels as f64 / thread_seconds;
+        self.pixels_per_thread_second = Some(match self.pixels_per_thread_second {
             Some(old) => 0.5 * old + 0.5 * rate,
             None => rate,
         });
     }
 
-    /// Pixels to trace within `budget` seconds. Before any measurement the guess is from the
-    /// scene's size: a primary ray through a BVH of n primitives costs about
-    /// (60 + 8·log2 n) ns per thread with the fast renderer, three times that with the default
+    /// Pixels to trace within `budget` seconds on `threads` threads. Before any measurement
+    /// the guess is from the scene's size: a primary ray through a BVH of n primitives costs
+    /// about (60 + 8·log2 n) ns with the fast renderer, three times that with the default
     /// renderer (shading, shadows), on the development machine.
     pub fn pixels_for(&self, budget: f64, primitives: usize, fast: bool, threads: usize) -> f64 {
-        let rate = self.pixels_per_second.unwrap_or_else(|| {
+        let rate = self.pixels_per_thread_second.unwrap_or_else(|| {
             let per_ray = (60.0 + 8.0 * ((primitives + 1) as f64).log2()) * 1e-9;
-            let per_ray = if fast { per_ray } else { 3.0 * per_ray };
-            threads.max(1) as f64 / per_ray
+            if fast {
+                1.0 / per_ray
+            } else {
+                1.0 / (3.0 * per_ray)
+            }
         });
-        // Keep a margin for the frame's set-up, the fill and timing noise.
-        (rate * (0.8 * budget - self.fill_seconds)).max(0.0)
+        // A margin for timing noise and the cost differences between levels.
+        (rate * threads.max(1) as f64 * (0.8 * budget - self.overhead_seconds)).max(0.0)
     }
 }
 
