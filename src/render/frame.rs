@@ -560,7 +560,8 @@ impl FrameState {
             let done = run.first_declined.load(Ordering::Acquire);
             for channel in channels.iter_mut() {
                 let bytes = channel.format.pixel_bytes;
-                run.plan.fill(setup.width, done, bytes, &mut channel.bytes);
+                run.plan
+                    .fill(setup.width, run.start, done, bytes, &mut channel.bytes);
             }
             (run, done)
         });

@@ -164,23 +164,32 @@ impl Plan {
     /// [`Plan::mandatory_units`]) of `bytes` (a frame `width` pixels wide, `pixel_bytes` per
     /// pixel) with a copy of the nearest traced pixel of its viewport on the lattice of the
     /// last complete level: per axis the nearer lattice line, the lower one on ties and where
-    /// the upper one lies beyond the viewport.
-    pub fn fill(&self, width: u32, done: usize, pixel_bytes: usize, bytes: &mut [u8]) {
-        let levels = self.first_unit[1..]
-            .iter()
-            .take_while(|&&f| f <= done)
-            .count();
-        if levels == 0 || levels == LEVELS.len() {
+    /// the upper one lies beyond the viewport. A render that went on from `start` units
+    /// without completing a level leaves the fill of the last render as it is: it came from
+    /// the same lattice.
+    pub fn fill(
+        &self,
+        width: u32,
+        start: usize,
+        done: usize,
+        pixel_bytes: usize,
+        bytes: &mut [u8],
+    ) {
+        let levels = self.complete_levels(done);
+        if levels == 0
+            || levels == LEVELS.len()
+            || (start > 0 && self.complete_levels(start) == levels)
+        {
             return;
         }
-        // The pixels of the level the render stopped in the middle of are exact: kept aside
-        // while the rows are filled from the complete level, then put back.
+        // The pixels of the level the render stopped in the middle of (all traced by this
+        // render, as it completed the level before) are exact: kept aside while the rows
+        // are filled from the complete level, then put back.
         let partial = &self.units[self.first_unit[levels]..done];
-        let traced = |unit: &Area| byte_offsets(*unit, width, pixel_bytes);
         let mut kept = Vec::new();
         for unit in partial {
-            for start in traced(unit) {
-                kept.extend_from_slice(&bytes[start..start + pixel_bytes]);
+            for (start, length) in byte_runs(unit, width, pixel_bytes) {
+                kept.extend_from_slice(&bytes[start..start + length]);
             }
         }
         let stride = LEVELS[levels - 1];
@@ -192,14 +201,21 @@ impl Plan {
             3 => self.fill_pixels::<3>(width, stride, bytes),
             _ => debug_assert!(false, "no channel has {pixel_bytes}-byte pixels"),
         }
-        let mut kept = kept.chunks_exact(pixel_bytes);
+        let mut offset = 0;
         for unit in partial {
-            for start in traced(unit) {
-                if let Some(pixel) = kept.next() {
-                    bytes[start..start + pixel_bytes].copy_from_slice(pixel);
-                }
+            for (start, length) in byte_runs(unit, width, pixel_bytes) {
+                bytes[start..start + length].copy_from_slice(&kept[offset..offset + length]);
+                offset += length;
             }
         }
+    }
+
+    /// Levels complete after the first `done` units.
+    fn complete_levels(&self, done: usize) -> usize {
+        self.first_unit[1..]
+            .iter()
+            .take_while(|&&f| f <= done)
+            .count()
     }
 
     /// [`Plan::fill`] for `N`-byte pixels (a fixed size makes each copy a few moves).
@@ -254,16 +270,27 @@ impl Plan {
     }
 }
 
-/// Byte offsets of the pixels `area` traces in a frame `width` pixels wide.
-fn byte_offsets(area: Area, width: u32, pixel_bytes: usize) -> impl Iterator<Item = usize> {
-    (area.t0..area.t1).flat_map(move |t| {
-        (area.s0..area.s1)
-            .filter(move |&s| !area.skips(s, t))
-            .map(move |s| {
-                let (x, y) = area.lattice.pixel(s, t);
-                (y as usize * width as usize + x as usize) * pixel_bytes
-            })
-    })
+/// The bytes of the pixels `area` covers in a frame `width` pixels wide, as (start, length)
+/// runs: a run per row at stride 1, a run per pixel otherwise (points a level skips are
+/// included: the previous level traced them, so they hold exact values too).
+fn byte_runs(area: &Area, width: u32, pixel_bytes: usize) -> Vec<(usize, usize)> {
+    let mut runs = Vec::new();
+    for t in area.t0..area.t1 {
+        if area.lattice.stride == 1 {
+            let (x, y) = area.lattice.pixel(area.s0, t);
+            let start = (y as usize * width as usize + x as usize) * pixel_bytes;
+            runs.push((start, (area.s1 - area.s0) as usize * pixel_bytes));
+            continue;
+        }
+        for s in area.s0..area.s1 {
+            let (x, y) = area.lattice.pixel(s, t);
+            runs.push((
+                (y as usize * width as usize + x as usize) * pixel_bytes,
+                pixel_bytes,
+            ));
+        }
+    }
+    runs
 }
 
 /// How fast budgeted renders of a frame traced, measured on the earlier ones.
@@ -364,7 +391,7 @@ mod tests {
             let mut pixels: Vec<u8> = (0..90 * 70u32)
                 .flat_map(|k| if traced[k as usize] { k } else { u32::MAX }.to_ne_bytes())
                 .collect();
-            plan.fill(90, done, 4, &mut pixels);
+            plan.fill(90, 0, done, 4, &mut pixels);
             for (k, value) in pixels.chunks_exact(4).enumerate() {
                 let source = u32::from_ne_bytes(value.try_into().unwrap()) as usize;
                 assert!(source < 90 * 70 && traced[source], "pixel {k}, done {done}");
