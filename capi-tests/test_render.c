@@ -402,7 +402,7 @@ static void budgeted_frame_refines_to_the_full_image(void) {
   ANARIFrame full = new_frame(device, W, H, world, camera, renderer);
   ANARIFrame budgeted = new_frame(device, W, H, world, camera, renderer);
   float budget = 0.005f;
-  uint32_t pixels_per_render = 400;
+  uint32_t pixels_per_render = 100;
   anariSetParameter(device, budgeted, "budget", ANARI_FLOAT32, &budget);
   anariSetParameter(device, budgeted, "budgetPixels", ANARI_UINT32, &pixels_per_render);
   anariCommitParameters(device, budgeted);
