@@ -14,7 +14,7 @@ use crate::camera::{Camera, CameraRay, EyeRays};
 use crate::device::datatype::*;
 use crate::device::property::PropertyValue;
 use crate::render::color::{srgb8_encoder, to_snorm16, to_unorm8};
-use crate::render::progressive::{Area, Lattice, Plan, Throughput};
+use crate::render::progressive::{Area, FrameTile, Plan, Throughput, TileMap};
 use crate::render::renderer::{PrimaryHit, RendererSettings, fast_surface_color, shade_primary_at};
 use crate::scene::light::LightSampling;
 use crate::scene::world::SceneSnapshot;
@@ -355,16 +355,14 @@ struct Refinement {
 
 impl Job {
     /// Tile `tile` of an unbudgeted render: a square of the whole frame.
-    fn tile_area(&self, tile: usize) -> Area {
-        let s0 = (tile as u32 % self.tiles_x) * TILE_SIZE;
-        let t0 = (tile as u32 / self.tiles_x) * TILE_SIZE;
-        Area {
-            lattice: Lattice::WHOLE_FRAME,
-            s0,
-            t0,
-            s1: (s0 + TILE_SIZE).min(self.setup.width),
-            t1: (t0 + TILE_SIZE).min(self.setup.height),
-            skips_coarser: false,
+    fn frame_tile(&self, tile: usize) -> FrameTile {
+        let x0 = (tile as u32 % self.tiles_x) * TILE_SIZE;
+        let y0 = (tile as u32 / self.tiles_x) * TILE_SIZE;
+        FrameTile {
+            x0,
+            y0,
+            x1: (x0 + TILE_SIZE).min(self.setup.width),
+            y1: (y0 + TILE_SIZE).min(self.setup.height),
         }
     }
 }
@@ -528,9 +526,9 @@ impl FrameState {
         let mut scratch = TileScratch::default();
         while !job.cancel.load(Ordering::Acquire) {
             let next = job.next_tile.fetch_add(1, Ordering::AcqRel);
-            let area = match &job.budgeted {
+            match &job.budgeted {
                 None if next >= job.tile_count => break,
-                None => job.tile_area(next),
+                None => render_tile(job, &eyes, job.frame_tile(next), &mut scratch),
                 Some(run) => {
                     let index = run.start + next;
                     if run.declines(index) {
@@ -541,10 +539,8 @@ impl FrameState {
                     render_tile(job, &eyes, run.plan.units[index], &mut scratch);
                     let nanos = started.elapsed().as_nanos() as u64;
                     run.tracing_nanos.fetch_add(nanos, Ordering::Relaxed);
-                    continue;
                 }
-            };
-            render_tile(job, &eyes, area, &mut scratch);
+            }
         }
         if job.workers_left.fetch_sub(1, Ordering::AcqRel) == 1 {
             self.finish(job);
@@ -847,13 +843,13 @@ const SINGLE_RAY_STRIDE: u32 = 4;
 fn render_tile<'a>(
     job: &Job,
     eyes: &'a [(crate::camera::EyeViewport, EyeRays)],
-    area: Area,
+    map: impl TileMap,
     scratch: &mut TileScratch<'a>,
 ) {
     let setup = &job.setup;
-    // The area's pixels are lattice points (sx, sy) of [tx, x_end) × [ty, y_end); the whole
-    // frame's lattice (stride 1) makes them plain pixel coordinates.
-    let lattice = area.lattice;
+    // The tile's pixels are lattice points (sx, sy) of [tx, x_end) × [ty, y_end); for a tile
+    // of the whole frame they are plain pixel coordinates.
+    let area = map.area();
     let (tx, ty, x_end, y_end) = (area.s0, area.t0, area.s1, area.t1);
     let tile_width = x_end - tx;
     let pixel_count = area.pixel_count();
@@ -874,8 +870,8 @@ fn render_tile<'a>(
     for by in (ty..y_end).step_by(PACKET_SIDE as usize) {
         for bx in (tx..x_end).step_by(PACKET_SIDE as usize) {
             let (bx_end, by_end) = ((bx + PACKET_SIDE).min(x_end), (by + PACKET_SIDE).min(y_end));
-            let (x0, y0) = lattice.pixel(bx, by);
-            let (x1, y1) = lattice.pixel(bx_end - 1, by_end - 1);
+            let (x0, y0) = map.pixel(bx, by);
+            let (x1, y1) = map.pixel(bx_end - 1, by_end - 1);
             // Usually one eye's viewport holds the whole block; otherwise look per pixel.
             let block_eye = eyes
                 .iter()
@@ -888,10 +884,10 @@ fn render_tile<'a>(
                     let (sx, sy) = (bx + dx, by + dy);
                     rays[lane] = NO_RAY;
                     camera_rays[lane] = None;
-                    if sx >= x_end || sy >= y_end || area.skips(sx, sy) {
+                    if sx >= x_end || sy >= y_end || map.skips(sx, sy) {
                         continue;
                     }
-                    let (x, y) = lattice.pixel(sx, sy);
+                    let (x, y) = map.pixel(sx, sy);
                     let eye = block_eye.or_else(|| {
                         eyes.iter()
                             .find(|(viewport, _)| viewport_holds(viewport, x, y, x + 1, y + 1))
@@ -910,7 +906,7 @@ fn render_tile<'a>(
                     };
                     camera_rays[lane] = Some((camera_ray, eye_rays));
                 }
-                if lattice.stride >= SINGLE_RAY_STRIDE {
+                if map.stride() >= SINGLE_RAY_STRIDE {
                     // Sparse lattices make incoherent packets: ray by ray is cheaper there.
                     for (hit, ray) in hits.iter_mut().zip(&rays) {
                         *hit = setup.scene.bvh.intersect(ray);
@@ -926,7 +922,7 @@ fn render_tile<'a>(
                         continue;
                     };
                     let (sx, sy) = (bx + dx, by + dy);
-                    let (x, y) = lattice.pixel(sx, sy);
+                    let (x, y) = map.pixel(sx, sy);
                     // The sample's position in the frame places the background image.
                     let screen = || {
                         Vec2::new(
@@ -968,10 +964,10 @@ fn render_tile<'a>(
     let mut color_sum = job.color_sum.as_ref().map(lock);
     for (k, color) in colors[..pixel_count].iter_mut().enumerate() {
         let (sx, sy) = (tx + k as u32 % tile_width, ty + k as u32 / tile_width);
-        if area.skips(sx, sy) {
+        if map.skips(sx, sy) {
             continue;
         }
-        let (x, y) = lattice.pixel(sx, sy);
+        let (x, y) = map.pixel(sx, sy);
         *color = if covered[k] {
             *color / samples as f32
         } else {

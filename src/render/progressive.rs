@@ -81,6 +81,66 @@ impl Area {
     }
 }
 
+/// How the lattice points of a tile of work map to frame pixels. Generic, so that the
+/// ordinary whole-frame tiling (identity, nothing skipped) compiles to the plain pixel loops.
+pub trait TileMap: Copy {
+    /// The tile's rectangle of lattice points.
+    fn area(&self) -> Area;
+    fn pixel(&self, s: u32, t: u32) -> (u32, u32);
+    fn skips(&self, s: u32, t: u32) -> bool;
+    fn stride(&self) -> u32;
+}
+
+impl TileMap for Area {
+    fn area(&self) -> Area {
+        *self
+    }
+    #[inline]
+    fn pixel(&self, s: u32, t: u32) -> (u32, u32) {
+        self.lattice.pixel(s, t)
+    }
+    #[inline]
+    fn skips(&self, s: u32, t: u32) -> bool {
+        Area::skips(self, s, t)
+    }
+    fn stride(&self) -> u32 {
+        self.lattice.stride
+    }
+}
+
+/// A tile of the whole-frame tiling: its lattice points are its pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameTile {
+    pub x0: u32,
+    pub y0: u32,
+    pub x1: u32,
+    pub y1: u32,
+}
+
+impl TileMap for FrameTile {
+    fn area(&self) -> Area {
+        Area {
+            lattice: Lattice::WHOLE_FRAME,
+            s0: self.x0,
+            t0: self.y0,
+            s1: self.x1,
+            t1: self.y1,
+            skips_coarser: false,
+        }
+    }
+    #[inline]
+    fn pixel(&self, s: u32, t: u32) -> (u32, u32) {
+        (s, t)
+    }
+    #[inline]
+    fn skips(&self, _: u32, _: u32) -> bool {
+        false
+    }
+    fn stride(&self) -> u32 {
+        1
+    }
+}
+
 /// Strides of the refinement levels, coarsest first; each halves the one before, so a level's
 /// lattice holds the previous one.
 const LEVELS: [u32; 5] = [16, 8, 4, 2, 1];
