@@ -897,7 +897,7 @@ int main(int argc, char **argv) {
     }
   }
   double seconds = now() - start;
-  printf("fuzz: %llu sequences, %llu calls, %llu status messages, %llu deleter calls in %.1f s "
+  printf("fuzz: %llu sequences, %llu operations, %llu status messages, %llu deleter calls in %.1f s "
          "(%.1f sequences/s)\n",
          (unsigned long long)sequences, (unsigned long long)atomic_load(&calls_total),
          (unsigned long long)atomic_load(&messages_total),
