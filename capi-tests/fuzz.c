@@ -239,6 +239,16 @@ static ANARIDataType random_type(Rng *rng, uint32_t *size) {
   return PICK(rng, odd);
 }
 
+/* n1·n2·n3, or UINT64_MAX when the product overflows. */
+static uint64_t product(uint64_t n1, uint64_t n2, uint64_t n3) {
+  if ((n2 && n1 > UINT64_MAX / n2))
+    return UINT64_MAX;
+  uint64_t n12 = n1 * n2;
+  if (n3 && n12 > UINT64_MAX / n3)
+    return UINT64_MAX;
+  return n12 * n3;
+}
+
 static uint64_t random_count(Rng *rng) {
   static const uint64_t counts[] = {0, 1, 1, 2, 3, 4, 7, 16, 100, 1ull << 40, UINT64_MAX / 3,
                                     UINT64_MAX};
@@ -343,8 +353,7 @@ static ANARIArray new_array(Sequence *s, Rng *rng, ANARIDataType *kind) {
   /* app_memory only when it certainly holds the whole array (else it would be undefined). */
   const void *memory = NULL;
   if (size && chance(rng, 50)) {
-    unsigned __int128 bytes = (unsigned __int128)n1 * n2 * n3 * size;
-    if (bytes <= APP_MEMORY_BYTES)
+    if (product(n1, n2, n3) <= APP_MEMORY_BYTES / size)
       memory = s->app_memory;
   }
   ANARIMemoryDeleter deleter = memory && chance(rng, 50) ? count_deleter : NULL;
@@ -564,9 +573,7 @@ static void parameter_op(Sequence *s, Rng *rng) {
       mapped = anariMapParameterArray3D(d, object, name, type, n1, n2, n3,
                                         chance(rng, 20) ? NULL : &element_stride);
     /* Writing is defined while this thread alone holds the object: one element only. */
-    unsigned __int128 elements = dims == 1   ? (unsigned __int128)n1
-                                 : dims == 2 ? (unsigned __int128)n1 * n2
-                                             : (unsigned __int128)n1 * n2 * n3;
+    uint64_t elements = product(n1, dims > 1 ? n2 : 1, dims > 2 ? n3 : 1);
     if (mapped && s->threads == 1 && size && elements > 0 && size <= 8 &&
         !(type >= ANARI_OBJECT && type < 1000))
       memset(mapped, 0, size);
