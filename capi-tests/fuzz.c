@@ -109,6 +109,15 @@ static const ANARIDataType object_kinds[] = {
     ANARI_WORLD,   ANARI_FRAME,    ANARI_RENDERER, ANARI_ARRAY1D,       ANARI_ARRAY2D,
     ANARI_ARRAY3D};
 
+/* Released handles join the misuse list only after their release has returned: before, another
+ * thread could still find them live. */
+static void mark_released(Sequence *s, ANARIObject handle) {
+  pthread_mutex_lock(&s->lock);
+  if (s->dead_count < DEAD)
+    s->dead[s->dead_count++] = handle;
+  pthread_mutex_unlock(&s->lock);
+}
+
 static void put(Sequence *s, Rng *rng, ANARIObject handle, ANARIDataType kind) {
   if (!handle)
     return;
@@ -118,11 +127,11 @@ static void put(Sequence *s, Rng *rng, ANARIObject handle, ANARIDataType kind) {
   evicted = slot->handle;
   slot->handle = handle;
   slot->kind = kind;
-  if (evicted && s->dead_count < DEAD)
-    s->dead[s->dead_count++] = evicted;
   pthread_mutex_unlock(&s->lock);
-  if (evicted)
+  if (evicted) {
     anariRelease(s->device, evicted);
+    mark_released(s, evicted);
+  }
 }
 
 /* Takes a live object out of the table (the caller then owns its reference), or NULL. */
@@ -131,8 +140,6 @@ static Slot take(Sequence *s, Rng *rng) {
   Slot *slot = &s->slots[below(rng, SLOTS)];
   Slot taken = *slot;
   slot->handle = NULL;
-  if (taken.handle && s->dead_count < DEAD)
-    s->dead[s->dead_count++] = taken.handle;
   pthread_mutex_unlock(&s->lock);
   return taken;
 }
@@ -668,8 +675,10 @@ static void object_op(Sequence *s, Rng *rng) {
   }
   case 2: {
     Slot slot = take(s, rng);
-    if (slot.handle)
+    if (slot.handle) {
       anariRelease(d, slot.handle);
+      mark_released(s, slot.handle);
+    }
     break;
   }
   case 3: {
