@@ -124,6 +124,23 @@ for mode in plain sanitized; do
   done
 done
 
+# --- the API fuzzer: fixed seeds, plain and under ASan+UBSan+LSan (about 10 s in all) ----------
+echo "-- fuzz (capi-tests/fuzz.c; replay a failure with: fuzz --seed S --threads N)"
+for mode in plain sanitized; do
+  extra=()
+  [ "$mode" = sanitized ] && extra=("${sanitize[@]}")
+  exe=$build/$mode/fuzz
+  if "$cc" -std=c11 -D_POSIX_C_SOURCE=200809L -Wall -Wextra -Werror -pedantic -g -O1 \
+    -I"$root/include" "${extra[@]}" -o "$exe" "$here/fuzz.c" "${link[@]}" -lpthread; then
+    # allocator_may_return_null: the fuzzer asks for arrays of terabytes on purpose; the library
+    # allocates fallibly and reports OUT_OF_MEMORY, which ASan would otherwise abort on.
+    run_program "fuzz ($mode)" env ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 \
+      UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 timeout 300 "$exe"
+  else
+    record FAIL "fuzz ($mode): does not compile"
+  fi
+done
+
 echo "-- C++17"
 skipped=0
 if ! command -v "$cxx" >/dev/null; then
