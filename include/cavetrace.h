@@ -413,6 +413,8 @@ typedef void (*ANARIFrameCompletionCallback)(const void *user_data, void *device
 
 #define ANARI_WAIT 1
 
+
+
 #ifdef __cplusplus
 extern "C" {
 #endif // __cplusplus
