@@ -2,8 +2,6 @@
 //! Everything here takes plain Rust values; the C boundary (`crate::capi`) converts arguments.
 
 pub mod catalog;
-#[cfg(test)]
-mod cycle_tests;
 pub mod datatype;
 pub mod object;
 pub mod params;
@@ -15,7 +13,7 @@ pub mod status;
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, Weak};
+use std::sync::{Arc, Mutex};
 
 use crate::device::datatype::*;
 use crate::device::object::Object;
@@ -38,10 +36,6 @@ pub struct Device {
     pub handle: usize,
     app_references: AtomicU32,
     objects: Mutex<HashMap<usize, Arc<Object>>>,
-    /// Every object created, also those the application released: objects that refer to each
-    /// other (a parameter naming its own object, arrays holding each other) keep one another
-    /// alive, and the device's release breaks those cycles.
-    created: Mutex<Vec<Weak<Object>>>,
     pub status: Arc<StatusSink>,
     /// The device's own parameters (statusCallback, numThreads, …).
     pub self_object: Object,
@@ -67,7 +61,6 @@ impl Device {
             handle,
             app_references: AtomicU32::new(1),
             objects: Mutex::new(HashMap::new()),
-            created: Mutex::new(Vec::new()),
             status: Arc::new(StatusSink::new(handle, callback, user_data)),
             self_object: Object::new(handle, ANARI_DEVICE, "", Some(&catalog::DEVICE), None),
             pool: Mutex::new(None),
@@ -146,19 +139,10 @@ impl Device {
 
     fn register(&self, object: Object) -> usize {
         let handle = object.handle;
-        let object = Arc::new(object);
-        {
-            let mut created = self.created.lock().unwrap_or_else(|e| e.into_inner());
-            // Forgetting the dead now and then keeps the list as long as the live objects.
-            if created.len() >= 1024 && created.len().is_power_of_two() {
-                created.retain(|o| o.strong_count() > 0);
-            }
-            created.push(Arc::downgrade(&object));
-        }
         self.objects
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .insert(handle, object);
+            .insert(handle, Arc::new(object));
         handle
     }
 
@@ -692,10 +676,6 @@ impl Device {
         drop(pool);
         drop(objects);
         self.self_object.staging().params.clear();
-        let created = std::mem::take(&mut *self.created.lock().unwrap_or_else(|e| e.into_inner()));
-        for object in created.iter().filter_map(Weak::upgrade) {
-            object.break_references();
-        }
     }
 }
 
