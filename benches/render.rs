@@ -5,6 +5,8 @@
 //!     cargo bench --bench render -- fast    (only (a) and the same-rays comparison)
 //!     cargo bench --bench render -- budget  (frame-time budgets: frame times, pixels traced,
 //!                                            renders to convergence, image error)
+//!     cargo bench --bench render -- viewers (several viewers on the offAxis camera and the
+//!                                            matrix camera against one viewer, same view)
 //!
 //! Scenes: a height field of ~1M triangles seen by a tracked head (the camera moves every
 //! frame), rendered (a) by the "fast" renderer and (b) by the "default" renderer with one
@@ -20,7 +22,7 @@
 #[path = "../tests/common/mod.rs"]
 mod common;
 use common::*;
-use glam::Vec3A;
+use glam::{Vec3, Vec3A};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
@@ -455,6 +457,220 @@ fn budget_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: 
     }
 }
 
+/// A screen 1 m in front of the benchmark's head, filling its 0.9 rad field of view: the
+/// offAxis camera then sees what the perspective camera of (a) sees.
+struct BenchScreen {
+    corners: [[f32; 3]; 3],
+    x: Vec3,
+    y: Vec3,
+    centre: Vec3,
+}
+
+fn bench_screen() -> BenchScreen {
+    let eye = Vec3::new(0.0, 1.2, 1.6);
+    let forward = (-eye).normalize();
+    let x = forward.cross(Vec3::Y).normalize();
+    let y = x.cross(forward);
+    let centre = eye + forward;
+    let half = 0.45f32.tan();
+    let corner = |a: f32, b: f32| (centre + x * (a * half) + y * (b * half)).to_array();
+    BenchScreen {
+        corners: [corner(-1.0, -1.0), corner(1.0, -1.0), corner(1.0, 1.0)],
+        x,
+        y,
+        centre,
+    }
+}
+
+/// The tracked head of frame `step` (as `track_head` moves it).
+fn head_at(step: u32) -> Vec3 {
+    let t = step as f32 * 0.05;
+    Vec3::new(0.1 * t.sin(), 1.2 + 0.02 * t.cos(), 1.6)
+}
+
+/// Viewer cameras of the `viewers` section: `setup` commits the camera for frame `step`.
+enum ViewerCase {
+    OneViewer,
+    Matrix,
+    Viewers {
+        count: usize,
+        mode: &'static str,
+        cutoff: f32,
+    },
+}
+
+fn viewers_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: u32) {
+    let screen = bench_screen();
+    let commit_camera = |s: &Setup, case: &ViewerCase, step: u32| {
+        let head = head_at(step);
+        let [ll, lr, ur] = screen.corners;
+        match case {
+            ViewerCase::Matrix => {
+                let (mut view, mut proj) = ([0f32; 16], [0f32; 16]);
+                let status = cavetrace::capi::offaxis::cavetraceOffAxisMatrices(
+                    ll.as_ptr(),
+                    lr.as_ptr(),
+                    ur.as_ptr(),
+                    head.to_array().as_ptr(),
+                    0.01,
+                    100.0,
+                    view.as_mut_ptr(),
+                    proj.as_mut_ptr(),
+                );
+                assert_eq!(status, ANARI_STATUS_NO_ERROR);
+                set(s.dev, s.camera, "view", ANARI_FLOAT32_MAT4, &view);
+                set(s.dev, s.camera, "proj", ANARI_FLOAT32_MAT4, &proj);
+            }
+            ViewerCase::OneViewer | ViewerCase::Viewers { .. } => {
+                set(s.dev, s.camera, "screen.lowerLeft", ANARI_FLOAT32_VEC3, &ll);
+                set(
+                    s.dev,
+                    s.camera,
+                    "screen.lowerRight",
+                    ANARI_FLOAT32_VEC3,
+                    &lr,
+                );
+                set(
+                    s.dev,
+                    s.camera,
+                    "screen.upperRight",
+                    ANARI_FLOAT32_VEC3,
+                    &ur,
+                );
+                set(
+                    s.dev,
+                    s.camera,
+                    "position",
+                    ANARI_FLOAT32_VEC3,
+                    &head.to_array(),
+                );
+            }
+        }
+        if let ViewerCase::Viewers {
+            count,
+            mode,
+            cutoff,
+        } = case
+        {
+            // Heads 0.5 m apart around the tracked one, each looking at its own part of the
+            // screen.
+            let offsets = [(-1.0, -0.5), (1.0, -0.5), (-1.0, 0.5), (1.0, 0.5)];
+            let (mut heads, mut gazes) = (Vec::new(), Vec::new());
+            for (a, b) in &offsets[..*count] {
+                let h = head + screen.x * (0.25 * a) + screen.y * (0.15 * b);
+                let target = screen.centre + screen.x * (0.25 * a) + screen.y * (0.2 * b);
+                heads.push(h.to_array());
+                gazes.push((target - h).to_array());
+            }
+            let positions = array1d(s.dev, ANARI_FLOAT32_VEC3, &heads);
+            let directions = array1d(s.dev, ANARI_FLOAT32_VEC3, &gazes);
+            set_object(s.dev, s.camera, "viewer.position", ANARI_ARRAY1D, positions);
+            set_object(
+                s.dev,
+                s.camera,
+                "viewer.direction",
+                ANARI_ARRAY1D,
+                directions,
+            );
+            set_string(s.dev, s.camera, "viewerMode", mode);
+            set(s.dev, s.camera, "viewerCutoffAngle", ANARI_FLOAT32, cutoff);
+            anariRelease(s.dev, positions);
+            anariRelease(s.dev, directions);
+        }
+        commit(s.dev, s.camera);
+    };
+    // The default cutoff (π/4): every viewer's cone covers the 0.97 m screen 1 m away, so every
+    // pixel blends all of them. Narrow cones (0.3 rad, 0.3 m on the screen) overlap only in the
+    // middle, where the camera position then moves fast from pixel to pixel: the hard case.
+    let viewers = |count, mode, cutoff| ViewerCase::Viewers {
+        count,
+        mode,
+        cutoff,
+    };
+    let (wide, narrow) = (std::f32::consts::FRAC_PI_4, 0.3);
+    let cases = [
+        ("one viewer (offAxis)", ViewerCase::OneViewer),
+        ("matrix camera, same view", ViewerCase::Matrix),
+        ("2 viewers, perPixel", viewers(2, "perPixel", wide)),
+        ("4 viewers, perPixel", viewers(4, "perPixel", wide)),
+        ("4 viewers, tiles 8x8", viewers(4, "tiles", wide)),
+        ("4 viewers, zones", viewers(4, "zones", wide)),
+        ("2 narrow cones, perPixel", viewers(2, "perPixel", narrow)),
+        ("4 narrow cones, perPixel", viewers(4, "perPixel", narrow)),
+        ("4 narrow cones, zones", viewers(4, "zones", narrow)),
+    ];
+    // `CAVETRACE_BENCH_VIEWER_CASE=<index>` runs one case alone (for profiling).
+    let only: Option<usize> = std::env::var("CAVETRACE_BENCH_VIEWER_CASE")
+        .ok()
+        .and_then(|v| v.parse().ok());
+    let cases: Vec<_> = cases
+        .into_iter()
+        .enumerate()
+        .filter(|(k, _)| only.is_none_or(|only| only == *k))
+        .map(|(_, case)| case)
+        .collect();
+    for renderer in ["fast", "default"] {
+        let base = setup(dev, geometry, renderer, size);
+        let mut setups: Vec<Setup> = cases
+            .iter()
+            .map(|(_, case)| {
+                let subtype = match case {
+                    ViewerCase::Matrix => "matrix",
+                    _ => "offAxis",
+                };
+                let camera = anariNewCamera(dev, c(subtype).as_ptr());
+                let frame = anariNewFrame(dev);
+                set(dev, frame, "size", ANARI_UINT32_VEC2, &[size, size]);
+                set(
+                    dev,
+                    frame,
+                    "channel.color",
+                    ANARI_DATA_TYPE,
+                    &ANARI_UFIXED8_RGBA_SRGB,
+                );
+                set_object(dev, frame, "world", ANARI_WORLD, base.world);
+                set_object(dev, frame, "camera", ANARI_CAMERA, camera);
+                set_object(dev, frame, "renderer", ANARI_RENDERER, base.renderer);
+                commit(dev, frame);
+                anariRetain(dev, base.world);
+                anariRetain(dev, base.renderer);
+                Setup {
+                    dev,
+                    camera,
+                    renderer: base.renderer,
+                    frame,
+                    world: base.world,
+                }
+            })
+            .collect();
+        // Cases take turns frame by frame, so that drift on a shared machine hits them alike.
+        let mut wall = vec![Vec::new(); cases.len()];
+        let mut cpu = vec![Vec::new(); cases.len()];
+        for step in 0..frames {
+            for (k, (_, case)) in cases.iter().enumerate() {
+                commit_camera(&setups[k], case, step);
+                let cpu_start = cpu_seconds();
+                wall[k].push(render_once(&setups[k]));
+                cpu[k].push((cpu_seconds() - cpu_start) * 1e3);
+            }
+        }
+        let (base_wall, base_cpu) = (median(wall[0].clone()), median(cpu[0].clone()));
+        println!("several viewers, {renderer} renderer, {size}x{size}, {frames} frames each:");
+        for (k, (label, _)) in cases.iter().enumerate() {
+            let (w, c) = (median(wall[k].clone()), median(cpu[k].clone()));
+            println!(
+                "  {label:<26} median frame {w:6.1} ms ({:.2}x), {c:6.0} ms CPU ({:.2}x)",
+                w / base_wall,
+                c / base_cpu
+            );
+        }
+        for s in setups.drain(..) {
+            release(s);
+        }
+        release(base);
+    }
+}
+
 fn main() {
     if std::env::args().any(|a| a == "--list") {
         return;
@@ -486,6 +702,13 @@ fn main() {
         bytes as f64 / triangles as f64
     );
 
+    if std::env::args().skip(1).any(|a| a == "viewers") {
+        viewers_section(dev, geometry, size, if quick { 4 } else { 15 });
+        anariRelease(dev, geometry);
+        anariRelease(dev, dev);
+        anariUnloadLibrary(lib);
+        return;
+    }
     if std::env::args().skip(1).any(|a| a == "budget") {
         budget_section(dev, geometry, size, if quick { 10 } else { 60 });
         anariRelease(dev, geometry);

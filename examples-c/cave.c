@@ -23,6 +23,13 @@
  * front_budget_pair.png), then, with the head still at the last position, renders until the
  * image is complete.
  *
+ * Then two tracked viewers share the CAVE (ANARI_CAVETRACE_CAMERA_MULTI_VIEWER): A stands left
+ * and looks at the front wall, B stands right and looks into the corner of the front and right
+ * walls; their cones overlap on the front wall's right half. Written to <folder>/viewers/: unfolded_A_alone.png and unfolded_B_alone.png (one tracked viewer, as
+ * before), unfolded_perPixel.png, unfolded_tiles.png and unfolded_zones.png (both viewers, one
+ * file per viewerMode), and unfolded_weights.png: each pixel's viewer weights in false colour
+ * (red A, green B, grey where neither viewer's cone reaches and the heads' mean is used).
+ *
  *   cc -std=c99 cave.c $(pkg-config --cflags --libs cavetrace) -lm -o cave
  *   ./cave [folder (default out/cave)] [wall resolution (default 256)] [head positions (4)]
  *          [budget in ms (default 0: none)]
@@ -315,6 +322,64 @@ static void anaglyph(const unsigned char *left, const unsigned char *right, size
   }
 }
 
+/* ----- two viewers ----------------------------------------------------------------------- */
+
+/* Head, gaze target and right vector of the two viewers. */
+static const float VIEWER_HEAD[2][3] = {{-0.5f, 1.70f, 0.3f}, {0.6f, 1.60f, -0.2f}};
+static const float VIEWER_TARGET[2][3] = {{-0.5f, 1.4f, -1.5f}, {1.5f, 1.3f, -1.4f}};
+static const float VIEWER_RIGHT[2][3] = {{1, 0, 0}, {0.8f, 0, -0.6f}};
+#define VIEWER_CUTOFF 0.785398f /* π/4, the default viewerCutoffAngle */
+
+/* Viewer i's linear weight at screen point p: 1 − a/c inside its cone, with a the angle between
+ * its gaze and the direction to p (the device's definition, written out). */
+static float viewer_weight(int i, const float p[3]) {
+  float gaze[3], to[3], dot = 0, gaze_length = 0, to_length = 0;
+  for (int k = 0; k < 3; k++) {
+    gaze[k] = VIEWER_TARGET[i][k] - VIEWER_HEAD[i][k];
+    to[k] = p[k] - VIEWER_HEAD[i][k];
+    dot += gaze[k] * to[k];
+    gaze_length += gaze[k] * gaze[k];
+    to_length += to[k] * to[k];
+  }
+  float angle = acosf(fmaxf(-1, fminf(1, dot / sqrtf(gaze_length * to_length))));
+  return fmaxf(0, 1 - angle / VIEWER_CUTOFF);
+}
+
+/* False colour of the normalised weights over a wall's n×n pixel centres. */
+static void weight_image(const Wall *wall, uint32_t n, unsigned char *out) {
+  for (uint32_t y = 0; y < n; y++)
+    for (uint32_t x = 0; x < n; x++) {
+      float s = ((float)x + 0.5f) / (float)n, t = ((float)y + 0.5f) / (float)n, p[3];
+      for (int k = 0; k < 3; k++)
+        p[k] = wall->lower_left[k] + s * (wall->lower_right[k] - wall->lower_left[k]) +
+               t * (wall->upper_right[k] - wall->lower_right[k]);
+      float a = viewer_weight(0, p), b = viewer_weight(1, p), sum = a + b;
+      unsigned char *rgba = out + 4 * ((size_t)y * n + x);
+      rgba[0] = (unsigned char)(sum > 0 ? 255 * a / sum : 90);
+      rgba[1] = (unsigned char)(sum > 0 ? 255 * b / sum : 90);
+      rgba[2] = (unsigned char)(sum > 0 ? 0 : 90);
+      rgba[3] = 255;
+    }
+}
+
+/* Sets both viewers on an offAxis camera. */
+static void set_two_viewers(ANARIDevice device, ANARICamera camera, const char *mode) {
+  float gaze[2][3];
+  for (int i = 0; i < 2; i++)
+    for (int k = 0; k < 3; k++)
+      gaze[i][k] = VIEWER_TARGET[i][k] - VIEWER_HEAD[i][k];
+  ANARIArray1D arrays[3] = {
+      array_of(device, ANARI_FLOAT32_VEC3, VIEWER_HEAD, 2, 3 * sizeof(float)),
+      array_of(device, ANARI_FLOAT32_VEC3, gaze, 2, 3 * sizeof(float)),
+      array_of(device, ANARI_FLOAT32_VEC3, VIEWER_RIGHT, 2, 3 * sizeof(float))};
+  const char *names[3] = {"viewer.position", "viewer.direction", "viewer.right"};
+  for (int i = 0; i < 3; i++) {
+    anariSetParameter(device, camera, names[i], ANARI_ARRAY1D, &arrays[i]);
+    anariRelease(device, arrays[i]);
+  }
+  anariSetParameter(device, camera, "viewerMode", ANARI_STRING, mode);
+}
+
 /* ----- rendering ------------------------------------------------------------------------- */
 
 static ANARIFrame color_frame(ANARIDevice device, uint32_t width, uint32_t height,
@@ -530,6 +595,44 @@ int main(int argc, char **argv) {
     ok &= progress == 1;
   }
   printf("images in %s/<head position>/\n", folder);
+
+  /* Two viewers: each alone (the camera's own position), then both in every viewerMode. */
+  char viewers_folder[1024];
+  snprintf(viewers_folder, sizeof viewers_folder, "%s/viewers", folder);
+  if (make_folders(viewers_folder) != 0) {
+    perror(viewers_folder);
+    return 1;
+  }
+  const char *cases[] = {"A_alone", "B_alone", "perPixel", "tiles", "zones"};
+  for (int c = 0; c < 5; c++) {
+    ANARICamera camera = anariNewCamera(device, "offAxis");
+    double seconds = 0;
+    for (int w = 0; w < WALLS; w++) {
+      anariSetParameter(device, camera, "screen.lowerLeft", ANARI_FLOAT32_VEC3,
+                        WALL[w].lower_left);
+      anariSetParameter(device, camera, "screen.lowerRight", ANARI_FLOAT32_VEC3,
+                        WALL[w].lower_right);
+      anariSetParameter(device, camera, "screen.upperRight", ANARI_FLOAT32_VEC3,
+                        WALL[w].upper_right);
+      if (c < 2)
+        anariSetParameter(device, camera, "position", ANARI_FLOAT32_VEC3, VIEWER_HEAD[c]);
+      else
+        set_two_viewers(device, camera, cases[c]);
+      anariCommitParameters(device, camera);
+      seconds += render(device, eye_frame, camera, walls[0][w], wall_bytes);
+    }
+    char name[64];
+    snprintf(name, sizeof name, "unfolded_%s.png", cases[c]);
+    unfold(walls[0], n, composite);
+    ok &= write_png(device, viewers_folder, name, 3 * n, 3 * n, composite);
+    printf("viewers %s: 5 walls of %u×%u in %.0f ms\n", cases[c], n, n, 1e3 * seconds);
+    anariRelease(device, camera);
+  }
+  for (int w = 0; w < WALLS; w++)
+    weight_image(&WALL[w], n, walls[0][w]);
+  unfold(walls[0], n, composite);
+  ok &= write_png(device, viewers_folder, "unfolded_weights.png", 3 * n, 3 * n, composite);
+  printf("two viewers' images in %s/\n", viewers_folder);
 
   for (int e = 0; e < EYES; e++)
     for (int w = 0; w < WALLS; w++)

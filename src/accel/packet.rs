@@ -3,15 +3,16 @@
 //! * [`RayPacket`]: four rays (a 2x2 pixel block) in SIMD lanes. They walk the wide BVH
 //!   together: each node is fetched and decoded once and its eight child boxes are tested
 //!   against all four rays, each child remembering which rays reach it.
-//! * [`FrustumPacket`]: up to sixteen such groups (an 8x8 tile) from one eye point. Inner nodes
-//!   are culled once for the whole tile with interval arithmetic over the rays' inverse
-//!   directions, leaf boxes once per quadrant of four groups the same way; only then are leaf
-//!   boxes and primitives tested per group.
+//! * [`FrustumPacket`]: up to sixteen such groups (an 8x8 tile). Inner nodes are culled once
+//!   for the whole tile with interval arithmetic over the rays' inverse directions and origins
+//!   (one shared eye point, or each ray its own: several viewers, a matrix camera's near
+//!   plane), leaf boxes once per quadrant of four groups the same way; only then are leaf
+//!   boxes and primitives tested per group, each lane with its own origin.
 //!
 //! Triangles are tested against four rays with the same watertight arithmetic as the
 //! single-ray path, lane by lane in the same operation order, so every ray gets a
-//! bit-identical `t`. Rays that do not fit a packet (other origin, octant or dominant axis)
-//! are traced ray by ray by the callers.
+//! bit-identical `t`. Rays that do not fit a packet (other octant or dominant axis) are traced
+//! ray by ray by the callers.
 
 use crate::accel::geometry::prepare as prepare_one;
 use crate::accel::primitives::{PackedTriangle, triangle_t_uv};
@@ -505,41 +506,56 @@ const QUADRANTS: usize = 4;
 pub(crate) const QUADRANT_GROUPS: [[usize; 4]; QUADRANTS] =
     [[0, 1, 4, 5], [2, 3, 6, 7], [8, 9, 12, 13], [10, 11, 14, 15]];
 
-/// Range of the inverse direction components of a set of rays from one origin, and their
+/// Range of the inverse direction components and of the origins of a set of rays, and their
 /// smallest `t_min`: a conservative stand-in for all of them in box tests.
 #[derive(Clone, Copy, Debug)]
-struct DirectionBounds {
+struct RayBounds {
     inv_low: Vec3A,
     inv_high: Vec3A,
+    origin_low: Vec3A,
+    origin_high: Vec3A,
     t_min_low: f32,
 }
 
-impl DirectionBounds {
-    const EMPTY: DirectionBounds = DirectionBounds {
+impl RayBounds {
+    const EMPTY: RayBounds = RayBounds {
         inv_low: Vec3A::INFINITY,
         inv_high: Vec3A::NEG_INFINITY,
+        origin_low: Vec3A::INFINITY,
+        origin_high: Vec3A::NEG_INFINITY,
         t_min_low: f32::INFINITY,
     };
 
-    /// Bounds of the active lanes of `group`.
-    fn of_group(group: &RayPacket) -> DirectionBounds {
-        let active = lane_mask(group.lanes);
+    /// Bounds of the `lanes` of `group` (active ones only).
+    fn of_group(group: &RayPacket, lanes: u32) -> RayBounds {
+        let active = lane_mask(group.lanes & lanes);
         let low = |values: Vec4| Vec4::select(active, values, Vec4::INFINITY).min_element();
         let high = |values: Vec4| Vec4::select(active, values, Vec4::NEG_INFINITY).max_element();
-        let inv = &group.inv_direction;
-        DirectionBounds {
-            inv_low: Vec3A::new(low(inv[0]), low(inv[1]), low(inv[2])),
-            inv_high: Vec3A::new(high(inv[0]), high(inv[1]), high(inv[2])),
+        let lows = |values: &[Vec4; 3]| Vec3A::new(low(values[0]), low(values[1]), low(values[2]));
+        let highs =
+            |values: &[Vec4; 3]| Vec3A::new(high(values[0]), high(values[1]), high(values[2]));
+        RayBounds {
+            inv_low: lows(&group.inv_direction),
+            inv_high: highs(&group.inv_direction),
+            origin_low: lows(&group.origin),
+            origin_high: highs(&group.origin),
             t_min_low: low(group.t_min),
         }
     }
 
-    fn union(self, other: DirectionBounds) -> DirectionBounds {
-        DirectionBounds {
+    fn union(self, other: RayBounds) -> RayBounds {
+        RayBounds {
             inv_low: self.inv_low.min(other.inv_low),
             inv_high: self.inv_high.max(other.inv_high),
+            origin_low: self.origin_low.min(other.origin_low),
+            origin_high: self.origin_high.max(other.origin_high),
             t_min_low: self.t_min_low.min(other.t_min_low),
         }
+    }
+
+    /// Whether every ray starts at the same point.
+    fn shared_origin(&self) -> bool {
+        self.origin_low == self.origin_high
     }
 }
 
@@ -573,16 +589,15 @@ impl Default for PacketScratch {
     }
 }
 
-/// Up to 64 rays from one origin sharing a direction octant, as groups of four. Upper BVH
-/// levels are culled once for the whole packet with interval arithmetic over the rays' inverse
-/// directions (a box no ray can reach is skipped for all of them); leaf boxes are culled per
+/// Up to 64 rays sharing a direction octant, as groups of four. Upper BVH levels are culled
+/// once for the whole packet with interval arithmetic over the rays' inverse directions and
+/// origins (a box no ray can reach is skipped for all of them); leaf boxes are culled per
 /// quadrant the same way, then tested per group of four, and primitives per group.
 pub(crate) struct FrustumPacket {
     pub groups: [RayPacket; FRUSTUM_GROUPS],
     pub group_count: usize,
-    origin: Vec3A,
-    whole: DirectionBounds,
-    quadrants: [DirectionBounds; QUADRANTS],
+    whole: RayBounds,
+    quadrants: [RayBounds; QUADRANTS],
     octant_inv: u32,
 }
 
@@ -608,9 +623,8 @@ impl FrustumPacket {
                 lanes: 0,
             }); FRUSTUM_GROUPS],
             group_count: 0,
-            origin: Vec3A::ZERO,
-            whole: DirectionBounds::EMPTY,
-            quadrants: [DirectionBounds::EMPTY; QUADRANTS],
+            whole: RayBounds::EMPTY,
+            quadrants: [RayBounds::EMPTY; QUADRANTS],
             octant_inv: 0,
         }
     }
@@ -621,7 +635,7 @@ impl FrustumPacket {
         if rays.is_empty() || rays.len() > FRUSTUM_RAYS {
             return false;
         }
-        let mut first: Option<(Vec3A, u32)> = None;
+        let mut octant: Option<u32> = None;
         self.group_count = rays.len().div_ceil(LANES);
         for (group, chunk) in self.groups[..self.group_count]
             .iter_mut()
@@ -636,33 +650,22 @@ impl FrustumPacket {
                 group.reset();
                 continue;
             };
-            let lane = packet.lanes.trailing_zeros() as usize;
-            let origin = Vec3A::new(
-                packet.origin[0][lane],
-                packet.origin[1][lane],
-                packet.origin[2][lane],
-            );
-            let (shared_origin, octant) = *first.get_or_insert((origin, packet.octant_inv));
-            let active = lane_mask(packet.lanes);
-            let same_origin = (0..3).all(|axis| {
-                (packet.origin[axis].cmpeq(Vec4::splat(shared_origin[axis])) | !active).all()
-            });
-            if !same_origin || packet.octant_inv != octant {
+            if *octant.get_or_insert(packet.octant_inv) != packet.octant_inv {
                 return false;
             }
             *group = packet;
         }
-        let Some((origin, octant_inv)) = first else {
+        let Some(octant_inv) = octant else {
             return false;
         };
-        self.finish(origin, octant_inv);
+        self.finish(octant_inv);
         true
     }
 
     /// Refills the packet with `count` (at most 64) rays, ray `i` given by `ray_at(i)`
     /// (`None` for rays that cannot be traced). Returns false, leaving the packet unusable,
-    /// unless at least one ray is valid, all valid rays share origin and octant, and each group
-    /// of four shares its dominant axis.
+    /// unless at least one ray is valid, all valid rays share their direction octant, and each
+    /// group of four shares its dominant axis.
     pub fn fill(
         &mut self,
         count: usize,
@@ -671,7 +674,7 @@ impl FrustumPacket {
         if count > FRUSTUM_RAYS {
             return false;
         }
-        let mut first: Option<(Vec3A, u32)> = None;
+        let mut octant: Option<u32> = None;
         self.group_count = count.div_ceil(LANES);
         for (group_index, group) in self.groups[..self.group_count].iter_mut().enumerate() {
             group.reset();
@@ -681,13 +684,8 @@ impl FrustumPacket {
                 let Some(ray) = (index < count).then(|| ray_at(index)).flatten() else {
                     continue;
                 };
-                match first {
-                    None => first = Some((ray.origin, ray.octant_inv)),
-                    Some((origin, octant)) => {
-                        if ray.origin != origin || ray.octant_inv != octant {
-                            return false;
-                        }
-                    }
+                if *octant.get_or_insert(ray.octant_inv) != ray.octant_inv {
+                    return false;
                 }
                 match group_axes {
                     None => group_axes = Some(ray.shear_axes),
@@ -697,31 +695,65 @@ impl FrustumPacket {
                 group.set_lane(lane, &ray);
             }
         }
-        let Some((origin, octant_inv)) = first else {
+        let Some(octant_inv) = octant else {
             return false;
         };
-        self.finish(origin, octant_inv);
+        self.finish(octant_inv);
         true
     }
 
-    /// Records the shared origin and octant and the direction bounds of each quadrant and of
-    /// the whole packet.
-    fn finish(&mut self, origin: Vec3A, octant_inv: u32) {
-        self.origin = origin;
+    /// Records the octant and the ray bounds of each quadrant and of the whole packet.
+    fn finish(&mut self, octant_inv: u32) {
         self.octant_inv = octant_inv;
-        for (quadrant, groups) in QUADRANT_GROUPS.iter().enumerate() {
-            self.quadrants[quadrant] = groups
+        let all = std::array::from_fn(|group| self.groups[group].lanes);
+        (self.quadrants, self.whole) = self.bounds(&all);
+    }
+
+    /// Ray bounds of the `active` lanes per quadrant and over all of them.
+    fn bounds(&self, active: &[u32; FRUSTUM_GROUPS]) -> ([RayBounds; QUADRANTS], RayBounds) {
+        let quadrants = QUADRANT_GROUPS.map(|groups| {
+            groups
                 .iter()
-                .filter(|group| **group < self.group_count && self.groups[**group].lanes != 0)
-                .map(|group| DirectionBounds::of_group(&self.groups[*group]))
-                .fold(DirectionBounds::EMPTY, DirectionBounds::union);
-        }
-        self.whole = self
-            .quadrants
+                .filter(|group| **group < self.group_count)
+                .filter(|group| self.groups[**group].lanes & active[**group] != 0)
+                .map(|group| RayBounds::of_group(&self.groups[*group], active[*group]))
+                .fold(RayBounds::EMPTY, RayBounds::union)
+        });
+        let whole = quadrants
             .iter()
-            .fold(DirectionBounds::EMPTY, |whole, quadrant| {
-                whole.union(*quadrant)
-            });
+            .fold(RayBounds::EMPTY, |whole, quadrant| whole.union(*quadrant));
+        (quadrants, whole)
+    }
+
+    /// The `active` lanes split by origin, if they start from at most [`MAX_ORIGINS`] points
+    /// (zones of several viewers, the edge of a viewer's cone): one frustum per origin culls
+    /// far better than one frustum over origins centimetres or metres apart.
+    fn split_by_origin(
+        &self,
+        active: &[u32; FRUSTUM_GROUPS],
+    ) -> Option<([[u32; FRUSTUM_GROUPS]; MAX_ORIGINS], usize)> {
+        let mut origins = [[0.0f32; 3]; MAX_ORIGINS];
+        let mut subsets = [[0u32; FRUSTUM_GROUPS]; MAX_ORIGINS];
+        let mut count = 0;
+        for (group_index, group) in self.groups[..self.group_count].iter().enumerate() {
+            let mut lanes = group.lanes & active[group_index];
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let origin = [0, 1, 2].map(|axis| group.origin[axis][lane]);
+                let subset = match origins[..count].iter().position(|o| *o == origin) {
+                    Some(known) => known,
+                    None if count < MAX_ORIGINS => {
+                        origins[count] = origin;
+                        count += 1;
+                        count - 1
+                    }
+                    None => return None,
+                };
+                subsets[subset][group_index] |= 1 << lane;
+            }
+        }
+        Some((subsets, count))
     }
 
     /// Per quadrant, the largest `t_max` over every lane of its groups that have an active lane
@@ -741,48 +773,65 @@ impl FrustumPacket {
     }
 }
 
-/// Children of a node that some ray within `bounds` (from the packet's origin) may reach
-/// within `[bounds.t_min_low, t_max_high]`. Conservative: every slab distance of every ray lies
-/// between the distances computed with the smallest and largest inverse direction component.
+/// Children of a node that some ray within `bounds` may reach within
+/// `[bounds.t_min_low, t_max_high]`. Conservative: a ray's slab distance
+/// `(plane − origin)·inv` is linear in its inverse direction component and in its origin, so
+/// over the bounds it lies between the values at their corners; the error widening is the
+/// single-ray test's, taken at the largest corner.
 #[inline(always)]
-fn frustum_child_hits(
-    node: &DecodedNode,
-    origin: Vec3A,
-    bounds: &DirectionBounds,
-    t_max_high: f32,
-) -> u32 {
+fn frustum_child_hits(node: &DecodedNode, bounds: &RayBounds, t_max_high: f32) -> u32 {
+    if bounds.shared_origin() {
+        slab_hits::<2>(node, bounds, t_max_high)
+    } else {
+        slab_hits::<4>(node, bounds, t_max_high)
+    }
+}
+
+/// [`frustum_child_hits`] over `CORNERS` corners of the bounds: 2 (low and high inverse
+/// direction, one origin) or 4 (each of those with the low and high origin).
+#[inline(always)]
+fn slab_hits<const CORNERS: usize>(node: &DecodedNode, bounds: &RayBounds, t_max_high: f32) -> u32 {
     let mut near = [Vec4::splat(bounds.t_min_low); 2];
     let mut far = [Vec4::splat(t_max_high); 2];
     for axis in 0..3 {
-        let step_low = node.step[axis] * bounds.inv_low[axis];
-        let step_high = node.step[axis] * bounds.inv_high[axis];
-        let to_node = node.corner[axis] - origin[axis];
-        let offset_low = to_node * bounds.inv_low[axis];
-        let offset_high = to_node * bounds.inv_high[axis];
-        let error = SLAB_ERROR
-            * (offset_low.abs().max(offset_high.abs())
-                + MAX_QUANTIZED * step_low.abs().max(step_high.abs()));
-        let (step_low, step_high) = (Vec4::splat(step_low), Vec4::splat(step_high));
-        let (offset_low, offset_high) = (Vec4::splat(offset_low), Vec4::splat(offset_high));
+        let inv = [bounds.inv_low[axis], bounds.inv_high[axis]];
+        let step = inv.map(|inv| node.step[axis] * inv);
+        // The nearer origin bound first: with a shared origin both are the same.
+        let to_node = [
+            node.corner[axis] - bounds.origin_low[axis],
+            node.corner[axis] - bounds.origin_high[axis],
+        ];
+        let offset: [f32; CORNERS] = std::array::from_fn(|c| to_node[c / 2] * inv[c % 2]);
+        let largest_offset = offset.iter().fold(0.0f32, |m, o| m.max(o.abs()));
+        let error =
+            SLAB_ERROR * (largest_offset + MAX_QUANTIZED * step[0].abs().max(step[1].abs()));
         let error = Vec4::splat(error);
         for half in 0..2 {
             let entry = node.entry[axis][half];
             let exit = node.exit[axis][half];
-            let entry_low = entry * step_low + offset_low;
-            let entry_high = entry * step_high + offset_high;
-            near[half] = near[half].max(entry_low.min(entry_high) - error);
-            let exit_low = exit * step_low + offset_low;
-            let exit_high = exit * step_high + offset_high;
-            far[half] = far[half].min(exit_low.max(exit_high) + error);
+            let mut entry_low = Vec4::INFINITY;
+            let mut exit_high = Vec4::NEG_INFINITY;
+            for (corner, offset) in offset.iter().enumerate() {
+                let step = Vec4::splat(step[corner % 2]);
+                let offset = Vec4::splat(*offset);
+                entry_low = entry_low.min(entry * step + offset);
+                exit_high = exit_high.max(exit * step + offset);
+            }
+            near[half] = near[half].max(entry_low - error);
+            far[half] = far[half].min(exit_high + error);
         }
     }
     near[0].cmple(far[0]).bitmask() | (near[1].cmple(far[1]).bitmask() << 4)
 }
 
+/// Most distinct ray origins a frustum packet is split into before it is traced as one frustum
+/// over all of them.
+const MAX_ORIGINS: usize = 4;
+
 /// Walks the BVH with a frustum packet. `active[g]` are the lanes of group `g` taking part.
 /// For every leaf some ray reaches, `test_leaf(first_slot, count, lanes, frustum)` is called
 /// with, per group, the lanes whose own box test reaches the leaf; it must shrink the `t_max`
-/// of lanes that hit.
+/// of lanes that hit. Lanes from a few distinct origins are walked one origin at a time.
 #[inline(always)]
 pub(crate) fn traverse_frustum<F, P>(
     nodes: &[CwBvhNode],
@@ -797,6 +846,59 @@ pub(crate) fn traverse_frustum<F, P>(
     if nodes.is_empty() || active.iter().all(|lanes| *lanes == 0) {
         return;
     }
+    if frustum.whole.shared_origin() {
+        let (quadrants, whole) = (frustum.quadrants, frustum.whole);
+        walk_frustum(
+            nodes,
+            frustum,
+            active,
+            (&quadrants, &whole),
+            &prefetch_primitive,
+            &mut test_leaf,
+        );
+        return;
+    }
+    match frustum.split_by_origin(active) {
+        Some((subsets, count)) => {
+            for subset in &subsets[..count] {
+                let (quadrants, whole) = frustum.bounds(subset);
+                walk_frustum(
+                    nodes,
+                    frustum,
+                    subset,
+                    (&quadrants, &whole),
+                    &prefetch_primitive,
+                    &mut test_leaf,
+                );
+            }
+        }
+        None => {
+            let (quadrants, whole) = frustum.bounds(active);
+            walk_frustum(
+                nodes,
+                frustum,
+                active,
+                (&quadrants, &whole),
+                &prefetch_primitive,
+                &mut test_leaf,
+            );
+        }
+    }
+}
+
+/// [`traverse_frustum`] with the ray bounds (per quadrant, whole) of the `active` lanes.
+#[inline(always)]
+fn walk_frustum<F, P>(
+    nodes: &[CwBvhNode],
+    frustum: &mut FrustumPacket,
+    active: &[u32; FRUSTUM_GROUPS],
+    (quadrant_bounds, whole): (&[RayBounds; QUADRANTS], &RayBounds),
+    prefetch_primitive: &P,
+    test_leaf: &mut F,
+) where
+    F: FnMut(u32, u32, &[u32; FRUSTUM_GROUPS], &mut FrustumPacket),
+    P: Fn(u32),
+{
     let octant_inv = frustum.octant_inv;
     let mut stack: GroupStack<NodeGroup> = GroupStack::new();
     let mut current = NodeGroup {
@@ -826,8 +928,7 @@ pub(crate) fn traverse_frustum<F, P>(
         }
         let decoded = DecodedNode::new(node, octant_inv);
         let whole_high = t_max_high.into_iter().fold(f32::NEG_INFINITY, f32::max);
-        let hits = frustum_child_hits(&decoded, frustum.origin, &frustum.whole, whole_high)
-            & non_empty_children(node);
+        let hits = frustum_child_hits(&decoded, whole, whole_high) & non_empty_children(node);
         let leaves = hits & !(node.imask as u32);
         // Start loading inner children and leaf primitives while the leaf boxes are tested.
         if hits & node.imask as u32 != 0 {
@@ -849,8 +950,7 @@ pub(crate) fn traverse_frustum<F, P>(
                 let quadrant_leaves = leaves
                     & frustum_child_hits(
                         &decoded,
-                        frustum.origin,
-                        &frustum.quadrants[quadrant],
+                        &quadrant_bounds[quadrant],
                         t_max_high[quadrant],
                     );
                 if quadrant_leaves == 0 {

@@ -170,7 +170,7 @@ impl SceneBvh {
     /// (the same `t`; only among surfaces hit at exactly the same `t` the reported one may
     /// differ). Meant for primary rays: every 64 consecutive rays should be one 8x8 pixel tile
     /// from one eye point, ordered as sixteen 2x2 blocks of four consecutive rays. Such a
-    /// chunk is traced as a frustum packet when its rays share origin and direction octant,
+    /// chunk is traced as a frustum packet when its rays share their direction octant,
     /// otherwise as 2x2 packets, otherwise ray by ray; any order is correct, only slower.
     /// Extra entries of the longer slice are ignored.
     pub fn intersect_packet(&self, rays: &[Ray], hits: &mut [Option<SceneHit>]) {

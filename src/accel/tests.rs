@@ -1931,8 +1931,16 @@ fn camera_tiles_form_frustum_packets() {
     }
     // Tiles straddling a sign change cannot form one; most can.
     assert!(formed * 2 > rays.len() / 64, "{formed}");
-    // Rays from different origins never form one.
-    let stray = Ray::new(Vec3::ONE, Vec3::X, 0.0, 1.0);
+    // A ray from another origin joins the packet; one from another octant never does.
+    let from_elsewhere = |index: usize| {
+        let mut ray = rays[index];
+        if index == 5 {
+            ray.origin += Vec3::ONE;
+        }
+        crate::accel::geometry::prepare(&ray)
+    };
+    assert!(frustum.fill(64, from_elsewhere));
+    let stray = Ray::new(rays[5].origin, -rays[5].direction, 0.0, 1.0);
     let mixed = |index: usize| {
         let ray = if index == 5 { &stray } else { &rays[index] };
         crate::accel::geometry::prepare(ray)
@@ -2122,7 +2130,9 @@ mod packet_and_structure {
     use obvhs::aabb::Aabb;
 
     /// 8x8 tile of rays in packet order, with a random pattern of invalid lanes/groups/quadrants.
-    fn tile(rng: &mut Rng, eye: Vec3, target: Vec3, fov: f32, kill: u32) -> Vec<Ray> {
+    /// With `spread` > 0 each ray starts at its own point within `spread` of the eye and passes
+    /// where the eye's ray would at distance 10 (several viewers, a matrix camera's near plane).
+    fn tile(rng: &mut Rng, eye: Vec3, target: Vec3, fov: f32, kill: u32, spread: f32) -> Vec<Ray> {
         let forward = (target - eye).normalize();
         let right = forward.cross(Vec3::Z).normalize();
         let up = right.cross(forward);
@@ -2134,7 +2144,9 @@ mod packet_and_structure {
                 let u = (column as f32 + 0.5) / 8.0 * 2.0 - 1.0;
                 let v = 1.0 - (row as f32 + 0.5) / 8.0 * 2.0;
                 let direction = (forward + (right * u + up * v) * fov).normalize();
-                let mut ray = Ray::new(eye, direction, 0.0, f32::INFINITY);
+                let origin = eye + rng.point(-spread, spread);
+                let direction = (eye + direction * 10.0 - origin).normalize();
+                let mut ray = Ray::new(origin, direction, 0.0, f32::INFINITY);
                 let quadrant = [0, 0, 1, 1, 0, 0, 1, 1, 2, 2, 3, 3, 2, 2, 3, 3][quad as usize];
                 let dead = match kill {
                     0 => false,
@@ -2209,7 +2221,9 @@ mod packet_and_structure {
                 let target = rng.point(-8.0, 8.0) * vec3(1.0, 1.0, 0.2);
                 let fov = [0.001, 0.02, 0.3, 1.0, 3.0][round % 5];
                 let kill = (round / 5 % 6) as u32;
-                let mut rays = tile(&mut rng, eye, target, fov, kill);
+                // Every other round the rays start at points of their own.
+                let spread = [0.0, 0.002, 0.0, 0.3, 0.0, 2.0][round / 3 % 6];
+                let mut rays = tile(&mut rng, eye, target, fov, kill, spread);
                 let keep = 1 + (rng.next_u64() % 64) as usize;
                 if round % 4 == 0 {
                     rays.truncate(keep);
@@ -2281,7 +2295,8 @@ mod packet_and_structure {
             let eye = rng.point(-20.0, 20.0);
             let target = rng.point(-10.0, 10.0);
             let fov = [0.01, 0.2, 1.0, 3.0][round % 4];
-            let rays = tile(&mut rng, eye, target, fov, (round / 4 % 6) as u32);
+            let spread = [0.0, 0.05][round % 2];
+            let rays = tile(&mut rng, eye, target, fov, (round / 4 % 6) as u32, spread);
             let mut hits = vec![None; rays.len()];
             scene.intersect_packet(&rays, &mut hits);
             for (ray, hit) in rays.iter().zip(&hits) {

@@ -7,9 +7,10 @@ use crate::device::datatype::*;
 use crate::device::params::ParamSet;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 
+use super::viewers::{DEFAULT_CUTOFF_ANGLE, DEFAULT_TILES, MAX_VIEWERS};
 use super::{
     Camera, CameraError, DEFAULT_INTERPUPILLARY_DISTANCE, MatrixDesc, OffAxisDesc,
-    OrthographicDesc, PerspectiveDesc, StereoMode,
+    OrthographicDesc, PerspectiveDesc, StereoMode, ViewerDesc, ViewerMode, ViewerWeighting,
 };
 
 /// Builds and validates the camera of `subtype` ("perspective", "orthographic", "matrix",
@@ -115,7 +116,67 @@ fn offaxis_desc(params: &ParamSet) -> Result<OffAxisDesc, CameraError> {
         image_region: params
             .get_box2("imageRegion")
             .unwrap_or(defaults.image_region),
+        viewers: viewer_desc(params)?,
     })
+}
+
+/// The `viewer*` parameters of an offAxis camera; `None` without `viewer.position`.
+fn viewer_desc(params: &ParamSet) -> Result<Option<ViewerDesc>, CameraError> {
+    let vectors = |name: &str| -> Result<Option<Vec<glam::Vec3>>, CameraError> {
+        if !params.contains(name) {
+            return Ok(None);
+        }
+        params
+            .get_object(name)
+            .and_then(|object| object.array.as_ref())
+            .filter(|array| array.dims[1] <= 1 && array.dims[2] <= 1)
+            .and_then(|array| array.read_vec3())
+            .map(Some)
+            .ok_or_else(|| {
+                CameraError::new(
+                    name,
+                    "must be an ARRAY1D of FLOAT32_VEC3, one element per viewer",
+                )
+            })
+    };
+    let Some(positions) = vectors("viewer.position")? else {
+        return Ok(None);
+    };
+    let directions = vectors("viewer.direction")?.ok_or_else(|| {
+        CameraError::new(
+            "viewer.direction",
+            "is required with viewer.position (one gaze direction per viewer)",
+        )
+    })?;
+    let choice = |name: &str, values: &[&str]| -> Result<Option<String>, CameraError> {
+        match params.get_string(name) {
+            None => Ok(None),
+            Some(value) if values.contains(&value) => Ok(Some(value.to_string())),
+            Some(value) => Err(CameraError::new(
+                name,
+                format!("unknown value '{value}' (expected {})", values.join(", ")),
+            )),
+        }
+    };
+    let mode = choice("viewerMode", &ViewerMode::VALUES)?
+        .and_then(|value| ViewerMode::parse(&value))
+        .unwrap_or_default();
+    let weighting = choice("viewerWeighting", &ViewerWeighting::VALUES)?
+        .and_then(|value| ViewerWeighting::parse(&value))
+        .unwrap_or_default();
+    Ok(Some(ViewerDesc {
+        positions,
+        directions,
+        rights: vectors("viewer.right")?,
+        mode,
+        weighting,
+        cutoff_angle: params
+            .get_f32("viewerCutoffAngle")
+            .unwrap_or(DEFAULT_CUTOFF_ANGLE),
+        tiles: params
+            .get_uvec2("viewerTiles")
+            .map_or(DEFAULT_TILES, |tiles| tiles.to_array()),
+    }))
 }
 
 const POSITION: ParamSpec = ParamSpec::new("position", &[ANARI_FLOAT32_VEC3], "camera position")
@@ -284,9 +345,57 @@ pub const OFF_AXIS: ObjectSpec = ObjectSpec::new(
             "far clip distance from the eye, perpendicular to the screen",
         ),
         IMAGE_REGION,
+        ParamSpec::new(
+            "viewer.position",
+            &[ANARI_ARRAY1D],
+            "several tracked viewers: one head position per viewer (FLOAT32_VEC3, at most 64); \
+             when set, position and right are not used",
+        ),
+        ParamSpec::new(
+            "viewer.direction",
+            &[ANARI_ARRAY1D],
+            "each viewer's gaze direction (FLOAT32_VEC3, need not be unit length)",
+        ),
+        ParamSpec::new(
+            "viewer.right",
+            &[ANARI_ARRAY1D],
+            "each viewer's right vector for stereo (FLOAT32_VEC3; unset: the screen's lower edge direction)",
+        ),
+        ParamSpec::new(
+            "viewerMode",
+            &[ANARI_STRING],
+            "which screen point's viewer weights choose a pixel's camera position",
+        )
+        .default(SpecValue::Str("perPixel"))
+        .values(&ViewerMode::VALUES),
+        ParamSpec::new(
+            "viewerWeighting",
+            &[ANARI_STRING],
+            "fall-off of a viewer's weight with the angle between its gaze and the screen point",
+        )
+        .default(SpecValue::Str("linear"))
+        .values(&ViewerWeighting::VALUES),
+        ParamSpec::new(
+            "viewerCutoffAngle",
+            &[ANARI_FLOAT32],
+            "angle in radians at which a viewer's linear weight reaches 0 (its zone's cone)",
+        )
+        .default(SpecValue::Float(DEFAULT_CUTOFF_ANGLE)),
+        ParamSpec::new(
+            "viewerTiles",
+            &[ANARI_UINT32_VEC2],
+            "tiles across and up the screen for viewerMode tiles",
+        )
+        .default(SpecValue::UInts(&DEFAULT_TILES)),
     ],
 )
-.extensions(&["ANARI_CAVETRACE_CAMERA_OFF_AXIS", "ANARI_KHR_CAMERA_STEREO"]);
+.extensions(&[
+    "ANARI_CAVETRACE_CAMERA_OFF_AXIS",
+    "ANARI_CAVETRACE_CAMERA_MULTI_VIEWER",
+    "ANARI_KHR_CAMERA_STEREO",
+]);
+
+const _: () = assert!(MAX_VIEWERS == 64, "the viewer.position description says 64");
 
 /// The camera subtypes this module implements.
 pub const SPECS: &[ObjectSpec] = &[PERSPECTIVE, ORTHOGRAPHIC, MATRIX, OFF_AXIS];
@@ -538,6 +647,13 @@ mod tests {
                     "near",
                     "far",
                     "imageRegion",
+                    "viewer.position",
+                    "viewer.direction",
+                    "viewer.right",
+                    "viewerMode",
+                    "viewerWeighting",
+                    "viewerCutoffAngle",
+                    "viewerTiles",
                 ][..],
             ),
         ];

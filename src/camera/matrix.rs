@@ -178,12 +178,11 @@ mod tests {
                 bottom + t * (top - bottom),
                 -near,
             ));
-            assert!(
-                (ray.origin - near_point).length() < 1e-6,
-                "{ray:?} {near_point}"
-            );
+            // The ray starts at the eye; its visible part begins on the near plane.
+            assert!((ray.origin - eye).length() < 1e-6, "{ray:?}");
+            let start = ray.origin + ray.direction * ray.t_min;
+            assert!((start - near_point).length() < 1e-6, "{ray:?} {near_point}");
             assert!(angle_between(ray.direction, near_point - eye) < 1e-5);
-            assert_eq!(ray.t_min, 0.0);
             // The far point lies on the far plane: eye-space z = −far.
             let far_point = ray.origin + ray.direction * ray.t_max;
             let far_z = view.transform_point3(far_point).z;
@@ -236,10 +235,13 @@ mod tests {
         let view = look_to_mat4(eye, Vec3::NEG_Z, Vec3::Y);
         let r = rays(view, opengl::perspective(1.0, 1.3, 0.2, 50.0));
         let ray = r.ray(0.9, 0.1, Vec2::ZERO);
-        let distance_to_near = (ray.origin - eye).length();
-        assert!(distance_to_near > 0.2);
-        assert!((r.depth(&ray, 0.0) - distance_to_near).abs() < 1e-6);
-        assert!((r.depth(&ray, 4.0) - (distance_to_near + 4.0)).abs() < 1e-5);
+        assert!((ray.origin - eye).length() < 1e-6, "{ray:?}");
+        // The near plane is 0.2 ahead; this ray reaches it farther off the axis.
+        assert!(ray.t_min > 0.2 && (ray.direction.z * ray.t_min + 0.2).abs() < 1e-6);
+        for t in [ray.t_min, 4.0] {
+            let hit = ray.origin + ray.direction * t;
+            assert!((r.depth(&ray, t) - (hit - eye).length()).abs() < 1e-5);
+        }
     }
 
     #[test]
@@ -250,18 +252,69 @@ mod tests {
         let r = rays(view, opengl::frustum(-0.05, 0.08, -0.04, 0.06, near, far));
         for (s, t) in [(0.5, 0.5), (0.05, 0.95), (0.8, 0.3)] {
             let ray = r.ray(s, t, Vec2::ZERO);
-            assert!(r.window_depth(ray.origin).abs() < 1e-5);
-            assert!((r.window_depth(ray.origin + ray.direction * ray.t_max) - 1.0).abs() < 1e-5);
+            assert!(
+                r.window_depth_at(ray.origin + ray.direction * ray.t_min)
+                    .abs()
+                    < 1e-5
+            );
+            assert!((r.window_depth_at(ray.origin + ray.direction * ray.t_max) - 1.0).abs() < 1e-5);
             for along in [0.5f32, 2.0, 10.0] {
                 let p = ray.origin + ray.direction * along;
                 // glFrustum depth of eye-space distance z: f(z − n) / (z(f − n)).
                 let z = -f64::from(view.transform_point3(p).z);
                 let (n, f) = (f64::from(near), f64::from(far));
                 let expected = f * (z - n) / (z * (f - n));
-                let got = f64::from(r.window_depth(p));
+                let got = f64::from(r.window_depth_at(p));
                 assert!((got - expected).abs() < 1e-5, "{got} vs {expected}");
             }
         }
+    }
+
+    #[test]
+    fn perspective_matrices_trace_as_pinholes_with_the_unprojected_rays() {
+        let eye = Vec3::new(0.4, 1.7, -0.3);
+        let view = look_at_mat4(eye, Vec3::new(-1.0, 1.0, -2.0), Vec3::Y);
+        let focal = 1.0 / 0.4f32.tan();
+        let infinite = Mat4::from_cols(
+            Vec4::new(focal / 1.5, 0.0, 0.0, 0.0),
+            Vec4::new(0.0, focal, 0.0, 0.0),
+            Vec4::new(0.0, 0.0, -1.0, -1.0),
+            Vec4::new(0.0, 0.0, -0.1, 0.0),
+        );
+        for proj in [
+            opengl::frustum(-0.03, 0.11, -0.02, 0.07, 0.1, 30.0),
+            opengl::perspective(1.0, 1.3, 0.2, 50.0),
+            infinite,
+        ] {
+            let camera = MatrixCamera::new(&MatrixDesc {
+                view,
+                proj,
+                image_region: [0.1, 0.2, 0.7, 0.9],
+            })
+            .unwrap();
+            let fast = camera.prepare(Eye::Mono, 64, 48);
+            assert!(fast.traces_as_pinhole());
+            let exact = EyeRays::unproject_exactly(camera.region, camera.unproject);
+            for (_, _, s, t) in pixel_centres(20, 15) {
+                let (a, b) = (fast.ray(s, t, Vec2::ZERO), exact.ray(s, t, Vec2::ZERO));
+                assert!((a.origin - b.origin).length() < 1e-6, "{a:?} vs {b:?}");
+                assert!(
+                    angle_between(a.direction, b.direction) < 1e-6,
+                    "{a:?} vs {b:?}"
+                );
+                assert!((a.t_min - b.t_min).abs() < 1e-6 * b.t_min, "{a:?} vs {b:?}");
+                assert!(
+                    a.t_max == b.t_max || (a.t_max - b.t_max).abs() < 1e-5 * b.t_max,
+                    "{a:?} vs {b:?}"
+                );
+            }
+        }
+        // Orthographic projections keep their rays starting on the near plane.
+        let ortho = rays(
+            view,
+            opengl::orthographic(-1.0, 2.0, -1.25, 0.75, 0.5, 20.0),
+        );
+        assert!(!ortho.traces_as_pinhole());
     }
 
     #[test]

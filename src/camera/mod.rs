@@ -14,11 +14,14 @@ pub mod perspective;
 mod rays;
 pub mod screen;
 mod validate;
+pub mod viewers;
 
 #[cfg(test)]
 mod equivalence_tests;
 #[cfg(test)]
 mod test_support;
+#[cfg(test)]
+mod viewer_tests;
 
 pub use anari::{SPECS, camera_from_params};
 pub use matrix::MatrixDesc;
@@ -27,6 +30,7 @@ pub use orthographic::OrthographicDesc;
 pub use perspective::PerspectiveDesc;
 pub use rays::{DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR, DEFAULT_WINDOW_DEPTH_NEAR, EyeRays};
 pub use screen::OffAxisDesc;
+pub use viewers::{ViewerDesc, ViewerMode, ViewerWeighting};
 
 use std::fmt;
 

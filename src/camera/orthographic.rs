@@ -172,12 +172,12 @@ mod tests {
         for t in [0.5, 1.0, 5.0, 10.5] {
             let p = ray.origin + ray.direction * t;
             let expected = gl_window_depth(view, proj, p.as_dvec3());
-            assert!((f64::from(r.window_depth(p)) - expected).abs() < 1e-6);
+            assert!((f64::from(r.window_depth_at(p)) - expected).abs() < 1e-6);
         }
-        assert_eq!(r.window_depth(ray.origin + ray.direction * 5.5), 0.5);
+        assert_eq!(r.window_depth_at(ray.origin + ray.direction * 5.5), 0.5);
         // Unset near/far: window depth spans 0 .. 1000 in front of the image plane.
         let unset = rays(OrthographicDesc::default(), 4, 4);
-        assert_eq!(unset.window_depth(Vec3::new(0.1, 0.2, -250.0)), 0.25);
+        assert_eq!(unset.window_depth_at(Vec3::new(0.1, 0.2, -250.0)), 0.25);
     }
 
     #[test]

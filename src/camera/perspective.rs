@@ -365,8 +365,8 @@ mod tests {
         // Parallel axes: both eyes' depth axis is the camera's +x, so window depth ignores
         // the lateral offset (a toed-in eye's axis would be rotated towards the centre).
         for rays in [&left, &right] {
-            let depth_near = rays.window_depth(position + Vec3::new(1.0, 0.3, 0.4));
-            let depth_far = rays.window_depth(position + Vec3::new(1.0, -0.3, -0.4));
+            let depth_near = rays.window_depth_at(position + Vec3::new(1.0, 0.3, 0.4));
+            let depth_far = rays.window_depth_at(position + Vec3::new(1.0, -0.3, -0.4));
             assert_eq!(depth_near, depth_far, "window depth must depend on x only");
         }
     }
@@ -436,19 +436,19 @@ mod tests {
             let ray = rays.ray(s, t, Vec2::ZERO);
             let p = ray.origin + ray.direction * distance;
             let expected = gl_window_depth(view, proj, p.as_dvec3());
-            let got = f64::from(rays.window_depth(p));
+            let got = f64::from(rays.window_depth_at(p));
             assert!((got - expected).abs() < 2e-6, "{got} vs {expected}");
         }
         let first = rays.ray(0.3, 0.3, Vec2::ZERO);
         assert!(
-            rays.window_depth(first.origin + first.direction * first.t_min)
+            rays.window_depth_at(first.origin + first.direction * first.t_min)
                 .abs()
                 < 1e-5
         );
         let last = first.origin + first.direction * first.t_max;
-        assert!((rays.window_depth(last) - 1.0).abs() < 1e-5);
+        assert!((rays.window_depth_at(last) - 1.0).abs() < 1e-5);
         // Outside the clip range the value is clamped.
-        assert_eq!(rays.window_depth(position - direction), 0.0);
+        assert_eq!(rays.window_depth_at(position - direction), 0.0);
     }
 
     #[test]
@@ -460,8 +460,8 @@ mod tests {
             })
             .prepare(Eye::Mono, 10, 10);
             // 1 − n/z with n = 0.01.
-            assert!((rays.window_depth(Vec3::new(0.3, -0.2, -4.0)) - 0.9975).abs() < 1e-6);
-            assert!((rays.window_depth(Vec3::new(0.0, 0.0, -0.01))).abs() < 1e-6);
+            assert!((rays.window_depth_at(Vec3::new(0.3, -0.2, -4.0)) - 0.9975).abs() < 1e-6);
+            assert!((rays.window_depth_at(Vec3::new(0.0, 0.0, -0.01))).abs() < 1e-6);
         }
     }
 

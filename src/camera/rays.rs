@@ -1,8 +1,11 @@
 //! Per-eye ray generators: the concrete `EyeRays` type shared by every camera model.
 
+use std::sync::Arc;
+
 use glam::{DMat4, DVec2, DVec3, DVec4, Vec2, Vec3};
 
 use super::CameraRay;
+use super::viewers::ViewerSet;
 
 /// Near plane used by `EyeRays::window_depth` for perspective-like cameras whose `near` is
 /// unset or 0 (a zero near plane has no OpenGL depth mapping), in meters.
@@ -71,6 +74,21 @@ pub(crate) struct Parallel {
     pub clip: ClipRange,
 }
 
+/// Rays from a camera position of their own through a window rectangle (offAxis camera with
+/// several viewers): each window point's position is blended from the viewers' heads.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct Blended {
+    /// The window (the screen) as for [`Pinhole`]; no lens.
+    pub window_origin: DVec3,
+    pub window_right: DVec3,
+    pub window_up: DVec3,
+    pub forward: DVec3,
+    pub clip: ClipRange,
+    pub viewers: Arc<ViewerSet>,
+    /// This eye's offset from the blended head along the blended right vector, in meters.
+    pub eye_offset: f64,
+}
+
 /// Rays unprojected from NDC through proj⁻¹ then view⁻¹: matrix camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Unproject {
@@ -109,20 +127,85 @@ impl Unproject {
         };
         (near_point, scaled, length)
     }
+
+    /// The pinhole tracing this projection's rays, for perspective projections whose near
+    /// plane is unprojected affinely and whose far plane is parallel to it (every glFrustum and
+    /// infinite-far projection): rays from the centre of projection through the near plane,
+    /// clipped at the two planes. Its rays differ from the unprojected ones only by rounding,
+    /// and are generated at the cost of the offAxis camera's.
+    fn as_pinhole(&self) -> Option<Pinhole> {
+        let eye = self.eye?;
+        let near = |u: f64, v: f64| {
+            let p = self.unproject(DVec3::new(u, v, -1.0));
+            p.truncate() / p.w
+        };
+        let origin = near(-1.0, -1.0);
+        let right = near(1.0, -1.0) - origin;
+        let up = near(-1.0, 1.0) - origin;
+        let forward = right.cross(up).try_normalize()?;
+        let forward = if forward.dot(origin - eye) < 0.0 {
+            -forward
+        } else {
+            forward
+        };
+        let scale = right.length().max(up.length()) + (origin - eye).length();
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * scale;
+        let flat = [(0.0, 0.0), (1.0, 1.0), (0.3, -0.7)].iter().all(|&(u, v)| {
+            let expected = origin + right * (0.5 * (u + 1.0)) + up * (0.5 * (v + 1.0));
+            (near(u, v) - expected).length() <= 1e-9 * scale
+        });
+        let near_distance = (origin - eye).dot(forward);
+        if !flat || near_distance <= 0.0 {
+            return None;
+        }
+        let far_distances: Vec<Option<f64>> = [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)]
+            .iter()
+            .map(|&(u, v)| {
+                let p = self.unproject(DVec3::new(u, v, 1.0));
+                (p.w != 0.0).then(|| (p.truncate() / p.w - eye).dot(forward))
+            })
+            .collect();
+        let far = match far_distances[..] {
+            [None, None, None, None] => None,
+            [Some(first), ..]
+                if far_distances
+                    .iter()
+                    .all(|d| d.is_some_and(|d| close(d, first))) =>
+            {
+                Some(first)
+            }
+            _ => return None,
+        };
+        Some(Pinhole {
+            eye,
+            window_origin: origin,
+            window_right: right,
+            window_up: up,
+            forward,
+            lens_right: DVec3::ZERO,
+            lens_up: DVec3::ZERO,
+            clip: ClipRange {
+                near: Some(near_distance),
+                far,
+            },
+        })
+    }
 }
 
 // EyeRays is built once per eye and frame and then read for every ray: keeping the matrices
 // inline avoids a pointer chase per ray, the size difference costs nothing.
 #[allow(clippy::large_enum_variant)]
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 enum Generator {
     Pinhole(Pinhole),
+    Blended(Blended),
     Parallel(Parallel),
-    Unproject(Unproject),
+    /// With the pinhole that traces the same rays, for perspective projections.
+    Unproject(Unproject, Option<Pinhole>),
 }
 
 /// Precomputed ray generator for one eye and one viewport size.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct EyeRays {
     region: ImageRegion,
     generator: Generator,
@@ -136,6 +219,13 @@ impl EyeRays {
         }
     }
 
+    pub(crate) fn blended(region: ImageRegion, blended: Blended) -> EyeRays {
+        EyeRays {
+            region,
+            generator: Generator::Blended(blended),
+        }
+    }
+
     pub(crate) fn parallel(region: ImageRegion, parallel: Parallel) -> EyeRays {
         EyeRays {
             region,
@@ -146,7 +236,7 @@ impl EyeRays {
     pub(crate) fn unproject(region: ImageRegion, unproject: Unproject) -> EyeRays {
         EyeRays {
             region,
-            generator: Generator::Unproject(unproject),
+            generator: Generator::Unproject(unproject, unproject.as_pinhole()),
         }
     }
 
@@ -156,8 +246,10 @@ impl EyeRays {
     /// lens in `[0,1)²` is the depth-of-field sample (ignored when apertureRadius is 0).
     /// t_min/t_max implement near/far clipping: the clip planes are perpendicular to the view
     /// axis (OpenGL style), so for perspective rays `t_min = near / cos θ`. Unset near/far give
-    /// t_min 0 and t_max +inf. The matrix camera's ray starts on the near plane (t_min 0) and
-    /// ends on the far plane.
+    /// t_min 0 and t_max +inf. A perspective matrix camera's ray starts at the centre of
+    /// projection with `t_min` on the near plane (so rays of neighbouring pixels share their
+    /// origin and trace as packets); an orthographic one's starts on the near plane. Both end on
+    /// the far plane.
     #[inline]
     pub fn ray(&self, s: f32, t: f32, lens: Vec2) -> CameraRay {
         let st = self.region.apply(s, t);
@@ -170,28 +262,19 @@ impl EyeRays {
                     let disk = concentric_disk(lens);
                     p.eye + disk.x * p.lens_right + disk.y * p.lens_up
                 };
-                let direction = (target - origin).normalize();
                 // The lens disk lies in the plane through the eye perpendicular to `forward`,
-                // so plane distances from the origin along `forward` equal those from the eye:
-                // a plane at distance `z` is reached at `t = z / cos θ`. One division serves
-                // both planes (it runs for every primary ray).
-                let clip = &p.clip;
-                let (t_min, t_max) = if clip.near.is_some() || clip.far.is_some() {
-                    let per_distance = 1.0 / direction.dot(p.forward);
-                    (
-                        clip.near.map_or(0.0, |near| (near * per_distance) as f32),
-                        clip.far
-                            .map_or(f32::INFINITY, |far| (far * per_distance) as f32),
-                    )
+                // so plane distances from the origin along `forward` equal those from the eye.
+                clipped_ray(origin, target, p.forward, &p.clip)
+            }
+            Generator::Blended(b) => {
+                let target = b.window_origin + st.x * b.window_right + st.y * b.window_up;
+                let (head, right) = b.viewers.camera_at(target, st, b.eye_offset != 0.0);
+                let origin = if b.eye_offset == 0.0 {
+                    head
                 } else {
-                    (0.0, f32::INFINITY)
+                    head + right * b.eye_offset
                 };
-                CameraRay {
-                    origin: origin.as_vec3(),
-                    direction: direction.as_vec3(),
-                    t_min,
-                    t_max,
-                }
+                clipped_ray(origin, target, b.forward, &b.clip)
             }
             Generator::Parallel(p) => CameraRay {
                 origin: (p.plane_origin + st.x * p.plane_right + st.y * p.plane_up).as_vec3(),
@@ -199,23 +282,42 @@ impl EyeRays {
                 t_min: p.clip.near.map_or(0.0, |near| near as f32),
                 t_max: p.clip.far.map_or(f32::INFINITY, |far| far as f32),
             },
-            Generator::Unproject(m) => {
-                let (origin, towards_far, length) = m.segment(2.0 * st.x - 1.0, 2.0 * st.y - 1.0);
-                CameraRay {
-                    origin: origin.as_vec3(),
-                    direction: towards_far.normalize().as_vec3(),
-                    t_min: 0.0,
-                    t_max: length as f32,
+            Generator::Unproject(_, Some(p)) => {
+                let target = p.window_origin + st.x * p.window_right + st.y * p.window_up;
+                clipped_ray(p.eye, target, p.forward, &p.clip)
+            }
+            Generator::Unproject(m, None) => {
+                let (near_point, towards_far, length) =
+                    m.segment(2.0 * st.x - 1.0, 2.0 * st.y - 1.0);
+                match m.eye {
+                    // Every ray of a perspective projection passes through its centre.
+                    Some(eye) => {
+                        let to_near = near_point - eye;
+                        let near_distance = to_near.length();
+                        let direction = to_near / near_distance;
+                        CameraRay {
+                            origin: eye.as_vec3(),
+                            direction: direction.as_vec3(),
+                            t_min: near_distance as f32,
+                            t_max: (near_distance + length) as f32,
+                        }
+                    }
+                    None => CameraRay {
+                        origin: near_point.as_vec3(),
+                        direction: towards_far.normalize().as_vec3(),
+                        t_min: 0.0,
+                        t_max: length as f32,
+                    },
                 }
             }
         }
     }
 
     /// channel.depth of a hit at parameter `t` along `ray`: the world-space distance from this
-    /// eye's point (perspective, offAxis, perspective matrix — for depth of field the lens
-    /// centre); for the orthographic camera the distance from the image plane through
-    /// `position` (where its rays start, so simply `t`); for an orthographic matrix the distance
-    /// from the near plane (again `t`).
+    /// eye's point (perspective, offAxis — with several viewers the pixel's own eye —,
+    /// perspective matrix; for depth of field the lens centre); for the orthographic camera the
+    /// distance from the image plane through `position` (where its rays start, so simply `t`);
+    /// for an orthographic matrix the distance from the near plane (again `t`).
     #[inline]
     pub fn depth(&self, ray: &CameraRay, t: f32) -> f32 {
         let eye = match &self.generator {
@@ -224,8 +326,7 @@ impl EyeRays {
                 return t;
             }
             Generator::Pinhole(p) => p.eye,
-            Generator::Unproject(Unproject { eye: Some(eye), .. }) => *eye,
-            Generator::Parallel(_) | Generator::Unproject(Unproject { eye: None, .. }) => {
+            Generator::Blended(_) | Generator::Parallel(_) | Generator::Unproject(..) => {
                 return t;
             }
         };
@@ -233,27 +334,32 @@ impl EyeRays {
         (hit - eye).length() as f32
     }
 
-    /// OpenGL window-space depth in `[0,1]` (glDepthRange 0..1) of world point p under this
-    /// camera's projection, clamped to `[0,1]`.
+    /// OpenGL window-space depth in `[0,1]` (glDepthRange 0..1) of world point p, seen by
+    /// `ray`, under this camera's projection, clamped to `[0,1]`.
     ///
     /// - matrix camera: exactly `((proj·view·p).z / w)·½ + ½`.
     /// - perspective and offAxis: the glFrustum depth mapping of this eye's frustum with the
     ///   camera's near/far; when near is unset (or 0) [`DEFAULT_WINDOW_DEPTH_NEAR`] is used and
-    ///   when far is unset the far plane is at infinity (depth = 1 − near/z).
+    ///   when far is unset the far plane is at infinity (depth = 1 − near/z). With several
+    ///   viewers each pixel has a frustum of its own: the one from the ray's origin onto the
+    ///   screen.
     /// - orthographic: the glOrtho depth mapping with near/far; unset near means 0 and unset
     ///   far means [`DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR`].
-    pub fn window_depth(&self, p: Vec3) -> f32 {
+    pub fn window_depth(&self, ray: &CameraRay, p: Vec3) -> f32 {
         let p = p.as_dvec3();
+        let frustum_depth = |eye: DVec3, forward: DVec3, clip: &ClipRange| {
+            let z = (p - eye).dot(forward);
+            let near = clip
+                .near
+                .filter(|near| *near > 0.0)
+                .unwrap_or(DEFAULT_WINDOW_DEPTH_NEAR);
+            perspective_window_depth(z, near, clip.far)
+        };
         let depth = match &self.generator {
             Generator::Pinhole(pinhole) => {
-                let z = (p - pinhole.eye).dot(pinhole.forward);
-                let near = pinhole
-                    .clip
-                    .near
-                    .filter(|near| *near > 0.0)
-                    .unwrap_or(DEFAULT_WINDOW_DEPTH_NEAR);
-                perspective_window_depth(z, near, pinhole.clip.far)
+                frustum_depth(pinhole.eye, pinhole.forward, &pinhole.clip)
             }
+            Generator::Blended(b) => frustum_depth(ray.origin.as_dvec3(), b.forward, &b.clip),
             Generator::Parallel(parallel) => {
                 let z = (p - parallel.plane_origin).dot(parallel.forward);
                 let near = parallel.clip.near.unwrap_or(0.0);
@@ -263,7 +369,7 @@ impl EyeRays {
                     .unwrap_or(DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR);
                 (z - near) / (far - near)
             }
-            Generator::Unproject(m) => {
+            Generator::Unproject(m, _) => {
                 let clip = m.proj * (m.view * p.extend(1.0));
                 0.5 * (clip.z / clip.w) + 0.5
             }
@@ -273,6 +379,59 @@ impl EyeRays {
         } else {
             depth.clamp(0.0, 1.0) as f32
         }
+    }
+}
+
+#[cfg(test)]
+impl EyeRays {
+    /// A matrix camera's rays unprojected pixel by pixel, without the pinhole shortcut.
+    pub(crate) fn unproject_exactly(region: ImageRegion, unproject: Unproject) -> EyeRays {
+        EyeRays {
+            region,
+            generator: Generator::Unproject(unproject, None),
+        }
+    }
+
+    /// Whether a matrix camera's rays are traced by the pinhole shortcut.
+    pub(crate) fn traces_as_pinhole(&self) -> bool {
+        matches!(self.generator, Generator::Unproject(_, Some(_)))
+    }
+
+    /// [`EyeRays::window_depth`] for generators whose depth does not depend on the ray (all but
+    /// several viewers).
+    pub(crate) fn window_depth_at(&self, p: Vec3) -> f32 {
+        assert!(!matches!(self.generator, Generator::Blended(_)));
+        let unused = CameraRay {
+            origin: Vec3::ZERO,
+            direction: Vec3::Z,
+            t_min: 0.0,
+            t_max: 0.0,
+        };
+        self.window_depth(&unused, p)
+    }
+}
+
+/// The ray from `origin` through `target`, clipped to the planes at `clip` distances along
+/// `forward` from the origin: a plane at distance `z` is reached at `t = z / cos θ`. One
+/// division serves both planes (it runs for every primary ray).
+#[inline]
+fn clipped_ray(origin: DVec3, target: DVec3, forward: DVec3, clip: &ClipRange) -> CameraRay {
+    let direction = (target - origin).normalize();
+    let (t_min, t_max) = if clip.near.is_some() || clip.far.is_some() {
+        let per_distance = 1.0 / direction.dot(forward);
+        (
+            clip.near.map_or(0.0, |near| (near * per_distance) as f32),
+            clip.far
+                .map_or(f32::INFINITY, |far| (far * per_distance) as f32),
+        )
+    } else {
+        (0.0, f32::INFINITY)
+    };
+    CameraRay {
+        origin: origin.as_vec3(),
+        direction: direction.as_vec3(),
+        t_min,
+        t_max,
     }
 }
 

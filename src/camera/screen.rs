@@ -6,8 +6,9 @@ use std::sync::Arc;
 use glam::{DVec3, Vec3};
 
 use super::offaxis::{DegenerateScreen, OffAxisError, ScreenFrame};
-use super::rays::{ClipRange, ImageRegion, Pinhole};
+use super::rays::{Blended, ClipRange, ImageRegion, Pinhole};
 use super::validate;
+use super::viewers::{ViewerDesc, ViewerSet};
 use super::{
     Camera, CameraError, DEFAULT_INTERPUPILLARY_DISTANCE, Eye, EyeRays, EyeViewport, StereoMode,
 };
@@ -35,6 +36,9 @@ pub struct OffAxisDesc {
     pub far: Option<f32>,
     /// `[lo.x, lo.y, hi.x, hi.y]` inside `[0,1]²`, in screen coordinates.
     pub image_region: [f32; 4],
+    /// Several tracked viewers (`viewer.position` and the other `viewer*` parameters); when
+    /// set, `position` and `right` are not used.
+    pub viewers: Option<ViewerDesc>,
 }
 
 impl Default for OffAxisDesc {
@@ -50,6 +54,7 @@ impl Default for OffAxisDesc {
             near: None,
             far: None,
             image_region: [0.0, 0.0, 1.0, 1.0],
+            viewers: None,
         }
     }
 }
@@ -74,6 +79,7 @@ pub struct OffAxisCamera {
     interpupillary_distance: f64,
     region: ImageRegion,
     clip: ClipRange,
+    viewers: Option<Arc<ViewerSet>>,
 }
 
 impl OffAxisCamera {
@@ -92,21 +98,43 @@ impl OffAxisCamera {
             };
             CameraError::new(parameter, error.to_string())
         })?;
+        let interpupillary_distance =
+            validate::non_negative("interpupillaryDistance", desc.interpupillary_distance)?;
+        let region = validate::image_region(desc.image_region)?;
+        let clip = validate::clip_range(desc.near, desc.far)?;
+        if let Some(viewers) = &desc.viewers {
+            let eye_offset = desc
+                .stereo_mode
+                .eyes()
+                .iter()
+                .map(|eye| (interpupillary_distance * eye.ipd_fraction()).abs())
+                .fold(0.0, f64::max);
+            let viewers = ViewerSet::new(viewers, screen, eye_offset)?;
+            return Ok(OffAxisCamera {
+                screen,
+                position: DVec3::ZERO,
+                right: screen.x,
+                stereo_mode: desc.stereo_mode,
+                interpupillary_distance,
+                region,
+                clip,
+                viewers: Some(Arc::new(viewers)),
+            });
+        }
         let position = validate::finite_point("position", desc.position)?;
         let right = match desc.right {
             Some(right) => validate::unit_vector("right", right)?,
             None => screen.x,
         };
-        let interpupillary_distance =
-            validate::non_negative("interpupillaryDistance", desc.interpupillary_distance)?;
         let camera = OffAxisCamera {
             screen,
             position,
             right,
             stereo_mode: desc.stereo_mode,
             interpupillary_distance,
-            region: validate::image_region(desc.image_region)?,
-            clip: validate::clip_range(desc.near, desc.far)?,
+            region,
+            clip,
+            viewers: None,
         };
         for &eye in desc.stereo_mode.eyes() {
             let eye_position = camera.eye_position(eye);
@@ -136,6 +164,20 @@ impl Camera for OffAxisCamera {
     /// front of the screen; another eye requested here still gets rays through the screen.
     fn prepare(&self, eye: Eye, _viewport_width: u32, _viewport_height: u32) -> EyeRays {
         let screen = &self.screen;
+        if let Some(viewers) = &self.viewers {
+            return EyeRays::blended(
+                self.region,
+                Blended {
+                    window_origin: screen.lower_left,
+                    window_right: screen.lower_right - screen.lower_left,
+                    window_up: screen.upper_right - screen.lower_right,
+                    forward: -screen.z,
+                    clip: self.clip,
+                    viewers: viewers.clone(),
+                    eye_offset: self.interpupillary_distance * eye.ipd_fraction(),
+                },
+            );
+        }
         EyeRays::pinhole(
             self.region,
             Pinhole {
@@ -278,7 +320,7 @@ mod tests {
                     for along in [1.01 * ray.t_min, 2.0 * ray.t_min, 1.4, 0.9 * ray.t_max] {
                         let p = ray.origin + ray.direction * along;
                         let expected = gl_window_depth(view, proj, p.as_dvec3());
-                        let got = f64::from(rays.window_depth(p));
+                        let got = f64::from(rays.window_depth_at(p));
                         assert!((got - expected).abs() < 1e-5, "{got} vs {expected}");
                     }
                     assert_eq!(rays.depth(&ray, 2.0), 2.0);

@@ -169,7 +169,9 @@ impl ChannelFormat {
                 ])
             }),
             (ChannelKind::WindowDepth, _) => self.encode_pixels(out, |k| {
-                f32_bytes::<1, 4>([hit(k).map_or(1.0, |(h, _, eye)| eye.window_depth(h.point))])
+                f32_bytes::<1, 4>([
+                    hit(k).map_or(1.0, |(h, ray, eye)| eye.window_depth(ray, h.point))
+                ])
             }),
             (ChannelKind::PrimitiveId, _) => self.encode_pixels(out, |k| id(k, |h| h.primitive_id)),
             (ChannelKind::ObjectId, _) => self.encode_pixels(out, |k| id(k, |h| h.object_id)),

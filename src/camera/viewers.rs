@@ -1,0 +1,843 @@
+//! Several tracked viewers sharing the screens of a CAVE (Schulze et al., "Democratizing
+//! Rendering for Multiple Viewers in Surround VR Systems"): each point of a screen is seen from
+//! a camera position blended between the viewers' heads, weighted by how directly each viewer
+//! looks at that point.
+//!
+//! Viewer `i` has head `H_i`, gaze `D_i` and right vector `R_i`. For a screen point `P`, its
+//! angle `a_i` is the angle between `D_i` and `P − H_i`; with the cutoff angle `c` the weights
+//! are
+//! - linear: `1 − a/c` for `a < c`, else 0;
+//! - cosine: `cos(a/c)` for `a < c·π/2`, else 0 (the cosine falls to 0 exactly there, so the
+//!   weight stays continuous; `c` is then the angle where the weight is cos 1 ≈ 0.54);
+//! - gaussian: `erfc(a / (σ√2))` with `σ = c/3`, twice the upper tail of a normal distribution:
+//!   1 at `a = 0`, 0.0027 at `a = c`, and never 0 (weights are normalised in log space, so the
+//!   nearest viewers keep their share however far every viewer looks away).
+//!
+//! Weights are normalised to sum to 1 and the camera is `C(P) = Σ ŵ_i H_i`; where every weight
+//! is 0 it is the mean of all heads. Zones use cone membership instead: inside exactly one
+//! viewer's cone (`a_i < c`) that viewer's head, inside several the mean of their heads,
+//! inside none the mean of all heads. In stereo the eyes sit at `C(P) ± (ipd/2)·R(P)` with
+//! `R(P)` the normalised weighted sum of the right vectors.
+//!
+//! Weights are evaluated in f32, four viewers at a time; the blend is done in f64, so a point
+//! seen by one viewer alone gets exactly that viewer's head.
+
+use glam::{BVec4A, DVec2, DVec3, Vec3, Vec4};
+
+use super::CameraError;
+use super::offaxis::ScreenFrame;
+
+/// Most viewers one camera blends (per-pixel work grows with their number).
+pub const MAX_VIEWERS: usize = 64;
+
+/// Default `viewerCutoffAngle`, radians.
+pub const DEFAULT_CUTOFF_ANGLE: f32 = std::f32::consts::FRAC_PI_4;
+
+/// Default `viewerTiles`.
+pub const DEFAULT_TILES: [u32; 2] = [8, 8];
+
+/// `viewerMode`: which screen point's weights choose a pixel's camera.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ViewerMode {
+    /// The pixel centre's own point.
+    #[default]
+    PerPixel,
+    /// The centre of the pixel's tile in a regular grid over the screen.
+    Tiles,
+    /// Cone membership of the pixel centre's point.
+    Zones,
+}
+
+impl ViewerMode {
+    pub const VALUES: [&'static str; 3] = ["perPixel", "tiles", "zones"];
+
+    pub fn parse(value: &str) -> Option<ViewerMode> {
+        match value {
+            "perPixel" => Some(ViewerMode::PerPixel),
+            "tiles" => Some(ViewerMode::Tiles),
+            "zones" => Some(ViewerMode::Zones),
+            _ => None,
+        }
+    }
+}
+
+/// `viewerWeighting`: how a viewer's weight falls off with its angle.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum ViewerWeighting {
+    #[default]
+    Linear,
+    Cosine,
+    Gaussian,
+}
+
+impl ViewerWeighting {
+    pub const VALUES: [&'static str; 3] = ["linear", "cosine", "gaussian"];
+
+    pub fn parse(value: &str) -> Option<ViewerWeighting> {
+        match value {
+            "linear" => Some(ViewerWeighting::Linear),
+            "cosine" => Some(ViewerWeighting::Cosine),
+            "gaussian" => Some(ViewerWeighting::Gaussian),
+            _ => None,
+        }
+    }
+}
+
+/// The viewers as the application set them (one element per viewer).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewerDesc {
+    pub positions: Vec<Vec3>,
+    pub directions: Vec<Vec3>,
+    /// Unset: every viewer's right vector is the screen's X axis.
+    pub rights: Option<Vec<Vec3>>,
+    pub mode: ViewerMode,
+    pub weighting: ViewerWeighting,
+    pub cutoff_angle: f32,
+    pub tiles: [u32; 2],
+}
+
+impl ViewerDesc {
+    /// Viewers at `positions` looking along `directions`, with the default mode and weighting.
+    pub fn new(positions: Vec<Vec3>, directions: Vec<Vec3>) -> ViewerDesc {
+        ViewerDesc {
+            positions,
+            directions,
+            rights: None,
+            mode: ViewerMode::default(),
+            weighting: ViewerWeighting::default(),
+            cutoff_angle: DEFAULT_CUTOFF_ANGLE,
+            tiles: DEFAULT_TILES,
+        }
+    }
+}
+
+/// How the viewers share a screen point.
+enum Blend {
+    /// No viewer has a say: the mean of all heads.
+    Nobody,
+    /// This viewer alone.
+    Only(usize),
+    /// The weights computed.
+    Weights,
+}
+
+/// Four viewers in SIMD lanes (unused lanes repeat the last viewer and are masked off).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct ViewerLanes {
+    head: [Vec4; 3],
+    /// Unit length.
+    gaze: [Vec4; 3],
+    used: BVec4A,
+}
+
+/// Validated viewers, ready to give any screen point its camera.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ViewerSet {
+    heads: Vec<DVec3>,
+    rights: Vec<DVec3>,
+    lanes: Vec<ViewerLanes>,
+    mean_head: DVec3,
+    mode: ViewerMode,
+    weighting: ViewerWeighting,
+    inv_cutoff: f32,
+    /// Cosine of the angle beyond which the weight (or zone membership) is 0.
+    cos_reach: f32,
+    /// `1 / (σ√2)` for the gaussian fall-off.
+    gaussian_scale: f32,
+    tiles: [u32; 2],
+    /// Per tile (row by row), its camera position and right vector, for grids up to
+    /// [`MAX_PRECOMPUTED_TILES`] tiles; larger ones are computed pixel by pixel.
+    tile_cameras: Vec<(DVec3, DVec3)>,
+    screen: ScreenFrame,
+}
+
+/// Largest tile grid whose cameras are computed once at commit.
+const MAX_PRECOMPUTED_TILES: u32 = 16384;
+
+impl ViewerSet {
+    /// Validates the viewers against `screen`; `eye_offset` is the largest distance of an eye
+    /// from its head (half the interpupillary distance in stereo, else 0): every eye must stay
+    /// in front of the screen.
+    pub(crate) fn new(
+        desc: &ViewerDesc,
+        screen: ScreenFrame,
+        eye_offset: f64,
+    ) -> Result<ViewerSet, CameraError> {
+        let count = desc.positions.len();
+        if count == 0 {
+            return Err(CameraError::new(
+                "viewer.position",
+                "must hold at least one viewer",
+            ));
+        }
+        if count > MAX_VIEWERS {
+            return Err(CameraError::new(
+                "viewer.position",
+                format!("holds {count} viewers, at most {MAX_VIEWERS} are supported"),
+            ));
+        }
+        let same_length = |name: &str, length: usize| {
+            if length == count {
+                Ok(())
+            } else {
+                Err(CameraError::new(
+                    name,
+                    format!("has {length} elements but viewer.position has {count}"),
+                ))
+            }
+        };
+        same_length("viewer.direction", desc.directions.len())?;
+        if let Some(rights) = &desc.rights {
+            same_length("viewer.right", rights.len())?;
+        }
+        let cutoff = desc.cutoff_angle;
+        if !(cutoff.is_finite() && cutoff > 0.0 && cutoff <= std::f32::consts::PI) {
+            return Err(CameraError::new(
+                "viewerCutoffAngle",
+                format!("must be in (0, π] radians, got {cutoff}"),
+            ));
+        }
+        if desc.tiles.contains(&0) {
+            return Err(CameraError::new(
+                "viewerTiles",
+                format!("must be at least 1×1, got {:?}", desc.tiles),
+            ));
+        }
+        let element_error = |name: &str, index: usize, message: String| {
+            CameraError::new(name, format!("viewer {index}: {message}"))
+        };
+        let mut heads = Vec::with_capacity(count);
+        let mut gazes = Vec::with_capacity(count);
+        let mut rights = Vec::with_capacity(count);
+        for index in 0..count {
+            let head = desc.positions[index];
+            if !head.is_finite() {
+                return Err(element_error(
+                    "viewer.position",
+                    index,
+                    format!("must be finite, got {head}"),
+                ));
+            }
+            let head = head.as_dvec3();
+            let distance = screen.signed_distance(head);
+            if screen.eye_distance(head).is_err() || distance <= eye_offset {
+                return Err(element_error(
+                    "viewer.position",
+                    index,
+                    format!(
+                        "the head at {head} is {distance} m from the screen plane; heads must be \
+                         clearly in front of it{}",
+                        if eye_offset > 0.0 {
+                            format!(
+                                " and farther than half the interpupillary distance ({eye_offset} m)"
+                            )
+                        } else {
+                            String::new()
+                        }
+                    ),
+                ));
+            }
+            let unit = |name: &str, v: Vec3| {
+                let v = v.as_dvec3();
+                let length = v.length();
+                if v.is_finite() && length > 0.0 && length.is_finite() {
+                    Ok(v / length)
+                } else {
+                    Err(element_error(
+                        name,
+                        index,
+                        format!("must be a finite, non-zero vector, got {v}"),
+                    ))
+                }
+            };
+            gazes.push(unit("viewer.direction", desc.directions[index])?);
+            rights.push(match &desc.rights {
+                Some(values) => unit("viewer.right", values[index])?,
+                None => screen.x,
+            });
+            heads.push(head);
+        }
+        let lanes = heads
+            .chunks(4)
+            .zip(gazes.chunks(4))
+            .map(|(heads, gazes)| {
+                let lane = |values: &[DVec3], axis: usize| {
+                    Vec4::from_array(std::array::from_fn(|i| {
+                        values[i.min(values.len() - 1)][axis] as f32
+                    }))
+                };
+                ViewerLanes {
+                    head: [0, 1, 2].map(|axis| lane(heads, axis)),
+                    gaze: [0, 1, 2].map(|axis| lane(gazes, axis)),
+                    used: BVec4A::new(true, heads.len() > 1, heads.len() > 2, heads.len() > 3),
+                }
+            })
+            .collect();
+        let mean_head = heads.iter().sum::<DVec3>() / count as f64;
+        let reach = match desc.weighting {
+            ViewerWeighting::Cosine if desc.mode != ViewerMode::Zones => {
+                cutoff * std::f32::consts::FRAC_PI_2
+            }
+            _ => cutoff,
+        };
+        let mut set = ViewerSet {
+            heads,
+            rights,
+            lanes,
+            mean_head,
+            mode: desc.mode,
+            weighting: desc.weighting,
+            inv_cutoff: 1.0 / cutoff,
+            cos_reach: if reach >= std::f32::consts::PI {
+                -2.0
+            } else {
+                reach.cos()
+            },
+            gaussian_scale: 3.0 / (cutoff * std::f32::consts::SQRT_2),
+            tiles: desc.tiles,
+            tile_cameras: Vec::new(),
+            screen,
+        };
+        let [columns, rows] = desc.tiles;
+        if desc.mode == ViewerMode::Tiles && columns.saturating_mul(rows) <= MAX_PRECOMPUTED_TILES {
+            set.tile_cameras = (0..rows)
+                .flat_map(|row| (0..columns).map(move |column| (column, row)))
+                .map(|(column, row)| set.camera_for_point(set.tile_centre(column, row), true))
+                .collect();
+        }
+        Ok(set)
+    }
+
+    pub fn len(&self) -> usize {
+        self.heads.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.heads.is_empty()
+    }
+
+    pub fn mode(&self) -> ViewerMode {
+        self.mode
+    }
+
+    /// The normalised weights of the viewers at screen point `point` (`weights[..len()]`), as
+    /// the mode defines them: perPixel and tiles by the weighting function, zones `1/n` for the
+    /// `n` viewers whose cone holds the point. `false` (weights all 0) where no viewer has a
+    /// say, and the camera is the mean of all heads.
+    pub fn weights_at(&self, point: DVec3, weights: &mut [f32; MAX_VIEWERS]) -> bool {
+        match self.blend_at(point, weights) {
+            Blend::Nobody => {
+                weights.fill(0.0);
+                false
+            }
+            Blend::Only(viewer) => {
+                weights.fill(0.0);
+                weights[viewer] = 1.0;
+                true
+            }
+            Blend::Weights => true,
+        }
+    }
+
+    /// How the viewers share screen point `point`; for [`Blend::Weights`] the normalised
+    /// weights are in `weights[..len()]`. A point in one viewer's cone alone (and, but for the
+    /// gaussian fall-off, outside every other one) is that viewer's, whatever the fall-off:
+    /// its normalised weight is 1. So only points in several cones pay for angles.
+    #[inline]
+    fn blend_at(&self, point: DVec3, weights: &mut [f32; MAX_VIEWERS]) -> Blend {
+        let p = point.as_vec3();
+        let (px, py, pz) = (Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z));
+        let to_point = |lanes: &ViewerLanes| {
+            let [hx, hy, hz] = lanes.head;
+            let [gx, gy, gz] = lanes.gaze;
+            let (vx, vy, vz) = (px - hx, py - hy, pz - hz);
+            (gx * vx + gy * vy + gz * vz, vx * vx + vy * vy + vz * vz)
+        };
+        let gaussian =
+            self.weighting == ViewerWeighting::Gaussian && self.mode != ViewerMode::Zones;
+        if !gaussian {
+            // Cone membership without a square root: cos a > cos c, squared with its sign.
+            let reach = Vec4::splat(self.cos_reach);
+            let reach_squared = reach * reach;
+            let mut members = 0usize;
+            let mut member = 0;
+            for (chunk, lanes) in self.lanes.iter().enumerate() {
+                let (dot, length_squared) = to_point(lanes);
+                let ahead = dot.cmpgt(Vec4::ZERO);
+                let wide = (dot * dot).cmplt(reach_squared * length_squared);
+                let inside = if self.cos_reach >= 0.0 {
+                    ahead & !wide
+                } else {
+                    ahead | wide
+                } & lanes.used;
+                let bits = inside.bitmask();
+                members += bits.count_ones() as usize;
+                if bits != 0 {
+                    member = 4 * chunk + bits.trailing_zeros() as usize;
+                }
+                let slots = &mut weights[4 * chunk..(4 * chunk + 4).min(MAX_VIEWERS)];
+                for (lane, slot) in slots.iter_mut().enumerate() {
+                    *slot = if bits & (1 << lane) != 0 { 1.0 } else { 0.0 };
+                }
+            }
+            match members {
+                0 => return Blend::Nobody,
+                1 => return Blend::Only(member),
+                _ if self.mode == ViewerMode::Zones => {
+                    let share = 1.0 / members as f32;
+                    for weight in &mut weights[..self.heads.len()] {
+                        *weight *= share;
+                    }
+                    return Blend::Weights;
+                }
+                _ => {}
+            }
+        }
+        // Several viewers have a say: weights from their angles.
+        let mut total = 0.0f32;
+        let mut log_max = f32::NEG_INFINITY;
+        for (chunk, lanes) in self.lanes.iter().enumerate() {
+            let slots = &mut weights[4 * chunk..(4 * chunk + 4).min(MAX_VIEWERS)];
+            let member = Vec4::from_slice(&[
+                slots[0],
+                slots.get(1).copied().unwrap_or(0.0),
+                slots.get(2).copied().unwrap_or(0.0),
+                slots.get(3).copied().unwrap_or(0.0),
+            ])
+            .cmpgt(Vec4::ZERO);
+            let (dot, length_squared) = to_point(lanes);
+            let cosine = (dot / length_squared.sqrt()).clamp(-Vec4::ONE, Vec4::ONE);
+            let angle = acos4(cosine);
+            let raw = match self.weighting {
+                ViewerWeighting::Linear => Vec4::ONE - angle * self.inv_cutoff,
+                ViewerWeighting::Cosine => cos4(angle * self.inv_cutoff),
+                // Log weights for now; exponentiated relative to the largest below.
+                ViewerWeighting::Gaussian => {
+                    Vec4::from_array((angle * self.gaussian_scale).to_array().map(ln_erfc))
+                }
+            };
+            let raw = if gaussian {
+                Vec4::select(lanes.used, raw, Vec4::NEG_INFINITY)
+            } else {
+                Vec4::select(member, raw.max(Vec4::ZERO), Vec4::ZERO)
+            };
+            for (slot, value) in slots.iter_mut().zip(raw.to_array()) {
+                *slot = value;
+            }
+            if gaussian {
+                log_max = log_max.max(raw.max_element());
+            } else {
+                total += raw.x + raw.y + raw.z + raw.w;
+            }
+        }
+        let weights = &mut weights[..self.heads.len()];
+        if gaussian {
+            total = 0.0;
+            for weight in weights.iter_mut() {
+                *weight = (*weight - log_max).exp();
+                total += *weight;
+            }
+        }
+        if total.is_nan() || total <= 0.0 {
+            return Blend::Nobody;
+        }
+        // Normalised one by one so that a viewer alone gets exactly 1.
+        for weight in weights.iter_mut() {
+            *weight /= total;
+        }
+        Blend::Weights
+    }
+
+    /// The camera position and the right vector (unused, and not computed, when
+    /// `needs_right` is false) for screen point `point`, whose screen coordinates (after
+    /// imageRegion) are `st`.
+    #[inline]
+    pub(crate) fn camera_at(&self, point: DVec3, st: DVec2, needs_right: bool) -> (DVec3, DVec3) {
+        if self.mode != ViewerMode::Tiles {
+            return self.camera_for_point(point, needs_right);
+        }
+        let tile = |coordinate: f64, tiles: u32| {
+            (coordinate * f64::from(tiles))
+                .floor()
+                .clamp(0.0, f64::from(tiles - 1)) as u32
+        };
+        let (column, row) = (tile(st.x, self.tiles[0]), tile(st.y, self.tiles[1]));
+        match self
+            .tile_cameras
+            .get((row * self.tiles[0] + column) as usize)
+        {
+            Some(camera) => *camera,
+            None => self.camera_for_point(self.tile_centre(column, row), needs_right),
+        }
+    }
+
+    /// The camera for the weights at screen point `point`.
+    #[inline]
+    fn camera_for_point(&self, point: DVec3, needs_right: bool) -> (DVec3, DVec3) {
+        let mut weights = [0.0f32; MAX_VIEWERS];
+        let weights = match self.blend_at(point, &mut weights) {
+            Blend::Nobody => {
+                let right = if needs_right {
+                    self.blend_rights(None)
+                } else {
+                    self.screen.x
+                };
+                return (self.mean_head, right);
+            }
+            Blend::Only(viewer) => return (self.heads[viewer], self.rights[viewer]),
+            Blend::Weights => &weights[..self.heads.len()],
+        };
+        if let Some(only) = weights.iter().position(|w| *w == 1.0) {
+            return (self.heads[only], self.rights[only]);
+        }
+        let mut head = DVec3::ZERO;
+        for (weight, h) in weights.iter().zip(&self.heads) {
+            head += f64::from(*weight) * *h;
+        }
+        let right = if needs_right {
+            self.blend_rights(Some(weights))
+        } else {
+            self.screen.x
+        };
+        (head, right)
+    }
+
+    /// The normalised (weighted) sum of the right vectors; the screen's X axis where they
+    /// cancel.
+    fn blend_rights(&self, weights: Option<&[f32]>) -> DVec3 {
+        if let [only] = self.rights[..] {
+            return only;
+        }
+        let sum: DVec3 = match weights {
+            Some(weights) => weights
+                .iter()
+                .zip(&self.rights)
+                .map(|(w, r)| f64::from(*w) * *r)
+                .sum(),
+            None => self.rights.iter().sum(),
+        };
+        sum.try_normalize().unwrap_or(self.screen.x)
+    }
+
+    /// Screen point at the centre of tile (`column`, `row`). The centre's coordinates are
+    /// computed as the frame computes pixel centres, so one tile per pixel gives exactly the
+    /// perPixel points.
+    fn tile_centre(&self, column: u32, row: u32) -> DVec3 {
+        let centre = |index: u32, tiles: u32| f64::from((index as f32 + 0.5) / tiles as f32);
+        let s = centre(column, self.tiles[0]);
+        let t = centre(row, self.tiles[1]);
+        let screen = &self.screen;
+        screen.lower_left
+            + s * (screen.lower_right - screen.lower_left)
+            + t * (screen.upper_right - screen.lower_right)
+    }
+}
+
+/// `acos` of four values in `[-1, 1]`, absolute error below 5·10⁻⁷ (Abramowitz & Stegun
+/// 4.4.46 on |x|, 2·10⁻⁸, mirrored for negative x; the rest is f32 rounding).
+// The published coefficients as printed (f32 rounds them).
+#[allow(clippy::excessive_precision)]
+#[inline(always)]
+fn acos4(x: Vec4) -> Vec4 {
+    let a = x.abs().min(Vec4::ONE);
+    let mut poly = Vec4::splat(-0.001_262_491_1);
+    for coefficient in [
+        0.006_670_090_1,
+        -0.017_088_125_6,
+        0.030_891_881,
+        -0.050_174_304_6,
+        0.088_978_987_4,
+        -0.214_598_801_6,
+        1.570_796_305,
+    ] {
+        poly = poly * a + Vec4::splat(coefficient);
+    }
+    let positive = (Vec4::ONE - a).max(Vec4::ZERO).sqrt() * poly;
+    Vec4::select(
+        x.cmplt(Vec4::ZERO),
+        Vec4::splat(std::f32::consts::PI) - positive,
+        positive,
+    )
+}
+
+/// `cos` of four values in `[0, π/2]` (Taylor series to x¹², error below 10⁻⁸).
+#[inline(always)]
+fn cos4(x: Vec4) -> Vec4 {
+    let y = x * x;
+    let mut sum = Vec4::splat(1.0 / 479_001_600.0);
+    for coefficient in [
+        -1.0 / 3_628_800.0,
+        1.0 / 40_320.0,
+        -1.0 / 720.0,
+        1.0 / 24.0,
+        -0.5,
+        1.0,
+    ] {
+        sum = sum * y + Vec4::splat(coefficient);
+    }
+    sum
+}
+
+/// `ln erfc(x)` for `x ≥ 0`, relative error of erfc below 1.2·10⁻⁷ (the Chebyshev fit
+/// `erfc(x) ≈ t·exp(−x² + P(t))`, `t = 1/(1 + x/2)`, of Press et al., Numerical Recipes); in
+/// log form it never underflows.
+#[allow(clippy::excessive_precision)]
+fn ln_erfc(x: f32) -> f32 {
+    let x = f64::from(x.max(0.0));
+    let t = 1.0 / (1.0 + 0.5 * x);
+    let mut poly = 0.170_872_77;
+    for coefficient in [
+        -0.822_152_23,
+        1.488_515_87,
+        -1.135_203_98,
+        0.278_868_07,
+        -0.186_288_06,
+        0.096_784_18,
+        0.374_091_96,
+        1.000_023_68,
+        -1.265_512_23,
+    ] {
+        poly = poly * t + coefficient;
+    }
+    (t.ln() - x * x + poly) as f32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn screen() -> ScreenFrame {
+        // The front wall of a 3 m CAVE centred on the origin, floor at y = 0.
+        ScreenFrame::new(
+            DVec3::new(-1.5, 0.0, -1.5),
+            DVec3::new(1.5, 0.0, -1.5),
+            DVec3::new(1.5, 3.0, -1.5),
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn polynomial_acos_cos_and_erfc_match_the_library_functions() {
+        for i in 0..=2000 {
+            let x = -1.0 + i as f32 / 1000.0;
+            let ours = acos4(Vec4::splat(x)).x;
+            assert!((ours - x.acos()).abs() < 5e-7, "acos({x}): {ours}");
+            let angle = i as f32 / 2000.0 * std::f32::consts::FRAC_PI_2;
+            assert!((cos4(Vec4::splat(angle)).x - angle.cos()).abs() < 2e-7);
+        }
+        // erfc at known values (Abramowitz & Stegun table 7.1).
+        for (x, erfc) in [
+            (0.0, 1.0),
+            (0.5, 0.479_500_122),
+            (1.0, 0.157_299_207),
+            (2.0, 4.677_734_98e-3),
+            (3.0, 2.209_049_70e-5),
+        ] {
+            let ours = f64::from(ln_erfc(x)).exp();
+            assert!((ours / erfc - 1.0).abs() < 1e-6, "erfc({x}): {ours}");
+        }
+        // Far in the tail erfc(x) ≈ exp(−x²)/(x√π): finite logs, no underflow.
+        let tail = ln_erfc(30.0);
+        let expected = -900.0 - (30.0 * std::f64::consts::PI.sqrt()).ln();
+        assert!((f64::from(tail) - expected).abs() < 1e-3, "{tail}");
+    }
+
+    #[test]
+    fn weights_follow_the_definitions_and_sum_to_one() {
+        let heads = vec![Vec3::new(-0.5, 1.7, 0.0), Vec3::new(0.6, 1.6, 0.3)];
+        let gazes = vec![Vec3::new(0.0, 0.0, -1.0), Vec3::new(-0.3, 0.1, -1.0)];
+        let cutoff = 0.6f32;
+        for weighting in [
+            ViewerWeighting::Linear,
+            ViewerWeighting::Cosine,
+            ViewerWeighting::Gaussian,
+        ] {
+            let set = ViewerSet::new(
+                &ViewerDesc {
+                    weighting,
+                    cutoff_angle: cutoff,
+                    ..ViewerDesc::new(heads.clone(), gazes.clone())
+                },
+                screen(),
+                0.0,
+            )
+            .unwrap();
+            let mut checked = 0;
+            for i in 0..20 {
+                for j in 0..20 {
+                    let p = DVec3::new(
+                        -1.45 + 0.15 * f64::from(i),
+                        0.05 + 0.15 * f64::from(j),
+                        -1.5,
+                    );
+                    let raw: Vec<f64> = (0..2)
+                        .map(|v| {
+                            let to = p - heads[v].as_dvec3();
+                            let a = gazes[v].as_dvec3().normalize().dot(to.normalize()).acos();
+                            let c = f64::from(cutoff);
+                            match weighting {
+                                ViewerWeighting::Linear => (1.0 - a / c).max(0.0),
+                                ViewerWeighting::Cosine if a < c * std::f64::consts::FRAC_PI_2 => {
+                                    (a / c).cos()
+                                }
+                                ViewerWeighting::Cosine => 0.0,
+                                // erfc(3a/(c√2)) relative to each other via their logs.
+                                ViewerWeighting::Gaussian => {
+                                    f64::from(ln_erfc((3.0 * a / (c * 2f64.sqrt())) as f32))
+                                }
+                            }
+                        })
+                        .collect();
+                    let expected: Vec<f64> = if weighting == ViewerWeighting::Gaussian {
+                        let top = raw[0].max(raw[1]);
+                        let w: Vec<f64> = raw.iter().map(|l| (l - top).exp()).collect();
+                        let sum: f64 = w.iter().sum();
+                        w.iter().map(|w| w / sum).collect()
+                    } else {
+                        let sum: f64 = raw.iter().sum();
+                        raw.iter()
+                            .map(|w| if sum > 0.0 { w / sum } else { 0.0 })
+                            .collect()
+                    };
+                    let mut weights = [0.0; MAX_VIEWERS];
+                    let any = set.weights_at(p, &mut weights);
+                    assert_eq!(any, expected.iter().sum::<f64>() > 0.0, "{weighting:?} {p}");
+                    if any {
+                        let sum: f32 = weights[..2].iter().sum();
+                        assert!((sum - 1.0).abs() < 1e-6, "{weighting:?}: sum {sum}");
+                        for v in 0..2 {
+                            assert!(
+                                (f64::from(weights[v]) - expected[v]).abs() < 2e-5,
+                                "{weighting:?} {p}: {:?} vs {expected:?}",
+                                &weights[..2]
+                            );
+                        }
+                        checked += 1;
+                    }
+                }
+            }
+            assert!(checked > 100, "{weighting:?}: {checked}");
+        }
+    }
+
+    #[test]
+    fn the_papers_example_normalises_three_quarters_and_a_half() {
+        // Viewer 0 looks at the point at a quarter of the cutoff (linear weight 0.75),
+        // viewer 1 at half of it (0.5): normalised 0.6 and 0.4.
+        let point = DVec3::new(0.0, 1.5, -1.5);
+        let cutoff = 0.8f64;
+        let head = |angle: f64, side: f64| {
+            // Head 1.5 m in front of the point, gaze rotated by `angle` about the vertical.
+            let head = point + DVec3::new(side, 0.0, 1.5);
+            let to_point = (point - head).normalize();
+            let (sin, cos) = (side.signum() * angle).sin_cos();
+            let gaze = DVec3::new(
+                to_point.x * cos - to_point.z * sin,
+                0.0,
+                to_point.x * sin + to_point.z * cos,
+            );
+            (head.as_vec3(), gaze.as_vec3())
+        };
+        let (h0, g0) = head(0.25 * cutoff, 0.3);
+        let (h1, g1) = head(0.5 * cutoff, -0.4);
+        let set = ViewerSet::new(
+            &ViewerDesc {
+                cutoff_angle: cutoff as f32,
+                ..ViewerDesc::new(vec![h0, h1], vec![g0, g1])
+            },
+            screen(),
+            0.0,
+        )
+        .unwrap();
+        let mut weights = [0.0; MAX_VIEWERS];
+        assert!(set.weights_at(point, &mut weights));
+        assert!((weights[0] - 0.6).abs() < 1e-5 && (weights[1] - 0.4).abs() < 1e-5);
+        let (camera, _) = set.camera_at(point, DVec2::ZERO, true);
+        let expected = 0.6 * h0.as_dvec3() + 0.4 * h1.as_dvec3();
+        assert!(
+            (camera - expected).length() < 1e-5,
+            "{camera} vs {expected}"
+        );
+    }
+
+    #[test]
+    fn bad_viewers_are_reported_with_parameter_and_index() {
+        let heads = vec![Vec3::new(0.0, 1.7, 0.0), Vec3::new(0.5, 1.7, 0.0)];
+        let gazes = vec![Vec3::NEG_Z, Vec3::NEG_Z];
+        let check = |desc: ViewerDesc, parameter: &str, needle: &str| {
+            let error = ViewerSet::new(&desc, screen(), 0.0).unwrap_err();
+            assert_eq!(error.parameter, parameter, "{error}");
+            assert!(error.message.contains(needle), "{error}");
+        };
+        let base = ViewerDesc::new(heads.clone(), gazes.clone());
+        check(
+            ViewerDesc::new(vec![], vec![]),
+            "viewer.position",
+            "at least one",
+        );
+        check(
+            ViewerDesc::new(heads.clone(), vec![Vec3::NEG_Z]),
+            "viewer.direction",
+            "1 elements",
+        );
+        check(
+            ViewerDesc {
+                rights: Some(vec![Vec3::X]),
+                ..base.clone()
+            },
+            "viewer.right",
+            "1 elements",
+        );
+        check(
+            ViewerDesc::new(heads.clone(), vec![Vec3::NEG_Z, Vec3::ZERO]),
+            "viewer.direction",
+            "viewer 1",
+        );
+        check(
+            ViewerDesc::new(vec![heads[0], Vec3::new(f32::NAN, 0.0, 0.0)], gazes.clone()),
+            "viewer.position",
+            "viewer 1",
+        );
+        check(
+            ViewerDesc::new(vec![heads[0], Vec3::new(0.0, 1.0, -1.6)], gazes.clone()),
+            "viewer.position",
+            "viewer 1",
+        );
+        check(
+            ViewerDesc {
+                rights: Some(vec![Vec3::X, Vec3::splat(f32::INFINITY)]),
+                ..base.clone()
+            },
+            "viewer.right",
+            "viewer 1",
+        );
+        for cutoff in [0.0, -0.1, f32::NAN, 4.0] {
+            check(
+                ViewerDesc {
+                    cutoff_angle: cutoff,
+                    ..base.clone()
+                },
+                "viewerCutoffAngle",
+                "(0, π]",
+            );
+        }
+        check(
+            ViewerDesc {
+                tiles: [4, 0],
+                ..base.clone()
+            },
+            "viewerTiles",
+            "1×1",
+        );
+        check(
+            ViewerDesc::new(vec![heads[0]; 65], vec![gazes[0]; 65]),
+            "viewer.position",
+            "at most 64",
+        );
+        // In stereo a head closer to the screen than half the eye distance is refused.
+        let close = ViewerDesc::new(vec![Vec3::new(0.0, 1.0, -1.48)], vec![Vec3::NEG_Z]);
+        assert!(ViewerSet::new(&close, screen(), 0.0).is_ok());
+        let error = ViewerSet::new(&close, screen(), 0.03).unwrap_err();
+        assert!(error.message.contains("viewer 0") && error.message.contains("interpupillary"));
+    }
+}
