@@ -775,50 +775,40 @@ impl FrustumPacket {
 
 /// Children of a node that some ray within `bounds` may reach within
 /// `[bounds.t_min_low, t_max_high]`. Conservative: a ray's slab distance
-/// `(plane − origin)·inv` is linear in its inverse direction component and in its origin, so
-/// over the bounds it lies between the values at their corners; the error widening is the
-/// single-ray test's, taken at the largest corner.
+/// `(plane − origin)·inv` is linear in its inverse direction component, so for the centre of
+/// the origins it lies between the values at the two ends of the inverse direction range, and
+/// another origin within `r` of that centre moves it by at most `r·|inv|`. The error widening is
+/// the single-ray test's, taken at the larger end, plus that much.
 #[inline(always)]
 fn frustum_child_hits(node: &DecodedNode, bounds: &RayBounds, t_max_high: f32) -> u32 {
-    if bounds.shared_origin() {
-        slab_hits::<2>(node, bounds, t_max_high)
-    } else {
-        slab_hits::<4>(node, bounds, t_max_high)
-    }
-}
-
-/// [`frustum_child_hits`] over `CORNERS` corners of the bounds: 2 (low and high inverse
-/// direction, one origin) or 4 (each of those with the low and high origin).
-#[inline(always)]
-fn slab_hits<const CORNERS: usize>(node: &DecodedNode, bounds: &RayBounds, t_max_high: f32) -> u32 {
     let mut near = [Vec4::splat(bounds.t_min_low); 2];
     let mut far = [Vec4::splat(t_max_high); 2];
     for axis in 0..3 {
         let inv = [bounds.inv_low[axis], bounds.inv_high[axis]];
+        let (low, high) = (bounds.origin_low[axis], bounds.origin_high[axis]);
+        // With one shared origin the centre is that origin and the spread 0, exactly.
+        let centre = low + 0.5 * (high - low);
+        let spread = (high - centre).max(centre - low) * (1.0 + SLAB_ERROR);
         let step = inv.map(|inv| node.step[axis] * inv);
-        // The nearer origin bound first: with a shared origin both are the same.
-        let to_node = [
-            node.corner[axis] - bounds.origin_low[axis],
-            node.corner[axis] - bounds.origin_high[axis],
-        ];
-        let offset: [f32; CORNERS] = std::array::from_fn(|c| to_node[c / 2] * inv[c % 2]);
-        let largest_offset = offset.iter().fold(0.0f32, |m, o| m.max(o.abs()));
-        let error =
-            SLAB_ERROR * (largest_offset + MAX_QUANTIZED * step[0].abs().max(step[1].abs()));
+        let to_node = node.corner[axis] - centre;
+        let offset = inv.map(|inv| to_node * inv);
+        let largest_inv = inv[0].abs().max(inv[1].abs());
+        let error = SLAB_ERROR
+            * (offset[0].abs().max(offset[1].abs())
+                + MAX_QUANTIZED * step[0].abs().max(step[1].abs()))
+            + spread * largest_inv;
         let error = Vec4::splat(error);
+        let (step_low, step_high) = (Vec4::splat(step[0]), Vec4::splat(step[1]));
+        let (offset_low, offset_high) = (Vec4::splat(offset[0]), Vec4::splat(offset[1]));
         for half in 0..2 {
             let entry = node.entry[axis][half];
             let exit = node.exit[axis][half];
-            let mut entry_low = Vec4::INFINITY;
-            let mut exit_high = Vec4::NEG_INFINITY;
-            for (corner, offset) in offset.iter().enumerate() {
-                let step = Vec4::splat(step[corner % 2]);
-                let offset = Vec4::splat(*offset);
-                entry_low = entry_low.min(entry * step + offset);
-                exit_high = exit_high.max(exit * step + offset);
-            }
-            near[half] = near[half].max(entry_low - error);
-            far[half] = far[half].min(exit_high + error);
+            let entry_low = entry * step_low + offset_low;
+            let entry_high = entry * step_high + offset_high;
+            near[half] = near[half].max(entry_low.min(entry_high) - error);
+            let exit_low = exit * step_low + offset_low;
+            let exit_high = exit * step_high + offset_high;
+            far[half] = far[half].min(exit_low.max(exit_high) + error);
         }
     }
     near[0].cmple(far[0]).bitmask() | (near[1].cmple(far[1]).bitmask() << 4)
@@ -873,7 +863,8 @@ pub(crate) fn traverse_frustum<F, P>(
             }
         }
         None => {
-            let (quadrants, whole) = frustum.bounds(active);
+            // The packet's own bounds hold every lane's.
+            let (quadrants, whole) = (frustum.quadrants, frustum.whole);
             walk_frustum(
                 nodes,
                 frustum,

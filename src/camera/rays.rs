@@ -266,16 +266,7 @@ impl EyeRays {
                 // so plane distances from the origin along `forward` equal those from the eye.
                 clipped_ray(origin, target, p.forward, &p.clip)
             }
-            Generator::Blended(b) => {
-                let target = b.window_origin + st.x * b.window_right + st.y * b.window_up;
-                let (head, right) = b.viewers.camera_at(target, st, b.eye_offset != 0.0);
-                let origin = if b.eye_offset == 0.0 {
-                    head
-                } else {
-                    head + right * b.eye_offset
-                };
-                clipped_ray(origin, target, b.forward, &b.clip)
-            }
+            Generator::Blended(_) => self.rays4([s; 4], [t; 4], lens)[0],
             Generator::Parallel(p) => CameraRay {
                 origin: (p.plane_origin + st.x * p.plane_right + st.y * p.plane_up).as_vec3(),
                 direction: p.forward.as_vec3(),
@@ -311,6 +302,33 @@ impl EyeRays {
                 }
             }
         }
+    }
+
+    /// [`Self::ray`] for four viewport points at once. Cameras with several viewers blend four
+    /// camera positions at a time (a ray gets the same origin whichever rays it comes with).
+    #[inline]
+    pub fn rays4(&self, s: [f32; 4], t: [f32; 4], lens: Vec2) -> [CameraRay; 4] {
+        let Generator::Blended(b) = &self.generator else {
+            return std::array::from_fn(|i| self.ray(s[i], t[i], lens));
+        };
+        let st: [DVec2; 4] = std::array::from_fn(|i| self.region.apply(s[i], t[i]));
+        let targets = st.map(|st| b.window_origin + st.x * b.window_right + st.y * b.window_up);
+        let cameras = b.viewers.cameras4(&targets, &st, b.eye_offset != 0.0);
+        std::array::from_fn(|i| {
+            let (head, right) = cameras[i];
+            let origin = if b.eye_offset == 0.0 {
+                head
+            } else {
+                head + right * b.eye_offset
+            };
+            clipped_ray(origin, targets[i], b.forward, &b.clip)
+        })
+    }
+
+    /// Whether [`Self::rays4`] is cheaper than four calls of [`Self::ray`].
+    #[inline]
+    pub fn batches_rays(&self) -> bool {
+        matches!(self.generator, Generator::Blended(_))
     }
 
     /// channel.depth of a hit at parameter `t` along `ray`: the world-space distance from this

@@ -465,3 +465,41 @@ fn window_depth_is_each_pixels_own_frustum() {
     depths.dedup();
     assert!(depths.len() >= 3, "{depths:?}");
 }
+
+#[test]
+fn rays_made_four_at_a_time_equal_rays_made_one_by_one() {
+    // Whatever the other three points of a batch are (in other cones, in none, in several),
+    // each ray is the one `ray` makes alone.
+    let screen = screens()[0];
+    let centres: Vec<(f32, f32)> = pixel_centres(WIDTH, HEIGHT)
+        .map(|(_, _, s, t)| (s, t))
+        .collect();
+    let mut state = 7u64;
+    let mut pick = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        centres[(state >> 33) as usize % centres.len()]
+    };
+    for mode in MODES {
+        for weighting in WEIGHTINGS {
+            let viewers = ViewerDesc {
+                mode,
+                weighting,
+                ..two_viewers(&screen)
+            };
+            let camera = camera(&screen, viewers, StereoMode::SideBySide);
+            for eye in [Eye::Mono, Eye::Left] {
+                let rays = rays(&*camera, eye);
+                assert!(rays.batches_rays());
+                for _ in 0..300 {
+                    let points = [pick(), pick(), pick(), pick()];
+                    let batch = rays.rays4(points.map(|p| p.0), points.map(|p| p.1), Vec2::ZERO);
+                    for (ray, (s, t)) in batch.iter().zip(points) {
+                        assert_eq!(*ray, ray_at(&rays, s, t), "{mode:?} {weighting:?}");
+                    }
+                }
+            }
+        }
+    }
+}

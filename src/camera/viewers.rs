@@ -111,30 +111,25 @@ impl ViewerDesc {
     }
 }
 
-/// How the viewers share a screen point.
-enum Blend {
-    /// No viewer has a say: the mean of all heads.
-    Nobody,
-    /// This viewer alone.
-    Only(usize),
-    /// The weights computed.
-    Weights,
-}
-
-/// Four viewers in SIMD lanes (unused lanes repeat the last viewer and are masked off).
+/// One viewer in f32, splatted over the four screen points a call handles.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct ViewerLanes {
     head: [Vec4; 3],
     /// Unit length.
     gaze: [Vec4; 3],
-    used: BVec4A,
+    /// Unit length.
+    right: [Vec4; 3],
 }
+
+/// Four screen points, one per SIMD lane.
+pub(crate) type Points4 = [DVec3; 4];
 
 /// Validated viewers, ready to give any screen point its camera.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ViewerSet {
     heads: Vec<DVec3>,
     rights: Vec<DVec3>,
+    /// Per viewer.
     lanes: Vec<ViewerLanes>,
     mean_head: DVec3,
     mode: ViewerMode,
@@ -257,20 +252,15 @@ impl ViewerSet {
             });
             heads.push(head);
         }
+        let splat = |v: &DVec3| [v.x, v.y, v.z].map(|c| Vec4::splat(c as f32));
         let lanes = heads
-            .chunks(4)
-            .zip(gazes.chunks(4))
-            .map(|(heads, gazes)| {
-                let lane = |values: &[DVec3], axis: usize| {
-                    Vec4::from_array(std::array::from_fn(|i| {
-                        values[i.min(values.len() - 1)][axis] as f32
-                    }))
-                };
-                ViewerLanes {
-                    head: [0, 1, 2].map(|axis| lane(heads, axis)),
-                    gaze: [0, 1, 2].map(|axis| lane(gazes, axis)),
-                    used: BVec4A::new(true, heads.len() > 1, heads.len() > 2, heads.len() > 3),
-                }
+            .iter()
+            .zip(&gazes)
+            .zip(&rights)
+            .map(|((head, gaze), right)| ViewerLanes {
+                head: splat(head),
+                gaze: splat(gaze),
+                right: splat(right),
             })
             .collect();
         let mean_head = heads.iter().sum::<DVec3>() / count as f64;
@@ -302,7 +292,7 @@ impl ViewerSet {
         if desc.mode == ViewerMode::Tiles && columns.saturating_mul(rows) <= MAX_PRECOMPUTED_TILES {
             set.tile_cameras = (0..rows)
                 .flat_map(|row| (0..columns).map(move |column| (column, row)))
-                .map(|(column, row)| set.camera_for_point(set.tile_centre(column, row), true))
+                .map(|(column, row)| set.camera_at_point(set.tile_centre(column, row), true))
                 .collect();
         }
         Ok(set)
@@ -325,197 +315,203 @@ impl ViewerSet {
     /// `n` viewers whose cone holds the point. `false` (weights all 0) where no viewer has a
     /// say, and the camera is the mean of all heads.
     pub fn weights_at(&self, point: DVec3, weights: &mut [f32; MAX_VIEWERS]) -> bool {
-        match self.blend_at(point, weights) {
-            Blend::Nobody => {
-                weights.fill(0.0);
-                false
-            }
-            Blend::Only(viewer) => {
-                weights.fill(0.0);
-                weights[viewer] = 1.0;
-                true
-            }
-            Blend::Weights => true,
+        let mut lanes = [Vec4::ZERO; MAX_VIEWERS];
+        let any = self.weights4(&[point; 4], &mut lanes);
+        for (weight, lane) in weights.iter_mut().zip(&lanes) {
+            *weight = lane.x;
         }
+        any.test(0)
     }
 
-    /// How the viewers share screen point `point`; for [`Blend::Weights`] the normalised
-    /// weights are in `weights[..len()]`. A point in one viewer's cone alone (and, but for the
+    /// The normalised weights at four screen points at once: `weights[i]` holds viewer `i`'s
+    /// weight at each point (lane = point). Lanes where no viewer has a say are false in the
+    /// result (and their weights 0). A point in one viewer's cone alone (and, but for the
     /// gaussian fall-off, outside every other one) is that viewer's, whatever the fall-off:
-    /// its normalised weight is 1. So only points in several cones pay for angles.
+    /// its weight is exactly 1, so only points in several cones pay for angles. Every lane
+    /// gets the same result whatever the other lanes hold.
     #[inline]
-    fn blend_at(&self, point: DVec3, weights: &mut [f32; MAX_VIEWERS]) -> Blend {
-        let p = point.as_vec3();
-        let (px, py, pz) = (Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z));
-        let to_point = |lanes: &ViewerLanes| {
-            let [hx, hy, hz] = lanes.head;
-            let [gx, gy, gz] = lanes.gaze;
+    fn weights4(&self, points: &Points4, weights: &mut [Vec4; MAX_VIEWERS]) -> BVec4A {
+        let lane = |axis: usize| Vec4::from_array(points.map(|p| p[axis] as f32));
+        let (px, py, pz) = (lane(0), lane(1), lane(2));
+        let to_point = |viewer: &ViewerLanes| {
+            let [hx, hy, hz] = viewer.head;
+            let [gx, gy, gz] = viewer.gaze;
             let (vx, vy, vz) = (px - hx, py - hy, pz - hz);
             (gx * vx + gy * vy + gz * vz, vx * vx + vy * vy + vz * vz)
         };
+        let angle = |viewer: &ViewerLanes| {
+            let (dot, length_squared) = to_point(viewer);
+            acos4((dot / length_squared.sqrt()).clamp(-Vec4::ONE, Vec4::ONE))
+        };
+        let weights = &mut weights[..self.heads.len()];
         let gaussian =
             self.weighting == ViewerWeighting::Gaussian && self.mode != ViewerMode::Zones;
-        if !gaussian {
-            // Cone membership without a square root: cos a > cos c, squared with its sign.
-            let reach = Vec4::splat(self.cos_reach);
-            let reach_squared = reach * reach;
-            let mut members = 0usize;
-            let mut member = 0;
-            for (chunk, lanes) in self.lanes.iter().enumerate() {
-                let (dot, length_squared) = to_point(lanes);
-                let ahead = dot.cmpgt(Vec4::ZERO);
-                let wide = (dot * dot).cmplt(reach_squared * length_squared);
-                let inside = if self.cos_reach >= 0.0 {
-                    ahead & !wide
-                } else {
-                    ahead | wide
-                } & lanes.used;
-                let bits = inside.bitmask();
-                members += bits.count_ones() as usize;
-                if bits != 0 {
-                    member = 4 * chunk + bits.trailing_zeros() as usize;
-                }
-                let slots = &mut weights[4 * chunk..(4 * chunk + 4).min(MAX_VIEWERS)];
-                for (lane, slot) in slots.iter_mut().enumerate() {
-                    *slot = if bits & (1 << lane) != 0 { 1.0 } else { 0.0 };
-                }
-            }
-            match members {
-                0 => return Blend::Nobody,
-                1 => return Blend::Only(member),
-                _ if self.mode == ViewerMode::Zones => {
-                    let share = 1.0 / members as f32;
-                    for weight in &mut weights[..self.heads.len()] {
-                        *weight *= share;
-                    }
-                    return Blend::Weights;
-                }
-                _ => {}
-            }
-        }
-        // Several viewers have a say: weights from their angles.
-        let mut total = 0.0f32;
-        let mut log_max = f32::NEG_INFINITY;
-        for (chunk, lanes) in self.lanes.iter().enumerate() {
-            let slots = &mut weights[4 * chunk..(4 * chunk + 4).min(MAX_VIEWERS)];
-            let member = Vec4::from_slice(&[
-                slots[0],
-                slots.get(1).copied().unwrap_or(0.0),
-                slots.get(2).copied().unwrap_or(0.0),
-                slots.get(3).copied().unwrap_or(0.0),
-            ])
-            .cmpgt(Vec4::ZERO);
-            let (dot, length_squared) = to_point(lanes);
-            let cosine = (dot / length_squared.sqrt()).clamp(-Vec4::ONE, Vec4::ONE);
-            let angle = acos4(cosine);
-            let raw = match self.weighting {
-                ViewerWeighting::Linear => Vec4::ONE - angle * self.inv_cutoff,
-                ViewerWeighting::Cosine => cos4(angle * self.inv_cutoff),
-                // Log weights for now; exponentiated relative to the largest below.
-                ViewerWeighting::Gaussian => {
-                    Vec4::from_array((angle * self.gaussian_scale).to_array().map(ln_erfc))
-                }
-            };
-            let raw = if gaussian {
-                Vec4::select(lanes.used, raw, Vec4::NEG_INFINITY)
-            } else {
-                Vec4::select(member, raw.max(Vec4::ZERO), Vec4::ZERO)
-            };
-            for (slot, value) in slots.iter_mut().zip(raw.to_array()) {
-                *slot = value;
-            }
-            if gaussian {
-                log_max = log_max.max(raw.max_element());
-            } else {
-                total += raw.x + raw.y + raw.z + raw.w;
-            }
-        }
-        let weights = &mut weights[..self.heads.len()];
         if gaussian {
-            total = 0.0;
+            // Log weights first, exponentiated relative to each point's largest.
+            let mut log_max = Vec4::NEG_INFINITY;
+            for (weight, viewer) in weights.iter_mut().zip(&self.lanes) {
+                let x = angle(viewer) * self.gaussian_scale;
+                *weight = Vec4::from_array(x.to_array().map(ln_erfc));
+                log_max = log_max.max(*weight);
+            }
+            let mut total = Vec4::ZERO;
             for weight in weights.iter_mut() {
-                *weight = (*weight - log_max).exp();
+                *weight = Vec4::from_array((*weight - log_max).to_array().map(f32::exp));
                 total += *weight;
             }
+            for weight in weights.iter_mut() {
+                *weight /= total;
+            }
+            return BVec4A::splat(true);
         }
-        if total.is_nan() || total <= 0.0 {
-            return Blend::Nobody;
+        // Cone membership without a square root: cos a > cos c, squared with its sign.
+        let reach = Vec4::splat(self.cos_reach);
+        let reach_squared = reach * reach;
+        let mut members = Vec4::ZERO;
+        for (weight, viewer) in weights.iter_mut().zip(&self.lanes) {
+            let (dot, length_squared) = to_point(viewer);
+            let ahead = dot.cmpgt(Vec4::ZERO);
+            let wide = (dot * dot).cmplt(reach_squared * length_squared);
+            let inside = if self.cos_reach >= 0.0 {
+                ahead & !wide
+            } else {
+                ahead | wide
+            };
+            *weight = Vec4::select(inside, Vec4::ONE, Vec4::ZERO);
+            members += *weight;
         }
-        // Normalised one by one so that a viewer alone gets exactly 1.
+        let any = members.cmpgt(Vec4::ZERO);
+        if self.mode == ViewerMode::Zones {
+            let share = Vec4::select(any, Vec4::ONE / members, Vec4::ZERO);
+            for weight in weights.iter_mut() {
+                *weight *= share;
+            }
+            return any;
+        }
+        let shared = members.cmpgt(Vec4::ONE);
+        if !shared.any() {
+            return any;
+        }
+        // Points in several cones: weights from the angles.
+        let mut total = Vec4::ZERO;
+        for (weight, viewer) in weights.iter_mut().zip(&self.lanes) {
+            let a = angle(viewer) * self.inv_cutoff;
+            let raw = match self.weighting {
+                ViewerWeighting::Cosine => cos4(a),
+                _ => Vec4::ONE - a,
+            };
+            let member = weight.cmpgt(Vec4::ZERO);
+            *weight = Vec4::select(
+                shared,
+                Vec4::select(member, raw.max(Vec4::ZERO), Vec4::ZERO),
+                *weight,
+            );
+            total += *weight;
+        }
+        let any = total.cmpgt(Vec4::ZERO);
+        let total = Vec4::select(any, total, Vec4::ONE);
         for weight in weights.iter_mut() {
+            // Divided, not multiplied by a reciprocal, so that a viewer alone gets exactly 1.
             *weight /= total;
         }
-        Blend::Weights
+        any
     }
 
     /// The camera position and the right vector (unused, and not computed, when
     /// `needs_right` is false) for screen point `point`, whose screen coordinates (after
     /// imageRegion) are `st`.
-    #[inline]
+    #[cfg(test)]
     pub(crate) fn camera_at(&self, point: DVec3, st: DVec2, needs_right: bool) -> (DVec3, DVec3) {
+        self.cameras4(&[point; 4], &[st; 4], needs_right)[0]
+    }
+
+    /// [`Self::camera_at`] for four screen points at once.
+    #[inline]
+    pub(crate) fn cameras4(
+        &self,
+        points: &Points4,
+        st: &[DVec2; 4],
+        needs_right: bool,
+    ) -> [(DVec3, DVec3); 4] {
         if self.mode != ViewerMode::Tiles {
-            return self.camera_for_point(point, needs_right);
+            return self.cameras_at_points(points, needs_right);
         }
         let tile = |coordinate: f64, tiles: u32| {
             (coordinate * f64::from(tiles))
                 .floor()
                 .clamp(0.0, f64::from(tiles - 1)) as u32
         };
-        let (column, row) = (tile(st.x, self.tiles[0]), tile(st.y, self.tiles[1]));
-        match self
-            .tile_cameras
-            .get((row * self.tiles[0] + column) as usize)
-        {
-            Some(camera) => *camera,
-            None => self.camera_for_point(self.tile_centre(column, row), needs_right),
-        }
+        st.map(|st| {
+            let (column, row) = (tile(st.x, self.tiles[0]), tile(st.y, self.tiles[1]));
+            match self
+                .tile_cameras
+                .get((row * self.tiles[0] + column) as usize)
+            {
+                Some(camera) => *camera,
+                None => self.camera_at_point(self.tile_centre(column, row), needs_right),
+            }
+        })
     }
 
-    /// The camera for the weights at screen point `point`.
+    fn camera_at_point(&self, point: DVec3, needs_right: bool) -> (DVec3, DVec3) {
+        self.cameras_at_points(&[point; 4], needs_right)[0]
+    }
+
+    /// The cameras for the weights at four screen points: `Σ ŵ_i H_i` in f32, four points at a
+    /// time; exactly `H_i` and `R_i` where viewer `i`'s weight is 1.
     #[inline]
-    fn camera_for_point(&self, point: DVec3, needs_right: bool) -> (DVec3, DVec3) {
-        let mut weights = [0.0f32; MAX_VIEWERS];
-        let weights = match self.blend_at(point, &mut weights) {
-            Blend::Nobody => {
+    fn cameras_at_points(&self, points: &Points4, needs_right: bool) -> [(DVec3, DVec3); 4] {
+        let mut weights = [Vec4::ZERO; MAX_VIEWERS];
+        let any = self.weights4(points, &mut weights);
+        let mut head = [Vec4::ZERO; 3];
+        let mut right = [Vec4::ZERO; 3];
+        // Per point, the viewer whose weight is 1 (then every other one's is 0).
+        let mut only = [usize::MAX; 4];
+        for (index, (weight, viewer)) in weights.iter().zip(&self.lanes).enumerate() {
+            let mut ones = weight.cmpeq(Vec4::ONE).bitmask();
+            while ones != 0 {
+                only[ones.trailing_zeros() as usize] = index;
+                ones &= ones - 1;
+            }
+            for (sum, component) in head.iter_mut().zip(viewer.head) {
+                *sum += *weight * component;
+            }
+            if needs_right {
+                for (sum, component) in right.iter_mut().zip(viewer.right) {
+                    *sum += *weight * component;
+                }
+            }
+        }
+        std::array::from_fn(|lane| {
+            if !any.test(lane) {
                 let right = if needs_right {
-                    self.blend_rights(None)
+                    self.mean_right()
                 } else {
                     self.screen.x
                 };
                 return (self.mean_head, right);
             }
-            Blend::Only(viewer) => return (self.heads[viewer], self.rights[viewer]),
-            Blend::Weights => &weights[..self.heads.len()],
-        };
-        if let Some(only) = weights.iter().position(|w| *w == 1.0) {
-            return (self.heads[only], self.rights[only]);
-        }
-        let mut head = DVec3::ZERO;
-        for (weight, h) in weights.iter().zip(&self.heads) {
-            head += f64::from(*weight) * *h;
-        }
-        let right = if needs_right {
-            self.blend_rights(Some(weights))
-        } else {
-            self.screen.x
-        };
-        (head, right)
+            if let Some(head) = self.heads.get(only[lane]) {
+                return (*head, self.rights[only[lane]]);
+            }
+            let of =
+                |v: &[Vec4; 3]| DVec3::new(v[0][lane].into(), v[1][lane].into(), v[2][lane].into());
+            let right = if needs_right {
+                of(&right).try_normalize().unwrap_or(self.screen.x)
+            } else {
+                self.screen.x
+            };
+            (of(&head), right)
+        })
     }
 
-    /// The normalised (weighted) sum of the right vectors; the screen's X axis where they
-    /// cancel.
-    fn blend_rights(&self, weights: Option<&[f32]>) -> DVec3 {
+    /// The normalised sum of the right vectors (where no viewer has a say); the screen's X axis
+    /// where they cancel.
+    fn mean_right(&self) -> DVec3 {
         if let [only] = self.rights[..] {
             return only;
         }
-        let sum: DVec3 = match weights {
-            Some(weights) => weights
-                .iter()
-                .zip(&self.rights)
-                .map(|(w, r)| f64::from(*w) * *r)
-                .sum(),
-            None => self.rights.iter().sum(),
-        };
+        let sum: DVec3 = self.rights.iter().sum();
         sum.try_normalize().unwrap_or(self.screen.x)
     }
 

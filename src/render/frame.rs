@@ -827,6 +827,17 @@ fn viewport_holds(
         && y1 <= viewport.y + viewport.height
 }
 
+/// The ray to trace for a camera ray.
+#[inline]
+fn traced(camera_ray: &CameraRay) -> Ray {
+    Ray {
+        origin: camera_ray.origin,
+        direction: camera_ray.direction,
+        t_min: camera_ray.t_min,
+        t_max: camera_ray.t_max,
+    }
+}
+
 /// A worker's working memory, kept from one tile to the next.
 #[derive(Default)]
 struct TileScratch<'a> {
@@ -878,10 +889,13 @@ fn render_tile<'a>(
             let block_eye = eyes
                 .iter()
                 .find(|(viewport, _)| viewport_holds(viewport, x0, y0, x1 + 1, y1 + 1));
+            // Cameras that blend several viewers make their rays four at a time.
+            let batched = block_eye.filter(|(_, eye_rays)| eye_rays.batches_rays());
             for s in 0..samples {
                 let index = job.pass * samples + s;
                 let offset = jitter(index);
                 let lens = lens_sample(index);
+                let mut batch = [None; 64];
                 for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
                     let (sx, sy) = (bx + dx, by + dy);
                     rays[lane] = NO_RAY;
@@ -899,14 +913,34 @@ fn render_tile<'a>(
                     };
                     let u = ((x - viewport.x) as f32 + offset.x) / viewport.width as f32;
                     let v = ((y - viewport.y) as f32 + offset.y) / viewport.height as f32;
+                    if batched.is_some() {
+                        batch[lane] = Some((u, v));
+                        continue;
+                    }
                     let camera_ray = eye_rays.ray(u, v, lens);
-                    rays[lane] = Ray {
-                        origin: camera_ray.origin,
-                        direction: camera_ray.direction,
-                        t_min: camera_ray.t_min,
-                        t_max: camera_ray.t_max,
-                    };
+                    rays[lane] = traced(&camera_ray);
                     camera_rays[lane] = Some((camera_ray, eye_rays));
+                }
+                if let Some((_, eye_rays)) = batched {
+                    for (group, points) in batch.chunks_exact(4).enumerate() {
+                        if points.iter().all(Option::is_none) {
+                            continue;
+                        }
+                        let coordinate =
+                            |i: usize, of: fn((f32, f32)) -> f32| points[i].map_or(0.5, of);
+                        let generated = eye_rays.rays4(
+                            std::array::from_fn(|i| coordinate(i, |uv| uv.0)),
+                            std::array::from_fn(|i| coordinate(i, |uv| uv.1)),
+                            lens,
+                        );
+                        for (i, camera_ray) in generated.into_iter().enumerate() {
+                            let lane = group * 4 + i;
+                            if points[i].is_some() {
+                                rays[lane] = traced(&camera_ray);
+                                camera_rays[lane] = Some((camera_ray, eye_rays));
+                            }
+                        }
+                    }
                 }
                 if map.stride() >= SINGLE_RAY_STRIDE {
                     // Sparse lattices make incoherent packets: ray by ray is cheaper there.
