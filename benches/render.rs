@@ -26,7 +26,7 @@ use glam::{Vec3, Vec3A};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use cavetrace::accel::{InstanceDesc, Ray, SceneBvh};
+use cavetrace::accel::{InstanceDesc, PacketScratch, Ray, SceneBvh};
 use cavetrace::camera::CameraModel;
 use cavetrace::scene::geometry::Geometry;
 
@@ -321,10 +321,17 @@ fn same_rays(s: &Setup, geometry: ANARIGeometry, triangles: &Triangles, size: u3
         transform: glam::Affine3A::IDENTITY,
         geometries: vec![bvh],
     }]);
+    thread_local! {
+        // Packet working memory kept from one chunk to the next, as the frame keeps it.
+        static SCRATCH: std::cell::RefCell<PacketScratch> =
+            std::cell::RefCell::new(PacketScratch::new());
+    }
     let packets = timed(frames, || {
         trace_rays(&rays, threads, |chunk| {
             let mut hits = [None; 64];
-            scene.intersect_packet(chunk, &mut hits);
+            SCRATCH.with_borrow_mut(|scratch| {
+                scene.intersect_packet_with(scratch, chunk, &mut hits);
+            });
             hits.iter().filter(|h| h.is_some()).count()
         })
     });

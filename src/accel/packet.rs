@@ -515,6 +515,11 @@ struct RayBounds {
     origin_low: Vec3A,
     origin_high: Vec3A,
     t_min_low: f32,
+    /// Set by [`RayBounds::finished`]: the origins' centre, and per axis how far another origin
+    /// can move a slab distance from the centre's (spread times the largest |inverse direction|;
+    /// exactly 0 for one shared origin).
+    origin_centre: Vec3A,
+    widening: Vec3A,
 }
 
 impl RayBounds {
@@ -524,22 +529,30 @@ impl RayBounds {
         origin_low: Vec3A::INFINITY,
         origin_high: Vec3A::NEG_INFINITY,
         t_min_low: f32::INFINITY,
+        origin_centre: Vec3A::ZERO,
+        widening: Vec3A::ZERO,
     };
 
-    /// Bounds of the `lanes` of `group` (active ones only).
-    fn of_group(group: &RayPacket, lanes: u32) -> RayBounds {
+    /// Bounds of the `lanes` of `group` (active ones only); `shared_origin`, when every ray
+    /// starts there, spares the origins' reduction.
+    fn of_group(group: &RayPacket, lanes: u32, shared_origin: Option<Vec3A>) -> RayBounds {
         let active = lane_mask(group.lanes & lanes);
         let low = |values: Vec4| Vec4::select(active, values, Vec4::INFINITY).min_element();
         let high = |values: Vec4| Vec4::select(active, values, Vec4::NEG_INFINITY).max_element();
         let lows = |values: &[Vec4; 3]| Vec3A::new(low(values[0]), low(values[1]), low(values[2]));
         let highs =
             |values: &[Vec4; 3]| Vec3A::new(high(values[0]), high(values[1]), high(values[2]));
+        let (origin_low, origin_high) = match shared_origin {
+            Some(origin) => (origin, origin),
+            None => (lows(&group.origin), highs(&group.origin)),
+        };
         RayBounds {
             inv_low: lows(&group.inv_direction),
             inv_high: highs(&group.inv_direction),
-            origin_low: lows(&group.origin),
-            origin_high: highs(&group.origin),
+            origin_low,
+            origin_high,
             t_min_low: low(group.t_min),
+            ..RayBounds::EMPTY
         }
     }
 
@@ -550,12 +563,92 @@ impl RayBounds {
             origin_low: self.origin_low.min(other.origin_low),
             origin_high: self.origin_high.max(other.origin_high),
             t_min_low: self.t_min_low.min(other.t_min_low),
+            ..RayBounds::EMPTY
         }
+    }
+
+    /// Computes the origins' centre and the widening of slab distances it needs.
+    fn finished(mut self) -> RayBounds {
+        let (low, high) = (self.origin_low, self.origin_high);
+        if low == high {
+            self.origin_centre = low;
+            self.widening = Vec3A::ZERO;
+        } else if low.cmple(high).all() {
+            let centre = low + 0.5 * (high - low);
+            let spread = (high - centre).max(centre - low) * (1.0 + SLAB_ERROR);
+            let largest_inv = self.inv_low.abs().max(self.inv_high.abs());
+            self.origin_centre = centre;
+            self.widening = spread * largest_inv;
+        }
+        self
     }
 
     /// Whether every ray starts at the same point.
     fn shared_origin(&self) -> bool {
         self.origin_low == self.origin_high
+    }
+}
+
+/// Ray bounds of the `active` lanes of `groups`, per quadrant and over all of them, written in
+/// place (they are large, and this runs for every packet).
+#[inline]
+fn bounds_into(
+    groups: &[RayPacket],
+    active: &[u32; FRUSTUM_GROUPS],
+    shared_origin: Option<Vec3A>,
+    quadrants: &mut [RayBounds; QUADRANTS],
+    whole: &mut RayBounds,
+) {
+    *whole = RayBounds::EMPTY;
+    for (quadrant, members) in quadrants.iter_mut().zip(QUADRANT_GROUPS) {
+        *quadrant = RayBounds::EMPTY;
+        for group in members {
+            if let Some(packet) = groups.get(group)
+                && packet.lanes & active[group] != 0
+            {
+                let bounds = RayBounds::of_group(packet, active[group], shared_origin);
+                *quadrant = quadrant.union(bounds);
+            }
+        }
+        *whole = whole.union(*quadrant);
+        *quadrant = quadrant.finished();
+    }
+    *whole = whole.finished();
+}
+
+/// Whether the rays added so far all start at one point.
+#[derive(Default)]
+struct SharedOrigin {
+    first: Option<Vec3A>,
+    differ: bool,
+}
+
+impl SharedOrigin {
+    fn add(&mut self, origin: Vec3A) {
+        if *self.first.get_or_insert(origin) != origin {
+            self.differ = true;
+        }
+    }
+
+    /// Adds the active lanes of `group`.
+    fn add_group(&mut self, group: &RayPacket) {
+        if self.differ || group.lanes == 0 {
+            return;
+        }
+        let lane = group.lanes.trailing_zeros() as usize;
+        let origin = Vec3A::new(
+            group.origin[0][lane],
+            group.origin[1][lane],
+            group.origin[2][lane],
+        );
+        let first = *self.first.get_or_insert(origin);
+        let inactive = !lane_mask(group.lanes);
+        self.differ = !(0..3)
+            .all(|axis| (group.origin[axis].cmpeq(Vec4::splat(first[axis])) | inactive).all());
+    }
+
+    fn shared(&self) -> Option<Vec3A> {
+        self.first.filter(|_| !self.differ)
     }
 }
 
@@ -636,6 +729,7 @@ impl FrustumPacket {
             return false;
         }
         let mut octant: Option<u32> = None;
+        let mut origins = SharedOrigin::default();
         self.group_count = rays.len().div_ceil(LANES);
         for (group, chunk) in self.groups[..self.group_count]
             .iter_mut()
@@ -653,12 +747,13 @@ impl FrustumPacket {
             if *octant.get_or_insert(packet.octant_inv) != packet.octant_inv {
                 return false;
             }
+            origins.add_group(&packet);
             *group = packet;
         }
         let Some(octant_inv) = octant else {
             return false;
         };
-        self.finish(octant_inv);
+        self.finish(octant_inv, origins.shared());
         true
     }
 
@@ -675,6 +770,7 @@ impl FrustumPacket {
             return false;
         }
         let mut octant: Option<u32> = None;
+        let mut origins = SharedOrigin::default();
         self.group_count = count.div_ceil(LANES);
         for (group_index, group) in self.groups[..self.group_count].iter_mut().enumerate() {
             group.reset();
@@ -687,6 +783,7 @@ impl FrustumPacket {
                 if *octant.get_or_insert(ray.octant_inv) != ray.octant_inv {
                     return false;
                 }
+                origins.add(ray.origin);
                 match group_axes {
                     None => group_axes = Some(ray.shear_axes),
                     Some(axes) if axes != ray.shear_axes => return false,
@@ -698,30 +795,34 @@ impl FrustumPacket {
         let Some(octant_inv) = octant else {
             return false;
         };
-        self.finish(octant_inv);
+        self.finish(octant_inv, origins.shared());
         true
     }
 
     /// Records the octant and the ray bounds of each quadrant and of the whole packet.
-    fn finish(&mut self, octant_inv: u32) {
+    fn finish(&mut self, octant_inv: u32, shared_origin: Option<Vec3A>) {
         self.octant_inv = octant_inv;
         let all = std::array::from_fn(|group| self.groups[group].lanes);
-        (self.quadrants, self.whole) = self.bounds(&all);
+        bounds_into(
+            &self.groups[..self.group_count],
+            &all,
+            shared_origin,
+            &mut self.quadrants,
+            &mut self.whole,
+        );
     }
 
     /// Ray bounds of the `active` lanes per quadrant and over all of them.
     fn bounds(&self, active: &[u32; FRUSTUM_GROUPS]) -> ([RayBounds; QUADRANTS], RayBounds) {
-        let quadrants = QUADRANT_GROUPS.map(|groups| {
-            groups
-                .iter()
-                .filter(|group| **group < self.group_count)
-                .filter(|group| self.groups[**group].lanes & active[**group] != 0)
-                .map(|group| RayBounds::of_group(&self.groups[*group], active[*group]))
-                .fold(RayBounds::EMPTY, RayBounds::union)
-        });
-        let whole = quadrants
-            .iter()
-            .fold(RayBounds::EMPTY, |whole, quadrant| whole.union(*quadrant));
+        let mut quadrants = [RayBounds::EMPTY; QUADRANTS];
+        let mut whole = RayBounds::EMPTY;
+        bounds_into(
+            &self.groups[..self.group_count],
+            active,
+            None,
+            &mut quadrants,
+            &mut whole,
+        );
         (quadrants, whole)
     }
 
@@ -779,24 +880,26 @@ impl FrustumPacket {
 /// the origins it lies between the values at the two ends of the inverse direction range, and
 /// another origin within `r` of that centre moves it by at most `r·|inv|`. The error widening is
 /// the single-ray test's, taken at the larger end, plus that much.
+/// `SPREAD` false: every ray starts at `bounds.origin_centre` (no widening to add).
 #[inline(always)]
-fn frustum_child_hits(node: &DecodedNode, bounds: &RayBounds, t_max_high: f32) -> u32 {
+fn frustum_child_hits<const SPREAD: bool>(
+    node: &DecodedNode,
+    bounds: &RayBounds,
+    t_max_high: f32,
+) -> u32 {
     let mut near = [Vec4::splat(bounds.t_min_low); 2];
     let mut far = [Vec4::splat(t_max_high); 2];
     for axis in 0..3 {
         let inv = [bounds.inv_low[axis], bounds.inv_high[axis]];
-        let (low, high) = (bounds.origin_low[axis], bounds.origin_high[axis]);
-        // With one shared origin the centre is that origin and the spread 0, exactly.
-        let centre = low + 0.5 * (high - low);
-        let spread = (high - centre).max(centre - low) * (1.0 + SLAB_ERROR);
         let step = inv.map(|inv| node.step[axis] * inv);
-        let to_node = node.corner[axis] - centre;
+        let to_node = node.corner[axis] - bounds.origin_centre[axis];
         let offset = inv.map(|inv| to_node * inv);
-        let largest_inv = inv[0].abs().max(inv[1].abs());
-        let error = SLAB_ERROR
+        let mut error = SLAB_ERROR
             * (offset[0].abs().max(offset[1].abs())
-                + MAX_QUANTIZED * step[0].abs().max(step[1].abs()))
-            + spread * largest_inv;
+                + MAX_QUANTIZED * step[0].abs().max(step[1].abs()));
+        if SPREAD {
+            error += bounds.widening[axis];
+        }
         let error = Vec4::splat(error);
         let (step_low, step_high) = (Vec4::splat(step[0]), Vec4::splat(step[1]));
         let (offset_low, offset_high) = (Vec4::splat(offset[0]), Vec4::splat(offset[1]));
@@ -836,54 +939,55 @@ pub(crate) fn traverse_frustum<F, P>(
     if nodes.is_empty() || active.iter().all(|lanes| *lanes == 0) {
         return;
     }
-    if frustum.whole.shared_origin() {
-        let (quadrants, whole) = (frustum.quadrants, frustum.whole);
-        walk_frustum(
+    // Lanes from a few origins are walked one origin at a time; otherwise the packet's own
+    // bounds hold every lane's.
+    let split = match frustum.whole.shared_origin() {
+        true => None,
+        false => frustum.split_by_origin(active),
+    };
+    let Some((subsets, count)) = split else {
+        if frustum.whole.shared_origin() {
+            walk_frustum::<false, _, _>(
+                nodes,
+                frustum,
+                active,
+                None,
+                &prefetch_primitive,
+                &mut test_leaf,
+            );
+            return;
+        }
+        walk_frustum::<true, _, _>(
             nodes,
             frustum,
             active,
-            (&quadrants, &whole),
+            None,
             &prefetch_primitive,
             &mut test_leaf,
         );
         return;
-    }
-    match frustum.split_by_origin(active) {
-        Some((subsets, count)) => {
-            for subset in &subsets[..count] {
-                let (quadrants, whole) = frustum.bounds(subset);
-                walk_frustum(
-                    nodes,
-                    frustum,
-                    subset,
-                    (&quadrants, &whole),
-                    &prefetch_primitive,
-                    &mut test_leaf,
-                );
-            }
-        }
-        None => {
-            // The packet's own bounds hold every lane's.
-            let (quadrants, whole) = (frustum.quadrants, frustum.whole);
-            walk_frustum(
-                nodes,
-                frustum,
-                active,
-                (&quadrants, &whole),
-                &prefetch_primitive,
-                &mut test_leaf,
-            );
-        }
+    };
+    for subset in &subsets[..count] {
+        let (quadrants, whole) = frustum.bounds(subset);
+        walk_frustum::<false, _, _>(
+            nodes,
+            frustum,
+            subset,
+            Some((&quadrants, &whole)),
+            &prefetch_primitive,
+            &mut test_leaf,
+        );
     }
 }
 
-/// [`traverse_frustum`] with the ray bounds (per quadrant, whole) of the `active` lanes.
+/// [`traverse_frustum`] with the ray bounds (per quadrant, whole) of the `active` lanes: its own,
+/// or, with `None`, the packet's (read in place: they are too large to copy per packet).
 #[inline(always)]
-fn walk_frustum<F, P>(
+fn walk_frustum<const SPREAD: bool, F, P>(
     nodes: &[CwBvhNode],
     frustum: &mut FrustumPacket,
     active: &[u32; FRUSTUM_GROUPS],
-    (quadrant_bounds, whole): (&[RayBounds; QUADRANTS], &RayBounds),
+    own_bounds: Option<(&[RayBounds; QUADRANTS], &RayBounds)>,
     prefetch_primitive: &P,
     test_leaf: &mut F,
 ) where
@@ -919,7 +1023,9 @@ fn walk_frustum<F, P>(
         }
         let decoded = DecodedNode::new(node, octant_inv);
         let whole_high = t_max_high.into_iter().fold(f32::NEG_INFINITY, f32::max);
-        let hits = frustum_child_hits(&decoded, whole, whole_high) & non_empty_children(node);
+        let whole = own_bounds.map_or(&frustum.whole, |bounds| bounds.1);
+        let hits =
+            frustum_child_hits::<SPREAD>(&decoded, whole, whole_high) & non_empty_children(node);
         let leaves = hits & !(node.imask as u32);
         // Start loading inner children and leaf primitives while the leaf boxes are tested.
         if hits & node.imask as u32 != 0 {
@@ -939,9 +1045,10 @@ fn walk_frustum<F, P>(
                     continue;
                 }
                 let quadrant_leaves = leaves
-                    & frustum_child_hits(
+                    & frustum_child_hits::<SPREAD>(
                         &decoded,
-                        &quadrant_bounds[quadrant],
+                        own_bounds
+                            .map_or(&frustum.quadrants[quadrant], |bounds| &bounds.0[quadrant]),
                         t_max_high[quadrant],
                     );
                 if quadrant_leaves == 0 {

@@ -878,6 +878,8 @@ fn render_tile<'a>(
         first_hits.resize(pixel_count, None);
     }
     let mut rays = [NO_RAY; 64];
+    // Viewport coordinates of a block's rays, for cameras that make them four at a time.
+    let mut batch: [Option<(f32, f32)>; 64] = [None; 64];
     let mut camera_rays = [None; 64];
     let mut hits = [None; 64];
     for by in (ty..y_end).step_by(PACKET_SIDE as usize) {
@@ -891,11 +893,13 @@ fn render_tile<'a>(
                 .find(|(viewport, _)| viewport_holds(viewport, x0, y0, x1 + 1, y1 + 1));
             // Cameras that blend several viewers make their rays four at a time.
             let batched = block_eye.filter(|(_, eye_rays)| eye_rays.batches_rays());
+            if batched.is_some() {
+                batch = [None; 64];
+            }
             for s in 0..samples {
                 let index = job.pass * samples + s;
                 let offset = jitter(index);
                 let lens = lens_sample(index);
-                let mut batch = [None; 64];
                 for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
                     let (sx, sy) = (bx + dx, by + dy);
                     rays[lane] = NO_RAY;
