@@ -503,3 +503,62 @@ fn rays_made_four_at_a_time_equal_rays_made_one_by_one() {
         }
     }
 }
+
+#[test]
+fn any_number_of_viewers_blends_by_the_definition() {
+    // 3, 6 and 20 viewers (each size has working memory of its own) against the weighted mean
+    // of the heads computed here in f64.
+    let screen = screens()[0];
+    let mut state = 11u64;
+    let mut unit = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 40) as f64 / (1u64 << 24) as f64
+    };
+    for count in [3, 6, 20] {
+        let heads: Vec<DVec3> = (0..count)
+            .map(|_| screen.local(unit() - 0.5, 0.3 * unit() - 0.15, 0.8 + unit()))
+            .collect();
+        let gazes: Vec<DVec3> = heads
+            .iter()
+            .map(|h| screen.local(0.8 * unit() - 0.4, 0.8 * unit() - 0.4, 0.0) - *h)
+            .collect();
+        let desc = ViewerDesc {
+            cutoff_angle: 0.6,
+            ..ViewerDesc::new(
+                heads.iter().map(|h| h.as_vec3()).collect(),
+                gazes.iter().map(|g| g.as_vec3()).collect(),
+            )
+        };
+        let camera = camera(&screen, desc.clone(), StereoMode::None);
+        let mono = rays(&*camera, Eye::Mono);
+        let mut blended = 0;
+        for (_, _, s, t) in pixel_centres(WIDTH, HEIGHT) {
+            let p = screen.point(f64::from(s), f64::from(t));
+            let weights: Vec<f64> = (0..count)
+                .map(|i| (1.0 - angle(&desc, i, p) / 0.6).max(0.0))
+                .collect();
+            let total: f64 = weights.iter().sum();
+            if weights.iter().any(|w| *w > 0.0 && *w < 1e-4) {
+                continue; // at a cone's edge f32 may fall either way
+            }
+            let expected = if total > 0.0 {
+                heads
+                    .iter()
+                    .zip(&weights)
+                    .map(|(h, w)| *h * (w / total))
+                    .sum()
+            } else {
+                heads.iter().sum::<DVec3>() / count as f64
+            };
+            let origin = ray_at(&mono, s, t).origin.as_dvec3();
+            assert!(
+                (origin - expected).length() < 2e-5,
+                "{count}: {origin} vs {expected}"
+            );
+            blended += usize::from(weights.iter().filter(|w| **w > 0.0).count() > 1);
+        }
+        assert!(blended > 50, "{count}: {blended}");
+    }
+}

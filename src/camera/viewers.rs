@@ -19,8 +19,8 @@
 //! inside none the mean of all heads. In stereo the eyes sit at `C(P) ± (ipd/2)·R(P)` with
 //! `R(P)` the normalised weighted sum of the right vectors.
 //!
-//! Weights are evaluated in f32, four viewers at a time; the blend is done in f64, so a point
-//! seen by one viewer alone gets exactly that viewer's head.
+//! Weights and the blend are evaluated in f32 for four screen points at a time (one SIMD lane
+//! each); a point seen by one viewer alone gets exactly that viewer's head and right vector.
 
 use glam::{BVec4A, DVec2, DVec3, Vec3, Vec4};
 
@@ -330,7 +330,7 @@ impl ViewerSet {
     /// its weight is exactly 1, so only points in several cones pay for angles. Every lane
     /// gets the same result whatever the other lanes hold.
     #[inline]
-    fn weights4(&self, points: &Points4, weights: &mut [Vec4; MAX_VIEWERS]) -> BVec4A {
+    fn weights4(&self, points: &Points4, weights: &mut [Vec4]) -> BVec4A {
         let lane = |axis: usize| Vec4::from_array(points.map(|p| p[axis] as f32));
         let (px, py, pz) = (lane(0), lane(1), lane(2));
         let to_point = |viewer: &ViewerLanes| {
@@ -436,10 +436,9 @@ impl ViewerSet {
         if self.mode != ViewerMode::Tiles {
             return self.cameras_at_points(points, needs_right);
         }
+        // Truncation is floor for these non-negative values (and needs no libm call).
         let tile = |coordinate: f64, tiles: u32| {
-            (coordinate * f64::from(tiles))
-                .floor()
-                .clamp(0.0, f64::from(tiles - 1)) as u32
+            ((coordinate * f64::from(tiles)).max(0.0) as u32).min(tiles - 1)
         };
         st.map(|st| {
             let (column, row) = (tile(st.x, self.tiles[0]), tile(st.y, self.tiles[1]));
@@ -461,7 +460,21 @@ impl ViewerSet {
     /// time; exactly `H_i` and `R_i` where viewer `i`'s weight is 1.
     #[inline]
     fn cameras_at_points(&self, points: &Points4, needs_right: bool) -> [(DVec3, DVec3); 4] {
-        let mut weights = [Vec4::ZERO; MAX_VIEWERS];
+        // Working memory sized for the viewers there are (it is set up for every four pixels).
+        match self.heads.len() {
+            0..=4 => self.cameras_with::<4>(points, needs_right),
+            5..=16 => self.cameras_with::<16>(points, needs_right),
+            _ => self.cameras_with::<MAX_VIEWERS>(points, needs_right),
+        }
+    }
+
+    #[inline(always)]
+    fn cameras_with<const N: usize>(
+        &self,
+        points: &Points4,
+        needs_right: bool,
+    ) -> [(DVec3, DVec3); 4] {
+        let mut weights = [Vec4::ZERO; N];
         let any = self.weights4(points, &mut weights);
         let mut head = [Vec4::ZERO; 3];
         let mut right = [Vec4::ZERO; 3];
