@@ -151,19 +151,7 @@ fn setup(dev: ANARIDevice, geometry: ANARIGeometry, renderer_type: &str, size: u
     let camera = anariNewCamera(dev, c("perspective").as_ptr());
     let renderer = anariNewRenderer(dev, c(renderer_type).as_ptr());
     commit(dev, renderer);
-    let frame = anariNewFrame(dev);
-    set(dev, frame, "size", ANARI_UINT32_VEC2, &[size, size]);
-    set(
-        dev,
-        frame,
-        "channel.color",
-        ANARI_DATA_TYPE,
-        &ANARI_UFIXED8_RGBA_SRGB,
-    );
-    set_object(dev, frame, "world", ANARI_WORLD, world);
-    set_object(dev, frame, "camera", ANARI_CAMERA, camera);
-    set_object(dev, frame, "renderer", ANARI_RENDERER, renderer);
-    commit(dev, frame);
+    let frame = square_frame(dev, size, world, camera, renderer);
     Setup {
         dev,
         camera,
@@ -171,6 +159,25 @@ fn setup(dev: ANARIDevice, geometry: ANARIGeometry, renderer_type: &str, size: u
         frame,
         world,
     }
+}
+
+/// A committed `size`×`size` frame with an sRGB colour channel.
+fn square_frame(
+    dev: ANARIDevice,
+    size: u32,
+    world: ANARIWorld,
+    camera: ANARICamera,
+    renderer: ANARIRenderer,
+) -> ANARIFrame {
+    let frame = anariNewFrame(dev);
+    set(dev, frame, "size", ANARI_UINT32_VEC2, &[size, size]);
+    let color = ANARI_UFIXED8_RGBA_SRGB;
+    set(dev, frame, "channel.color", ANARI_DATA_TYPE, &color);
+    set_object(dev, frame, "world", ANARI_WORLD, world);
+    set_object(dev, frame, "camera", ANARI_CAMERA, camera);
+    set_object(dev, frame, "renderer", ANARI_RENDERER, renderer);
+    commit(dev, frame);
+    frame
 }
 
 /// Moves the tracked head a little and commits the camera, as a VR application does per frame.
@@ -626,19 +633,7 @@ fn viewers_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames:
                     _ => "offAxis",
                 };
                 let camera = anariNewCamera(dev, c(subtype).as_ptr());
-                let frame = anariNewFrame(dev);
-                set(dev, frame, "size", ANARI_UINT32_VEC2, &[size, size]);
-                set(
-                    dev,
-                    frame,
-                    "channel.color",
-                    ANARI_DATA_TYPE,
-                    &ANARI_UFIXED8_RGBA_SRGB,
-                );
-                set_object(dev, frame, "world", ANARI_WORLD, base.world);
-                set_object(dev, frame, "camera", ANARI_CAMERA, camera);
-                set_object(dev, frame, "renderer", ANARI_RENDERER, base.renderer);
-                commit(dev, frame);
+                let frame = square_frame(dev, size, base.world, camera, base.renderer);
                 anariRetain(dev, base.world);
                 anariRetain(dev, base.renderer);
                 Setup {
