@@ -132,6 +132,9 @@ pub struct ViewerSet {
     /// Per viewer.
     lanes: Vec<ViewerLanes>,
     mean_head: DVec3,
+    /// The normalised sum of the right vectors, for points no viewer has a say on (the
+    /// screen's X axis where they cancel).
+    mean_right: DVec3,
     mode: ViewerMode,
     weighting: ViewerWeighting,
     inv_cutoff: f32,
@@ -264,6 +267,14 @@ impl ViewerSet {
             })
             .collect();
         let mean_head = heads.iter().sum::<DVec3>() / count as f64;
+        let mean_right = match rights[..] {
+            [only] => only,
+            _ => rights
+                .iter()
+                .sum::<DVec3>()
+                .try_normalize()
+                .unwrap_or(screen.x),
+        };
         let reach = match desc.weighting {
             ViewerWeighting::Cosine if desc.mode != ViewerMode::Zones => {
                 cutoff * std::f32::consts::FRAC_PI_2
@@ -275,6 +286,7 @@ impl ViewerSet {
             rights,
             lanes,
             mean_head,
+            mean_right,
             mode: desc.mode,
             weighting: desc.weighting,
             inv_cutoff: 1.0 / cutoff,
@@ -298,22 +310,10 @@ impl ViewerSet {
         Ok(set)
     }
 
-    pub fn len(&self) -> usize {
-        self.heads.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.heads.is_empty()
-    }
-
-    pub fn mode(&self) -> ViewerMode {
-        self.mode
-    }
-
-    /// The normalised weights of the viewers at screen point `point` (`weights[..len()]`), as
-    /// the mode defines them: perPixel and tiles by the weighting function, zones `1/n` for the
-    /// `n` viewers whose cone holds the point. `false` (weights all 0) where no viewer has a
-    /// say, and the camera is the mean of all heads.
+    /// The normalised weights of the viewers at screen point `point` (`weights[i]` for viewer
+    /// `i`), as the mode defines them: perPixel and tiles by the weighting function, zones
+    /// `1/n` for the `n` viewers whose cone holds the point. `false` (weights all 0) where no
+    /// viewer has a say, and the camera is the mean of all heads.
     pub fn weights_at(&self, point: DVec3, weights: &mut [f32; MAX_VIEWERS]) -> bool {
         let mut lanes = [Vec4::ZERO; MAX_VIEWERS];
         let any = self.weights4(&[point; 4], &mut lanes);
@@ -497,12 +497,7 @@ impl ViewerSet {
         }
         std::array::from_fn(|lane| {
             if !any.test(lane) {
-                let right = if needs_right {
-                    self.mean_right()
-                } else {
-                    self.screen.x
-                };
-                return (self.mean_head, right);
+                return (self.mean_head, self.mean_right);
             }
             if let Some(head) = self.heads.get(only[lane]) {
                 return (*head, self.rights[only[lane]]);
@@ -516,16 +511,6 @@ impl ViewerSet {
             };
             (of(&head), right)
         })
-    }
-
-    /// The normalised sum of the right vectors (where no viewer has a say); the screen's X axis
-    /// where they cancel.
-    fn mean_right(&self) -> DVec3 {
-        if let [only] = self.rights[..] {
-            return only;
-        }
-        let sum: DVec3 = self.rights.iter().sum();
-        sum.try_normalize().unwrap_or(self.screen.x)
     }
 
     /// Screen point at the centre of tile (`column`, `row`). The centre's coordinates are
