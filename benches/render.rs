@@ -7,6 +7,8 @@
 //!                                            renders to convergence, image error)
 //!     cargo bench --bench render -- viewers (several viewers on the offAxis camera and the
 //!                                            matrix camera against one viewer, same view)
+//!     cargo bench --bench render -- stereo  (sideBySide and topBottom frames against mono,
+//!                                            same per-eye size, both renderers, both scenes)
 //!
 //! Scenes: a height field of ~1M triangles seen by a tracked head (the camera moves every
 //! frame), rendered (a) by the "fast" renderer and (b) by the "default" renderer with one
@@ -673,6 +675,60 @@ fn viewers_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames:
     }
 }
 
+/// Stereo against mono (`cargo bench --bench render -- stereo`): per renderer and scene, the
+/// median frame time of a mono frame and of sideBySide and topBottom frames of the same per-eye
+/// size (the cases alternate frame by frame, so machine drift hits them alike), and the ratios.
+fn stereo_section(dev: ANARIDevice, scenes: &[(&str, ANARIGeometry)], size: u32, frames: u32) {
+    let cases = [
+        ("mono", "none", [size, size]),
+        ("sideBySide", "sideBySide", [2 * size, size]),
+        ("topBottom", "topBottom", [size, 2 * size]),
+    ];
+    for (scene, geometry) in scenes {
+        for renderer in ["fast", "default"] {
+            let setups: Vec<Setup> = cases
+                .iter()
+                .map(|(_, mode, frame_size)| {
+                    let s = setup(dev, *geometry, renderer, size);
+                    set_string(s.dev, s.camera, "stereoMode", mode);
+                    set(s.dev, s.frame, "size", ANARI_UINT32_VEC2, frame_size);
+                    commit(s.dev, s.frame);
+                    track_head(&s, 0);
+                    render_once(&s);
+                    s
+                })
+                .collect();
+            let mut wall = vec![Vec::new(); cases.len()];
+            let mut cpu = vec![Vec::new(); cases.len()];
+            for step in 0..frames {
+                for (k, s) in setups.iter().enumerate() {
+                    track_head(s, step);
+                    let cpu_start = cpu_seconds();
+                    wall[k].push(render_once(s));
+                    cpu[k].push((cpu_seconds() - cpu_start) * 1e3);
+                }
+            }
+            let medians: Vec<(f64, f64)> = wall
+                .into_iter()
+                .zip(cpu)
+                .map(|(w, c)| (median(w), median(c)))
+                .collect();
+            println!(
+                "stereo, {scene}, {renderer} renderer, {size}x{size} per eye, {frames} frames each:"
+            );
+            for (k, (label, _, _)) in cases.iter().enumerate() {
+                let (wall, cpu) = medians[k];
+                println!(
+                    "  {label}: {wall:.1} ms ({cpu:.0} ms CPU), {:.2}x mono ({:.2}x in CPU time)",
+                    wall / medians[0].0,
+                    cpu / medians[0].1
+                );
+            }
+            setups.into_iter().for_each(release);
+        }
+    }
+}
+
 fn main() {
     if std::env::args().any(|a| a == "--list") {
         return;
@@ -706,6 +762,20 @@ fn main() {
 
     if std::env::args().skip(1).any(|a| a == "viewers") {
         viewers_section(dev, geometry, size, if quick { 4 } else { 15 });
+        anariRelease(dev, geometry);
+        anariRelease(dev, dev);
+        anariUnloadLibrary(lib);
+        return;
+    }
+    if std::env::args().skip(1).any(|a| a == "stereo") {
+        let cloud = sphere_cloud(dev, spheres);
+        commit(dev, cloud);
+        let scenes = [
+            ("1M-triangle height field", geometry),
+            ("100k spheres", cloud),
+        ];
+        stereo_section(dev, &scenes, size, if quick { 3 } else { 7 });
+        anariRelease(dev, cloud);
         anariRelease(dev, geometry);
         anariRelease(dev, dev);
         anariUnloadLibrary(lib);

@@ -30,6 +30,13 @@
  * file per viewerMode), and unfolded_weights.png: each pixel's viewer weights in false colour
  * (red A, green B, grey where neither viewer's cone reaches and the heads' mean is used).
  *
+ * Last, stereo on the front wall, written to <folder>/stereo/: the time of a side-by-side pair
+ * against one eye (printed), front_parallax.png (ANARI_CAVETRACE_FRAME_CHANNEL_PARALLAX in
+ * false colour: blue in front of the wall, green behind it, red beyond the comfort limit of
+ * 0.03 × the head's distance to the wall) and a glossy gold sphere lit per eye and from the
+ * point between the eyes (glossy_perEye_pair.png, glossy_cyclopean_pair.png;
+ * ANARI_CAVETRACE_RENDERER_STEREO_LIGHTING).
+ *
  *   cc -std=c99 cave.c $(pkg-config --cflags --libs cavetrace) -lm -o cave
  *   ./cave [folder (default out/cave)] [wall resolution (default 256)] [head positions (4)]
  *          [budget in ms (default 0: none)]
@@ -232,44 +239,63 @@ static ANARISurface floor_grid(ANARIDevice device) {
   return surface_of(device, cylinders, matte(device, 0.75f, 0.75f, 0.8f));
 }
 
-static ANARISurface mirror_sphere(ANARIDevice device) {
-  const float center[3] = {0.85f, 0.55f, -0.7f};
+/* A metal sphere: roughness 0 is a mirror; more blends its reflection with a diffuse look. */
+static ANARISurface metal_sphere(ANARIDevice device, const float center[3], float radius,
+                                 const float base[3], float roughness) {
   ANARIGeometry sphere = anariNewGeometry(device, "sphere");
   ANARIArray1D position = array_of(device, ANARI_FLOAT32_VEC3, center, 1, 12);
-  float radius = 0.45f;
   anariSetParameter(device, sphere, "vertex.position", ANARI_ARRAY1D, &position);
   anariSetParameter(device, sphere, "radius", ANARI_FLOAT32, &radius);
   anariCommitParameters(device, sphere);
   anariRelease(device, position);
-  ANARIMaterial mirror = anariNewMaterial(device, "physicallyBased");
-  float base[3] = {0.95f, 0.95f, 0.95f}, metallic = 1, roughness = 0;
-  anariSetParameter(device, mirror, "baseColor", ANARI_FLOAT32_VEC3, base);
-  anariSetParameter(device, mirror, "metallic", ANARI_FLOAT32, &metallic);
-  anariSetParameter(device, mirror, "roughness", ANARI_FLOAT32, &roughness);
-  anariCommitParameters(device, mirror);
-  return surface_of(device, sphere, mirror);
+  ANARIMaterial metal = anariNewMaterial(device, "physicallyBased");
+  float metallic = 1;
+  anariSetParameter(device, metal, "baseColor", ANARI_FLOAT32_VEC3, base);
+  anariSetParameter(device, metal, "metallic", ANARI_FLOAT32, &metallic);
+  anariSetParameter(device, metal, "roughness", ANARI_FLOAT32, &roughness);
+  anariCommitParameters(device, metal);
+  return surface_of(device, sphere, metal);
 }
 
-static ANARIWorld make_world(ANARIDevice device) {
-  ANARISurface surfaces[4] = {sphere_cloud(device), floor_plane(device), floor_grid(device),
-                              mirror_sphere(device)};
+static ANARISurface mirror_sphere(ANARIDevice device) {
+  const float center[3] = {0.85f, 0.55f, -0.7f}, base[3] = {0.95f, 0.95f, 0.95f};
+  return metal_sphere(device, center, 0.45f, base, 0);
+}
+
+/* A world of `count` surfaces (released here) and one directional light. */
+static ANARIWorld world_of(ANARIDevice device, ANARISurface *surfaces, int count) {
   ANARILight light = anariNewLight(device, "directional");
   float direction[3] = {0.3f, -1, -0.5f}, irradiance = 2.5f;
   anariSetParameter(device, light, "direction", ANARI_FLOAT32_VEC3, direction);
   anariSetParameter(device, light, "irradiance", ANARI_FLOAT32, &irradiance);
   anariCommitParameters(device, light);
   ANARIWorld world = anariNewWorld(device);
-  ANARIArray1D surface_array = array_of(device, ANARI_SURFACE, surfaces, 4, sizeof(ANARIObject));
+  ANARIArray1D surface_array =
+      array_of(device, ANARI_SURFACE, surfaces, (uint64_t)count, sizeof(ANARIObject));
   ANARIArray1D light_array = array_of(device, ANARI_LIGHT, &light, 1, sizeof(ANARIObject));
   anariSetParameter(device, world, "surface", ANARI_ARRAY1D, &surface_array);
   anariSetParameter(device, world, "light", ANARI_ARRAY1D, &light_array);
   anariCommitParameters(device, world);
-  for (int i = 0; i < 4; i++)
+  for (int i = 0; i < count; i++)
     anariRelease(device, surfaces[i]);
   anariRelease(device, light);
   anariRelease(device, surface_array);
   anariRelease(device, light_array);
   return world;
+}
+
+static ANARIWorld make_world(ANARIDevice device) {
+  ANARISurface surfaces[4] = {sphere_cloud(device), floor_plane(device), floor_grid(device),
+                              mirror_sphere(device)};
+  return world_of(device, surfaces, 4);
+}
+
+/* The floor, its grid and a glossy gold sphere half a metre in front of the front wall. */
+static ANARIWorld glossy_world(ANARIDevice device) {
+  const float center[3] = {0.0f, 1.1f, -0.9f}, gold[3] = {1.0f, 0.78f, 0.34f};
+  ANARISurface surfaces[3] = {floor_plane(device), floor_grid(device),
+                              metal_sphere(device, center, 0.35f, gold, 0.3f)};
+  return world_of(device, surfaces, 3);
 }
 
 /* ----- images ---------------------------------------------------------------------------- */
@@ -380,6 +406,50 @@ static void set_two_viewers(ANARIDevice device, ANARICamera camera, const char *
   anariSetParameter(device, camera, "viewerMode", ANARI_STRING, mode);
 }
 
+/* ----- stereo ---------------------------------------------------------------------------- */
+
+/* False colour of screen parallax p (meters) against the comfort limit: blue in front of the
+ * screen, grey on it, green behind, brighter towards the limit; red beyond ±limit; black where
+ * nothing was hit (NaN). */
+static void parallax_image(const float *parallax, size_t pixels, float limit,
+                           unsigned char *out) {
+  for (size_t i = 0; i < pixels; i++) {
+    float p = parallax[i];
+    unsigned char *o = out + 4 * i;
+    o[3] = 255;
+    if (isnan(p)) {
+      o[0] = o[1] = o[2] = 0;
+    } else if (fabsf(p) > limit) {
+      o[0] = 255, o[1] = 40, o[2] = 40;
+    } else {
+      float a = fabsf(p) / limit;
+      unsigned char grey = (unsigned char)(110 * (1 - a));
+      o[0] = grey;
+      o[1] = (unsigned char)(grey + (p > 0 ? 145 * a : 0));
+      o[2] = (unsigned char)(grey + (p < 0 ? 145 * a : 0));
+    }
+  }
+}
+
+/* Sets the front wall's corners, `head` and `right` on an offAxis camera in `stereo` mode. */
+static void front_wall_camera(ANARIDevice device, ANARICamera camera, const float head[3],
+                              const float right[3], const char *stereo) {
+  anariSetParameter(device, camera, "screen.lowerLeft", ANARI_FLOAT32_VEC3, WALL[0].lower_left);
+  anariSetParameter(device, camera, "screen.lowerRight", ANARI_FLOAT32_VEC3,
+                    WALL[0].lower_right);
+  anariSetParameter(device, camera, "screen.upperRight", ANARI_FLOAT32_VEC3,
+                    WALL[0].upper_right);
+  anariSetParameter(device, camera, "position", ANARI_FLOAT32_VEC3, head);
+  anariSetParameter(device, camera, "right", ANARI_FLOAT32_VEC3, right);
+  anariSetParameter(device, camera, "stereoMode", ANARI_STRING, stereo);
+  anariCommitParameters(device, camera);
+}
+
+static int compare_doubles(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
 /* ----- rendering ------------------------------------------------------------------------- */
 
 static ANARIFrame color_frame(ANARIDevice device, uint32_t width, uint32_t height,
@@ -450,6 +520,9 @@ int main(int argc, char **argv) {
   float background[4] = {0.10f, 0.14f, 0.26f, 1}, ambient = 0.5f;
   anariSetParameter(device, renderer, "background", ANARI_FLOAT32_VEC4, background);
   anariSetParameter(device, renderer, "ambientRadiance", ANARI_FLOAT32, &ambient);
+  /* The matrix camera sees one eye at a time, so the offAxis pair it is compared with is lit
+   * per eye too (the default, cyclopean, is shown at the end). */
+  anariSetParameter(device, renderer, "stereoLighting", ANARI_STRING, "perEye");
   anariCommitParameters(device, renderer);
 
   ANARIFrame pair_frame = color_frame(device, 2 * n, n, world, renderer);
@@ -633,6 +706,72 @@ int main(int argc, char **argv) {
   unfold(walls[0], n, composite);
   ok &= write_png(device, viewers_folder, "unfolded_weights.png", 3 * n, 3 * n, composite);
   printf("two viewers' images in %s/\n", viewers_folder);
+
+  /* Stereo: what a pair costs against one eye, where the parallax is, cyclopean lighting. */
+  char stereo_folder[1024];
+  snprintf(stereo_folder, sizeof stereo_folder, "%s/stereo", folder);
+  if (make_folders(stereo_folder) != 0) {
+    perror(stereo_folder);
+    return 1;
+  }
+  {
+    const float head[3] = {0.1f, 1.65f, 0.3f}, right[3] = {1, 0, 0};
+    ANARICamera mono_camera = anariNewCamera(device, "offAxis");
+    ANARICamera pair_camera = anariNewCamera(device, "offAxis");
+    front_wall_camera(device, mono_camera, head, right, "none");
+    front_wall_camera(device, pair_camera, head, right, "sideBySide");
+    enum { RUNS = 5 };
+    double mono_seconds[RUNS], pair_seconds[RUNS];
+    for (int r = 0; r < RUNS; r++) {
+      mono_seconds[r] = render(device, eye_frame, mono_camera, NULL, 0);
+      pair_seconds[r] = render(device, pair_frame, pair_camera, NULL, 0);
+    }
+    qsort(mono_seconds, RUNS, sizeof(double), compare_doubles);
+    qsort(pair_seconds, RUNS, sizeof(double), compare_doubles);
+    printf("stereo: front wall %u×%u, one eye %.1f ms, both eyes side by side %.1f ms (%.2f× "
+           "one eye; medians of %d)\n",
+           n, n, 1e3 * mono_seconds[RUNS / 2], 1e3 * pair_seconds[RUNS / 2],
+           pair_seconds[RUNS / 2] / mono_seconds[RUNS / 2], RUNS);
+
+    /* Parallax of the pair, with the comfort limit 0.03 × the head's distance to the wall. */
+    ANARIDataType f32 = ANARI_FLOAT32;
+    anariSetParameter(device, pair_frame, "channel.parallax", ANARI_DATA_TYPE, &f32);
+    render(device, pair_frame, pair_camera, NULL, 0);
+    float range[2] = {0, 0}, limit = 0.03f * (head[2] - WALL[0].lower_left[2]);
+    anariGetProperty(device, pair_frame, "parallaxRange", ANARI_FLOAT32_VEC2, range,
+                     sizeof range, ANARI_WAIT);
+    const float *parallax = anariMapFrame(device, pair_frame, "channel.parallax", NULL, NULL, NULL);
+    if (parallax) {
+      parallax_image(parallax, 2 * (size_t)n * n, limit, pair);
+      ok &= write_png(device, stereo_folder, "front_parallax.png", 2 * n, n, pair);
+    } else {
+      ok = 0;
+    }
+    anariUnmapFrame(device, pair_frame, "channel.parallax");
+    anariUnsetParameter(device, pair_frame, "channel.parallax");
+    printf("stereo: front wall parallax from %.1f to %.1f mm (comfortable within ±%.1f mm)\n",
+           1e3 * range[0], 1e3 * range[1], 1e3 * limit);
+
+    /* A glossy sphere in front of the wall, lit per eye and from between the eyes. */
+    ANARIWorld glossy = glossy_world(device);
+    ANARIRenderer lit = anariNewRenderer(device, "default");
+    anariSetParameter(device, lit, "background", ANARI_FLOAT32_VEC4, background);
+    anariSetParameter(device, lit, "ambientRadiance", ANARI_FLOAT32, &ambient);
+    ANARIFrame glossy_frame = color_frame(device, 2 * n, n, glossy, lit);
+    const char *lightings[2] = {"perEye", "cyclopean"};
+    for (int l = 0; l < 2; l++) {
+      anariSetParameter(device, lit, "stereoLighting", ANARI_STRING, lightings[l]);
+      anariCommitParameters(device, lit);
+      render(device, glossy_frame, pair_camera, pair, 2 * wall_bytes);
+      char name[64];
+      snprintf(name, sizeof name, "glossy_%s_pair.png", lightings[l]);
+      ok &= write_png(device, stereo_folder, name, 2 * n, n, pair);
+    }
+    printf("stereo images in %s/\n", stereo_folder);
+    ANARIObject stereo_objects[] = {mono_camera, pair_camera, glossy, lit, glossy_frame};
+    for (size_t i = 0; i < sizeof stereo_objects / sizeof stereo_objects[0]; i++)
+      anariRelease(device, stereo_objects[i]);
+  }
 
   for (int e = 0; e < EYES; e++)
     for (int w = 0; w < WALLS; w++)

@@ -45,6 +45,10 @@ pub struct CameraRay {
     pub direction: glam::Vec3,
     pub t_min: f32,
     pub t_max: f32,
+    /// For an eye of a stereo pair (left or right), the point midway between the pair's two
+    /// eyes (with several viewers, this pixel's blended head): where view-dependent shading looks
+    /// from under cyclopean lighting. `None` for a mono eye and for cameras without stereo.
+    pub cyclopean: Option<glam::Vec3>,
 }
 
 /// Which eye a viewport or a ray generator belongs to.

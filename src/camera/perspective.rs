@@ -6,7 +6,7 @@ use std::sync::Arc;
 use glam::{DVec3, Vec3};
 
 use super::offaxis::PerspectiveFit;
-use super::rays::{ClipRange, ImageRegion, Pinhole};
+use super::rays::{ClipRange, ImageRegion, Pinhole, StereoGeometry};
 use super::validate;
 use super::{
     Camera, CameraError, DEFAULT_INTERPUPILLARY_DISTANCE, Eye, EyeRays, EyeViewport, StereoMode,
@@ -156,6 +156,13 @@ impl Camera for PerspectiveCamera {
                 clip: self.clip,
             },
         )
+        .with_stereo(StereoGeometry {
+            ipd_fraction: eye.ipd_fraction(),
+            baseline: self.right * self.interpupillary_distance,
+            plane_point: window_centre,
+            plane_normal: self.forward,
+            horizontal: self.right,
+        })
     }
 }
 

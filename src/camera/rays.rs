@@ -209,6 +209,24 @@ enum Generator {
 pub struct EyeRays {
     region: ImageRegion,
     generator: Generator,
+    /// The stereo pair this eye belongs to (perspective and offAxis cameras).
+    stereo: Option<StereoGeometry>,
+}
+
+/// What screen parallax and cyclopean shading need to know of an eye's stereo pair.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct StereoGeometry {
+    /// This eye's offset from the point midway between the eyes, in interpupillary distances:
+    /// −½ left, +½ right, 0 mono (the eye between them).
+    pub ipd_fraction: f64,
+    /// From the left eye to the right eye (interpupillary distance × the head's right vector).
+    /// With several viewers each pixel has its own right vector; only the length is used.
+    pub baseline: DVec3,
+    /// The zero-parallax plane (a point of it and its unit normal) and the unit horizontal axis
+    /// parallax is measured along (the screen's or the camera's right vector).
+    pub plane_point: DVec3,
+    pub plane_normal: DVec3,
+    pub horizontal: DVec3,
 }
 
 impl EyeRays {
@@ -216,6 +234,7 @@ impl EyeRays {
         EyeRays {
             region,
             generator: Generator::Pinhole(pinhole),
+            stereo: None,
         }
     }
 
@@ -223,6 +242,7 @@ impl EyeRays {
         EyeRays {
             region,
             generator: Generator::Blended(blended),
+            stereo: None,
         }
     }
 
@@ -230,6 +250,7 @@ impl EyeRays {
         EyeRays {
             region,
             generator: Generator::Parallel(parallel),
+            stereo: None,
         }
     }
 
@@ -237,7 +258,22 @@ impl EyeRays {
         EyeRays {
             region,
             generator: Generator::Unproject(unproject, unproject.as_pinhole()),
+            stereo: None,
         }
+    }
+
+    /// This generator as one eye of the stereo pair `stereo`.
+    pub(crate) fn with_stereo(mut self, stereo: StereoGeometry) -> EyeRays {
+        self.stereo = Some(stereo);
+        self
+    }
+
+    /// The point midway between the eyes of this pinhole eye's pair, when it is one of a pair.
+    #[inline]
+    fn pinhole_cyclopean(&self, eye: DVec3) -> Option<Vec3> {
+        self.stereo
+            .filter(|stereo| stereo.ipd_fraction != 0.0)
+            .map(|stereo| (eye - stereo.baseline * stereo.ipd_fraction).as_vec3())
     }
 
     /// (s, t) in `[0,1]²` across the viewport (s rightwards, t upwards; a pixel centre is
@@ -264,7 +300,9 @@ impl EyeRays {
                 };
                 // The lens disk lies in the plane through the eye perpendicular to `forward`,
                 // so plane distances from the origin along `forward` equal those from the eye.
-                clipped_ray(origin, target, p.forward, &p.clip)
+                let mut ray = clipped_ray(origin, target, p.forward, &p.clip);
+                ray.cyclopean = self.pinhole_cyclopean(p.eye);
+                ray
             }
             Generator::Blended(_) => self.rays4([s; 4], [t; 4], lens)[0],
             Generator::Parallel(p) => CameraRay {
@@ -272,6 +310,7 @@ impl EyeRays {
                 direction: p.forward.as_vec3(),
                 t_min: p.clip.near.map_or(0.0, |near| near as f32),
                 t_max: p.clip.far.map_or(f32::INFINITY, |far| far as f32),
+                cyclopean: None,
             },
             Generator::Unproject(_, Some(p)) => {
                 let target = p.window_origin + st.x * p.window_right + st.y * p.window_up;
@@ -291,6 +330,7 @@ impl EyeRays {
                             direction: direction.as_vec3(),
                             t_min: near_distance as f32,
                             t_max: (near_distance + length) as f32,
+                            cyclopean: None,
                         }
                     }
                     None => CameraRay {
@@ -298,6 +338,7 @@ impl EyeRays {
                         direction: towards_far.normalize().as_vec3(),
                         t_min: 0.0,
                         t_max: length as f32,
+                        cyclopean: None,
                     },
                 }
             }
@@ -316,12 +357,12 @@ impl EyeRays {
         let cameras = b.viewers.cameras4(&targets, &st, b.eye_offset != 0.0);
         std::array::from_fn(|i| {
             let (head, right) = cameras[i];
-            let origin = if b.eye_offset == 0.0 {
-                head
-            } else {
-                head + right * b.eye_offset
-            };
-            clipped_ray(origin, targets[i], b.forward, &b.clip)
+            if b.eye_offset == 0.0 {
+                return clipped_ray(head, targets[i], b.forward, &b.clip);
+            }
+            let mut ray = clipped_ray(head + right * b.eye_offset, targets[i], b.forward, &b.clip);
+            ray.cyclopean = Some(head.as_vec3());
+            ray
         })
     }
 
@@ -400,6 +441,81 @@ impl EyeRays {
     }
 }
 
+impl EyeRays {
+    /// Signed horizontal screen parallax of world point `p` seen by `ray`, in meters on the
+    /// zero-parallax plane (the offAxis screen; the perspective camera's focus plane): where the
+    /// right eye sees `p` on that plane minus where the left eye sees it, along the plane's
+    /// horizontal axis. 0 on the plane, positive behind it, negative in front; for eyes level
+    /// with the screen it is ipd·(z − z₀)/z. The eyes are this ray's pair (with several viewers
+    /// the pixel's own). NaN for cameras without a stereo pair and for points not in front of
+    /// both eyes.
+    pub fn parallax(&self, ray: &CameraRay, p: Vec3) -> f32 {
+        let Some(stereo) = &self.stereo else {
+            return f32::NAN;
+        };
+        let Some((left, right)) = self.eye_pair(ray, stereo) else {
+            return f32::NAN;
+        };
+        let p = p.as_dvec3();
+        let on_plane = |eye: DVec3| {
+            let towards = p - eye;
+            let along = towards.dot(stereo.plane_normal);
+            let to_plane = (stereo.plane_point - eye).dot(stereo.plane_normal);
+            // The point must lie on the plane's side of the eye, away from it.
+            (along * to_plane > 0.0).then(|| eye + towards * (to_plane / along))
+        };
+        match (on_plane(left), on_plane(right)) {
+            (Some(l), Some(r)) => (r - l).dot(stereo.horizontal) as f32,
+            _ => f32::NAN,
+        }
+    }
+
+    /// The (left, right) eyes of `ray`'s stereo pair.
+    fn eye_pair(&self, ray: &CameraRay, stereo: &StereoGeometry) -> Option<(DVec3, DVec3)> {
+        let half = 0.5 * stereo.baseline;
+        match &self.generator {
+            Generator::Pinhole(p) => {
+                let centre = p.eye - stereo.baseline * stereo.ipd_fraction;
+                Some((centre - half, centre + half))
+            }
+            Generator::Blended(b) => {
+                let (head, right) = match ray.cyclopean {
+                    // A stereo eye: the other eye mirrors this one about the blended head.
+                    Some(head) => {
+                        let head = head.as_dvec3();
+                        let offset = ray.origin.as_dvec3() - head;
+                        (head, offset / stereo.ipd_fraction)
+                    }
+                    // A mono eye is the blended head; the pair needs its right vector.
+                    None => {
+                        let target = self.screen_point(b, ray)?;
+                        let st = DVec2::new(
+                            (target - b.window_origin).dot(b.window_right)
+                                / b.window_right.length_squared(),
+                            (target - b.window_origin).dot(b.window_up)
+                                / b.window_up.length_squared(),
+                        );
+                        let (head, right) = b.viewers.cameras4(&[target; 4], &[st; 4], true)[0];
+                        (head, right * stereo.baseline.length())
+                    }
+                };
+                Some((head - 0.5 * right, head + 0.5 * right))
+            }
+            Generator::Parallel(_) | Generator::Unproject(..) => None,
+        }
+    }
+
+    /// Where `ray` crosses the screen of a several-viewers camera.
+    fn screen_point(&self, b: &Blended, ray: &CameraRay) -> Option<DVec3> {
+        let origin = ray.origin.as_dvec3();
+        let direction = ray.direction.as_dvec3();
+        let normal = b.window_right.cross(b.window_up);
+        let along = direction.dot(normal);
+        (along != 0.0)
+            .then(|| origin + direction * ((b.window_origin - origin).dot(normal) / along))
+    }
+}
+
 #[cfg(test)]
 impl EyeRays {
     /// A matrix camera's rays unprojected pixel by pixel, without the pinhole shortcut.
@@ -407,6 +523,7 @@ impl EyeRays {
         EyeRays {
             region,
             generator: Generator::Unproject(unproject, None),
+            stereo: None,
         }
     }
 
@@ -424,6 +541,7 @@ impl EyeRays {
             direction: Vec3::Z,
             t_min: 0.0,
             t_max: 0.0,
+            cyclopean: None,
         };
         self.window_depth(&unused, p)
     }
@@ -450,6 +568,7 @@ fn clipped_ray(origin: DVec3, target: DVec3, forward: DVec3, clip: &ClipRange) -
         direction: direction.as_vec3(),
         t_min,
         t_max,
+        cyclopean: None,
     }
 }
 

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use glam::{DVec3, Vec3};
 
 use super::offaxis::{DegenerateScreen, OffAxisError, ScreenFrame};
-use super::rays::{Blended, ClipRange, ImageRegion, Pinhole};
+use super::rays::{Blended, ClipRange, ImageRegion, Pinhole, StereoGeometry};
 use super::validate;
 use super::viewers::{ViewerDesc, ViewerSet};
 use super::{
@@ -164,6 +164,13 @@ impl Camera for OffAxisCamera {
     /// front of the screen; another eye requested here still gets rays through the screen.
     fn prepare(&self, eye: Eye, _viewport_width: u32, _viewport_height: u32) -> EyeRays {
         let screen = &self.screen;
+        let stereo = StereoGeometry {
+            ipd_fraction: eye.ipd_fraction(),
+            baseline: self.right * self.interpupillary_distance,
+            plane_point: screen.lower_left,
+            plane_normal: screen.z,
+            horizontal: screen.x,
+        };
         if let Some(viewers) = &self.viewers {
             return EyeRays::blended(
                 self.region,
@@ -176,7 +183,8 @@ impl Camera for OffAxisCamera {
                     viewers: viewers.clone(),
                     eye_offset: self.interpupillary_distance * eye.ipd_fraction(),
                 },
-            );
+            )
+            .with_stereo(stereo);
         }
         EyeRays::pinhole(
             self.region,
@@ -191,6 +199,7 @@ impl Camera for OffAxisCamera {
                 clip: self.clip,
             },
         )
+        .with_stereo(stereo)
     }
 }
 

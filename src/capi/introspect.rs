@@ -257,6 +257,7 @@ pub(crate) fn write_property(
         PropertyValue::Int32(v) => v.to_ne_bytes().to_vec(),
         PropertyValue::UInt64(v) => v.to_ne_bytes().to_vec(),
         PropertyValue::Float32(v) => v.to_ne_bytes().to_vec(),
+        PropertyValue::Float32Vec2(v) => v.iter().flat_map(|f| f.to_ne_bytes()).collect(),
         PropertyValue::Bool(v) => vec![*v as u8],
         PropertyValue::Box3(v) => v.iter().flat_map(|f| f.to_ne_bytes()).collect(),
         PropertyValue::String(s) => {

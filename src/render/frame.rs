@@ -50,6 +50,7 @@ pub const CHANNELS: &[(&str, &[ANARIDataType])] = &[
     ),
     ("channel.normal", &[ANARI_FLOAT32_VEC3, ANARI_FIXED16_VEC3]),
     ("channel.windowDepth", &[ANARI_FLOAT32]),
+    ("channel.parallax", &[ANARI_FLOAT32]),
 ];
 
 /// Everything a render needs, captured when anariRenderFrame is called.
@@ -90,6 +91,7 @@ enum ChannelKind {
     InstanceId,
     Albedo,
     Normal,
+    Parallax,
 }
 
 impl ChannelKind {
@@ -103,6 +105,7 @@ impl ChannelKind {
             "channel.instanceId" => ChannelKind::InstanceId,
             "channel.albedo" => ChannelKind::Albedo,
             "channel.normal" => ChannelKind::Normal,
+            "channel.parallax" => ChannelKind::Parallax,
             _ => return None,
         })
     }
@@ -171,6 +174,11 @@ impl ChannelFormat {
             (ChannelKind::WindowDepth, _) => self.encode_pixels(out, |k| {
                 f32_bytes::<1, 4>([
                     hit(k).map_or(1.0, |(h, ray, eye)| eye.window_depth(ray, h.point))
+                ])
+            }),
+            (ChannelKind::Parallax, _) => self.encode_pixels(out, |k| {
+                f32_bytes::<1, 4>([
+                    hit(k).map_or(f32::NAN, |(h, ray, eye)| eye.parallax(ray, h.point))
                 ])
             }),
             (ChannelKind::PrimitiveId, _) => self.encode_pixels(out, |k| id(k, |h| h.primitive_id)),
@@ -391,6 +399,9 @@ struct Inner {
     throughput: Throughput,
     /// Fraction of the pixels of the last image that were traced (not filled).
     progress: f32,
+    /// Smallest and largest value of the last render's parallax channel (NaN without one or
+    /// without a hit).
+    parallax_range: [f32; 2],
 }
 
 impl Inner {
@@ -437,6 +448,7 @@ impl FrameState {
         match name {
             "duration" => Some(PropertyValue::Float32(self.lock().duration)),
             "progress" => Some(PropertyValue::Float32(self.lock().progress)),
+            "parallaxRange" => Some(PropertyValue::Float32Vec2(self.lock().parallax_range)),
             _ => None,
         }
     }
@@ -563,6 +575,10 @@ impl FrameState {
             }
             (run, done)
         });
+        let parallax_range = channels
+            .iter()
+            .find(|channel| channel.format.kind == ChannelKind::Parallax)
+            .map_or([f32::NAN; 2], |channel| value_range(&channel.bytes));
         let output = Arc::new(Output {
             width: setup.width,
             height: setup.height,
@@ -585,6 +601,7 @@ impl FrameState {
         {
             let mut inner = self.lock();
             inner.output = Some(output);
+            inner.parallax_range = parallax_range;
             inner.duration = job.started.elapsed().as_secs_f32();
             inner.accumulation = accumulation;
             inner.callback_thread = Some(std::thread::current().id());
@@ -838,6 +855,23 @@ fn traced(camera_ray: &CameraRay) -> Ray {
     }
 }
 
+/// Smallest and largest of native-endian FLOAT32 pixels, NaNs (no hit) left out; NaN for both
+/// when every pixel is NaN.
+fn value_range(bytes: &[u8]) -> [f32; 2] {
+    let (low, high) = bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
+        .filter(|v| !v.is_nan())
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(low, high), v| {
+            (low.min(v), high.max(v))
+        });
+    if low > high {
+        [f32::NAN; 2]
+    } else {
+        [low, high]
+    }
+}
+
 /// A worker's working memory, kept from one tile to the next.
 #[derive(Default)]
 struct TileScratch<'a> {
@@ -979,6 +1013,7 @@ fn render_tile<'a>(
                             &rays[lane],
                             hits[lane].as_ref(),
                             screen,
+                            camera_ray.cyclopean,
                         );
                         continue;
                     }
@@ -988,6 +1023,7 @@ fn render_tile<'a>(
                         &rays[lane],
                         hits[lane],
                         Some(screen()),
+                        camera_ray.cyclopean,
                         &LightSampling::for_pixel(index, x, y),
                     );
                     colors[k] += sample.color;

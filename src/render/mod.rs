@@ -73,6 +73,16 @@ pub const FRAME: ObjectSpec = ObjectSpec::new(
         )
         .values(&["ANARI_FLOAT32"]),
         ParamSpec::new(
+            "channel.parallax",
+            DATA_TYPE,
+            "signed horizontal screen parallax of the hit in meters on the zero-parallax plane \
+             (the offAxis screen, the perspective camera's focus plane): right eye's image point \
+             minus left eye's; 0 on the plane, positive behind it, negative in front; NaN on \
+             miss and for cameras without stereo; the frame property 'parallaxRange' holds the \
+             last render's smallest and largest value",
+        )
+        .values(&["ANARI_FLOAT32"]),
+        ParamSpec::new(
             "accumulation",
             &[ANARI_BOOL],
             "refine progressively over repeated renders while nothing changes",
@@ -114,6 +124,7 @@ pub const FRAME: ObjectSpec = ObjectSpec::new(
     "channel.albedo",
     "channel.normal",
     "channel.windowDepth",
+    "channel.parallax",
 ])
 .extensions(&[
     "ANARI_KHR_FRAME_CHANNEL_PRIMITIVE_ID",
@@ -123,6 +134,7 @@ pub const FRAME: ObjectSpec = ObjectSpec::new(
     "ANARI_KHR_FRAME_COMPLETION_CALLBACK",
     "ANARI_CAVETRACE_FRAME_CHANNEL_WINDOW_DEPTH",
     "ANARI_CAVETRACE_FRAME_BUDGET",
+    "ANARI_CAVETRACE_FRAME_CHANNEL_PARALLAX",
 ]);
 
 pub const SPECS: &[ObjectSpec] = &[renderer::DEFAULT, renderer::FAST, FRAME];

@@ -49,6 +49,17 @@ const PIXEL_SAMPLES: ParamSpec = ParamSpec::new(
 .default(SpecValue::Int(1))
 .range(SpecValue::Int(1), SpecValue::Int(1024));
 
+const STEREO_LIGHTING: ParamSpec = ParamSpec::new(
+    "stereoLighting",
+    &[ANARI_STRING],
+    "where view-dependent shading (the fast renderer's eye light, mirror reflections) looks \
+     from in stereo: 'cyclopean' (midway between the eyes: both eyes see a highlight or \
+     reflection at the same place on a surface) or 'perEye' (each eye from itself); mono \
+     frames are the same either way",
+)
+.default(SpecValue::Str("cyclopean"))
+.values(&["cyclopean", "perEye"]);
+
 pub const DEFAULT: ObjectSpec = ObjectSpec::new(
     ANARI_RENDERER,
     "default",
@@ -68,9 +79,11 @@ pub const DEFAULT: ObjectSpec = ObjectSpec::new(
         .range(SpecValue::Int(0), SpecValue::Int(64)),
         ParamSpec::new("shadows", &[ANARI_BOOL], "whether lights cast shadows")
             .default(SpecValue::Bool(true)),
+        STEREO_LIGHTING,
     ],
 )
 .extensions(&[
+    "ANARI_CAVETRACE_RENDERER_STEREO_LIGHTING",
     "ANARI_KHR_RENDERER_AMBIENT_LIGHT",
     "ANARI_KHR_RENDERER_BACKGROUND_COLOR",
     "ANARI_KHR_RENDERER_BACKGROUND_IMAGE",
@@ -81,8 +94,9 @@ pub const FAST: ObjectSpec = ObjectSpec::new(
     "fast",
     "for head-tracked interactivity: primary rays only, shaded by a light at the eye (no \
      shadows, reflections or scene lights)",
-    &[BACKGROUND, PIXEL_SAMPLES],
-);
+    &[BACKGROUND, PIXEL_SAMPLES, STEREO_LIGHTING],
+)
+.extensions(&["ANARI_CAVETRACE_RENDERER_STEREO_LIGHTING"]);
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct RendererSettings {
@@ -95,6 +109,9 @@ pub struct RendererSettings {
     pub pixel_samples: u32,
     pub max_ray_depth: u32,
     pub shadows: bool,
+    /// `stereoLighting` 'cyclopean': the eyes of a stereo pair shade view-dependent terms
+    /// from the point midway between them.
+    pub cyclopean_lighting: bool,
 }
 
 impl Default for RendererSettings {
@@ -107,6 +124,7 @@ impl Default for RendererSettings {
             pixel_samples: 1,
             max_ray_depth: 5,
             shadows: true,
+            cyclopean_lighting: true,
         }
     }
 }
@@ -131,6 +149,7 @@ impl RendererSettings {
             pixel_samples: int("pixelSamples", 1).clamp(1, 1024),
             max_ray_depth: int("maxRayDepth", 5).min(64),
             shadows: p.get_bool("shadows").unwrap_or(true),
+            cyclopean_lighting: p.get_string("stereoLighting") != Some("perEye"),
         }
     }
 }
@@ -152,7 +171,34 @@ pub fn commit(device: &Device, object: &Object) -> RendererSettings {
             ),
         );
     }
+    if let Some(value) = object.committed().get_string("stereoLighting")
+        && value != "cyclopean"
+        && value != "perEye"
+    {
+        device.error(
+            ANARI_STATUS_INVALID_ARGUMENT,
+            Some(object),
+            format!(
+                "anariCommitParameters: {} parameter 'stereoLighting': expected 'cyclopean' or \
+                 'perEye', got '{value}'; using 'cyclopean'",
+                object.describe()
+            ),
+        );
+    }
     settings
+}
+
+impl RendererSettings {
+    /// The direction view-dependent shading of a primary hit at `point` looks along: from the
+    /// cyclopean eye under cyclopean lighting when the ray belongs to a stereo eye, otherwise
+    /// the ray's own.
+    #[inline(always)]
+    fn view_direction(&self, ray: &Ray, point: Vec3, cyclopean: Option<Vec3>) -> Vec3 {
+        match cyclopean.filter(|_| self.cyclopean_lighting) {
+            Some(viewer) => (point - viewer).try_normalize().unwrap_or(ray.direction),
+            None => ray.direction,
+        }
+    }
 }
 
 /// The renderer's `background` when it is an ARRAY2D: bilinear between texel centres and clamped
@@ -356,7 +402,17 @@ pub fn trace(
         None => settings.background_for(screen),
         Some(hit) => {
             let sp = shading_point(scene, ray, &hit);
-            shade(scene, settings, ray, &sp, depth, screen, sampling).extend(1.0)
+            shade(
+                scene,
+                settings,
+                ray,
+                ray.direction,
+                &sp,
+                depth,
+                screen,
+                sampling,
+            )
+            .extend(1.0)
         }
     };
     volume.map_or(behind, |v| v.over(behind))
@@ -372,10 +428,14 @@ fn volumes_in_front(
     integrate(&scene.volumes, ray.origin, ray.direction, ray.t_min, t_end)
 }
 
+/// `view`: the unit direction view-dependent terms look along (see
+/// [`RendererSettings::view_direction`]).
+#[allow(clippy::too_many_arguments)]
 fn shade(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
     ray: &Ray,
+    view: Vec3,
     sp: &ShadingPoint,
     depth: u32,
     screen: Option<Vec2>,
@@ -392,7 +452,7 @@ fn shade(
         // Smooth metals reflect the scene; rough ones fall back to their diffuse look.
         let reflectivity = sp.metallic * (1.0 - sp.roughness);
         if reflectivity > 0.0 {
-            let reflected = ray.direction - 2.0 * ray.direction.dot(sp.normal) * sp.normal;
+            let reflected = view - 2.0 * view.dot(sp.normal) * sp.normal;
             let incoming = trace(
                 scene,
                 settings,
@@ -439,27 +499,28 @@ pub fn shade_primary(
     hit: Option<SceneHit>,
     sampling: &LightSampling,
 ) -> Sample {
-    shade_primary_at(scene, settings, ray, hit, None, sampling)
+    shade_primary_at(scene, settings, ray, hit, None, None, sampling)
 }
 
 /// A primary sample whose closest hit is already known. `screen` is the sample's position in
 /// the frame (see `RendererSettings::background_at`), which picks the background image's
 /// colour; without it the background colour is used. `sampling` picks the points of lights
-/// with extent.
+/// with extent. `cyclopean`: the camera ray's point midway between its stereo pair's eyes.
 pub fn shade_primary_at(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
     ray: &Ray,
     hit: Option<SceneHit>,
     screen: Option<Vec2>,
+    cyclopean: Option<Vec3>,
     sampling: &LightSampling,
 ) -> Sample {
     let Some(volume) = volumes_in_front(scene, ray, hit.as_ref()) else {
-        return shade_surface_primary(scene, settings, ray, hit, screen, sampling);
+        return shade_surface_primary(scene, settings, ray, hit, screen, cyclopean, sampling);
     };
     // What lies behind matters only if light from there gets through.
     let behind = if volume.transmittance > 0.0 {
-        shade_surface_primary(scene, settings, ray, hit, screen, sampling)
+        shade_surface_primary(scene, settings, ray, hit, screen, cyclopean, sampling)
     } else {
         Sample {
             color: Vec4::ZERO,
@@ -483,9 +544,10 @@ pub fn shade_primary_at(
 }
 
 /// The fast renderer's shading: a light at the camera, so what faces the viewer is brightest.
+/// `view`: the unit direction the light (and the viewer) looks along.
 #[inline(always)]
-fn eye_light(ray: &Ray, sp: &ShadingPoint) -> Vec3 {
-    let facing = (-ray.direction).dot(sp.normal).max(0.0);
+fn eye_light(view: Vec3, sp: &ShadingPoint) -> Vec3 {
+    let facing = (-view).dot(sp.normal).max(0.0);
     sp.base_color * (0.2 + 0.8 * facing) + sp.emissive
 }
 
@@ -498,10 +560,14 @@ pub fn fast_surface_color(
     ray: &Ray,
     hit: Option<&SceneHit>,
     screen: impl FnOnce() -> Vec2,
+    cyclopean: Option<Vec3>,
 ) -> Vec4 {
     debug_assert!(settings.fast && scene.volumes.is_empty());
     match hit {
-        Some(hit) => eye_light(ray, &shading_point(scene, ray, hit)).extend(1.0),
+        Some(hit) => {
+            let sp = shading_point(scene, ray, hit);
+            eye_light(settings.view_direction(ray, sp.point, cyclopean), &sp).extend(1.0)
+        }
         None => settings.background_for(Some(screen())),
     }
 }
@@ -513,6 +579,7 @@ fn shade_surface_primary(
     ray: &Ray,
     hit: Option<SceneHit>,
     screen: Option<Vec2>,
+    cyclopean: Option<Vec3>,
     sampling: &LightSampling,
 ) -> Sample {
     let Some(hit) = hit else {
@@ -522,10 +589,11 @@ fn shade_surface_primary(
         };
     };
     let sp = shading_point(scene, ray, &hit);
+    let view = settings.view_direction(ray, sp.point, cyclopean);
     let color = if settings.fast {
-        eye_light(ray, &sp)
+        eye_light(view, &sp)
     } else {
-        shade(scene, settings, ray, &sp, 0, screen, sampling)
+        shade(scene, settings, ray, view, &sp, 0, screen, sampling)
     };
     Sample {
         color: color.extend(1.0),
@@ -598,6 +666,7 @@ mod tests {
             &ray,
             None,
             Some(Vec2::new(0.9, 0.1)),
+            None,
             &LightSampling::default(),
         );
         assert_eq!(sample.color, Vec4::new(0.0, 1.0, 0.0, 1.0));
