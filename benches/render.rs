@@ -7,8 +7,8 @@
 //!                                            renders to convergence, image error)
 //!     cargo bench --bench render -- viewers (several viewers on the offAxis camera and the
 //!                                            matrix camera against one viewer, same view)
-//!     cargo bench --bench render -- stereo  (sideBySide and topBottom frames against mono,
-//!                                            same per-eye size, both renderers, both scenes)
+//!     cargo bench --bench render -- stereo  (sideBySide, topBottom, interleaved and anaglyph
+//!                                            frames against mono, both renderers, both scenes)
 //!
 //! Scenes: a height field of ~1M triangles seen by a tracked head (the camera moves every
 //! frame), rendered (a) by the "fast" renderer and (b) by the "default" renderer with one
@@ -625,7 +625,15 @@ fn viewers_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames:
         .filter(|(k, _)| only.is_none_or(|only| only == *k))
         .map(|(_, case)| case)
         .collect();
+    // `CAVETRACE_BENCH_RENDERER=fast` (or `default`) runs one renderer alone.
+    let renderer_only = std::env::var("CAVETRACE_BENCH_RENDERER").ok();
     for renderer in ["fast", "default"] {
+        if renderer_only
+            .as_deref()
+            .is_some_and(|only| only != renderer)
+        {
+            continue;
+        }
         let base = setup(dev, geometry, renderer, size);
         let mut setups: Vec<Setup> = cases
             .iter()
@@ -676,13 +684,17 @@ fn viewers_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames:
 }
 
 /// Stereo against mono (`cargo bench --bench render -- stereo`): per renderer and scene, the
-/// median frame time of a mono frame and of sideBySide and topBottom frames of the same per-eye
-/// size (the cases alternate frame by frame, so machine drift hits them alike), and the ratios.
+/// median frame time of a mono frame, of sideBySide and topBottom frames of the same per-eye
+/// size, and of rowInterleaved, checkerboard and anaglyph frames of the mono frame's size (the
+/// cases alternate frame by frame, so machine drift hits them alike), and the ratios.
 fn stereo_section(dev: ANARIDevice, scenes: &[(&str, ANARIGeometry)], size: u32, frames: u32) {
     let cases = [
         ("mono", "none", [size, size]),
         ("sideBySide", "sideBySide", [2 * size, size]),
         ("topBottom", "topBottom", [size, 2 * size]),
+        ("rowInterleaved", "rowInterleaved", [size, size]),
+        ("checkerboard", "checkerboard", [size, size]),
+        ("anaglyph", "anaglyph", [size, size]),
     ];
     for (scene, geometry) in scenes {
         for renderer in ["fast", "default"] {

@@ -694,3 +694,133 @@ fn cyclopean_lighting_gives_both_eyes_one_colour_per_surface_point() {
     release_all(dev, &[ball, floor, floor_material, floor_surface]);
     release_device(lib, dev);
 }
+
+#[test]
+fn interleaved_pixels_are_the_eye_images_pixels() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let world = mixed_world(dev);
+    let renderer = plain_renderer(dev, "default");
+    let camera_of = |camera_type: &str, mode: &str, right_first: bool| {
+        let camera = match camera_type {
+            "offAxis" => off_axis(dev, mode, HEAD),
+            _ => perspective(dev, mode, 1.5),
+        };
+        set(
+            dev,
+            camera,
+            "interleaveStartRight",
+            ANARI_BOOL,
+            &u8::from(right_first),
+        );
+        commit(dev, camera);
+        camera
+    };
+    for camera_type in ["offAxis", "perspective"] {
+        let alone = |eye: &str| {
+            let camera = camera_of(camera_type, eye, false);
+            let image = render(dev, world, camera, renderer, [SIZE, SIZE]);
+            anariRelease(dev, camera);
+            image
+        };
+        let eyes = [alone("left"), alone("right")];
+        for (mode, parity) in [
+            ("rowInterleaved", (|_, y| y) as fn(u32, u32) -> u32),
+            ("columnInterleaved", |x, _| x),
+            ("checkerboard", |x, y| x + y),
+        ] {
+            for right_first in [false, true] {
+                let camera = camera_of(camera_type, mode, right_first);
+                let image = render(dev, world, camera, renderer, [SIZE, SIZE]);
+                anariRelease(dev, camera);
+                let mut from = [0; 2];
+                for y in 0..SIZE {
+                    for x in 0..SIZE {
+                        // Even parity is the left eye's unless the right eye comes first.
+                        let eye = ((parity(x, y) % 2) ^ u32::from(right_first)) as usize;
+                        from[eye] += 1;
+                        let i = (y * SIZE + x) as usize;
+                        let expected = &eyes[eye];
+                        let at = format!(
+                            "{camera_type} {mode} right first {right_first}, pixel {x},{y}"
+                        );
+                        assert_eq!(
+                            image.primitive[i], expected.primitive[i],
+                            "{at}: primitiveId"
+                        );
+                        assert_eq!(image.object[i], expected.object[i], "{at}: objectId");
+                        assert_eq!(image.depth[i], expected.depth[i], "{at}: depth");
+                        assert_eq!(
+                            image.window_depth[i], expected.window_depth[i],
+                            "{at}: windowDepth"
+                        );
+                        assert_eq!(image.parallax[i], expected.parallax[i], "{at}: parallax");
+                        assert_eq!(image.color[i], expected.color[i], "{at}: colour");
+                    }
+                }
+                assert_eq!(from, [SIZE * SIZE / 2; 2]);
+            }
+        }
+    }
+    assert!(log.errors().is_empty(), "{:?}", log.errors());
+    release_all(dev, &[renderer, world]);
+    release_device(lib, dev);
+}
+
+#[test]
+fn anaglyph_combines_both_eyes_by_the_dubois_matrices() {
+    // Dubois' least-squares red-cyan matrices (rows: output red, green, blue) on linear RGB.
+    const LEFT: [[f32; 3]; 3] = [
+        [0.437, 0.449, 0.164],
+        [-0.062, -0.062, -0.024],
+        [-0.048, -0.050, -0.017],
+    ];
+    const RIGHT: [[f32; 3]; 3] = [
+        [-0.011, -0.032, -0.007],
+        [0.377, 0.761, 0.009],
+        [-0.026, -0.093, 1.234],
+    ];
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let world = mixed_world(dev);
+    for renderer_type in ["fast", "default"] {
+        let renderer = plain_renderer(dev, renderer_type);
+        let image = |mode: &str| {
+            let camera = off_axis(dev, mode, HEAD);
+            let image = render(dev, world, camera, renderer, [SIZE, SIZE]);
+            anariRelease(dev, camera);
+            image
+        };
+        let (left, right, combined) = (image("left"), image("right"), image("anaglyph"));
+        let mut differing = 0;
+        for i in 0..(SIZE * SIZE) as usize {
+            let at = format!("{renderer_type}, pixel {i}");
+            // The channels other than colour are the left eye's.
+            assert_eq!(combined.primitive[i], left.primitive[i], "{at}");
+            assert_eq!(combined.depth[i], left.depth[i], "{at}");
+            assert_eq!(combined.parallax[i], left.parallax[i], "{at}");
+            let (l, r) = (left.color[i], right.color[i]);
+            for k in 0..3 {
+                let expected = (0..3)
+                    .map(|j| LEFT[k][j] * l[j] + RIGHT[k][j] * r[j])
+                    .sum::<f32>()
+                    .clamp(0.0, 1.0);
+                assert!(
+                    (combined.color[i][k] - expected).abs() < 1e-6,
+                    "{at}: channel {k}: {} vs {expected}",
+                    combined.color[i][k]
+                );
+            }
+            differing += usize::from(l != r);
+        }
+        // The eyes differ, so the right eye's part is checked too.
+        assert!(
+            differing > 100,
+            "{renderer_type}: {differing} pixels differ between the eyes"
+        );
+        anariRelease(dev, renderer);
+    }
+    assert!(log.errors().is_empty(), "{:?}", log.errors());
+    anariRelease(dev, world);
+    release_device(lib, dev);
+}

@@ -33,16 +33,20 @@ pub fn camera_from_params(
 }
 
 fn stereo_mode(params: &ParamSet) -> Result<StereoMode, CameraError> {
+    let right_first = params.get_bool("interleaveStartRight").unwrap_or(false);
     match params.get_string("stereoMode") {
         None => Ok(StereoMode::None),
-        Some(value) => StereoMode::parse(value).ok_or_else(|| {
-            CameraError::new(
-                "stereoMode",
-                format!(
-                    "unknown value '{value}' (expected none, left, right, sideBySide or topBottom)"
-                ),
-            )
-        }),
+        Some(value) => StereoMode::parse(value)
+            .map(|mode| mode.starting_right(right_first))
+            .ok_or_else(|| {
+                CameraError::new(
+                    "stereoMode",
+                    format!(
+                        "unknown value '{value}' (expected none, left, right, sideBySide, \
+                         topBottom, rowInterleaved, columnInterleaved, checkerboard or anaglyph)"
+                    ),
+                )
+            }),
     }
 }
 
@@ -207,9 +211,32 @@ const FAR: ParamSpec = ParamSpec::new(
     &[ANARI_FLOAT32],
     "far clip distance along the view axis",
 );
-const STEREO_MODE: ParamSpec = ParamSpec::new("stereoMode", &[ANARI_STRING], "stereo mode")
-    .default(SpecValue::Str("none"))
-    .values(&["none", "left", "right", "sideBySide", "topBottom"]);
+const STEREO_MODE: ParamSpec = ParamSpec::new(
+    "stereoMode",
+    &[ANARI_STRING],
+    "stereo mode; rowInterleaved, columnInterleaved and checkerboard (passive 3D displays) \
+     trace each pixel from the eye its row, column or checkerboard square belongs to; \
+     anaglyph traces both eyes and combines them for red-cyan glasses (Dubois)",
+)
+.default(SpecValue::Str("none"))
+.values(&[
+    "none",
+    "left",
+    "right",
+    "sideBySide",
+    "topBottom",
+    "rowInterleaved",
+    "columnInterleaved",
+    "checkerboard",
+    "anaglyph",
+]);
+const INTERLEAVE_START_RIGHT: ParamSpec = ParamSpec::new(
+    "interleaveStartRight",
+    &[ANARI_BOOL],
+    "interleaved stereo modes: the first row (bottom), first column (left) or bottom-left \
+     pixel belongs to the right eye instead of the left",
+)
+.default(SpecValue::Bool(false));
 const INTERPUPILLARY_DISTANCE: ParamSpec = ParamSpec::new(
     "interpupillaryDistance",
     &[ANARI_FLOAT32],
@@ -236,6 +263,7 @@ pub const PERSPECTIVE: ObjectSpec = ObjectSpec::new(
         NEAR,
         FAR,
         STEREO_MODE,
+        INTERLEAVE_START_RIGHT,
         INTERPUPILLARY_DISTANCE,
         ParamSpec::new("apertureRadius", &[ANARI_FLOAT32], "aperture radius")
             .default(SpecValue::Float(0.0)),
@@ -250,6 +278,7 @@ pub const PERSPECTIVE: ObjectSpec = ObjectSpec::new(
 .extensions(&[
     "ANARI_KHR_CAMERA_PERSPECTIVE",
     "ANARI_KHR_CAMERA_STEREO",
+    "ANARI_CAVETRACE_STEREO_INTERLEAVED",
     "ANARI_KHR_CAMERA_DEPTH_OF_FIELD",
 ]);
 
@@ -333,6 +362,7 @@ pub const OFF_AXIS: ObjectSpec = ObjectSpec::new(
             "the head's right vector for stereo (unset: the screen's lower edge direction)",
         ),
         STEREO_MODE,
+        INTERLEAVE_START_RIGHT,
         INTERPUPILLARY_DISTANCE,
         ParamSpec::new(
             "near",
@@ -393,6 +423,7 @@ pub const OFF_AXIS: ObjectSpec = ObjectSpec::new(
     "ANARI_CAVETRACE_CAMERA_OFF_AXIS",
     "ANARI_CAVETRACE_CAMERA_MULTI_VIEWER",
     "ANARI_KHR_CAMERA_STEREO",
+    "ANARI_CAVETRACE_STEREO_INTERLEAVED",
 ]);
 
 const _: () = assert!(MAX_VIEWERS == 64, "the viewer.position description says 64");
@@ -566,7 +597,8 @@ mod tests {
                 x: 5,
                 y: 0,
                 width: 5,
-                height: 4
+                height: 4,
+                pixels: crate::camera::PixelSet::All,
             }
         );
     }

@@ -71,7 +71,10 @@ impl Eye {
     }
 }
 
-/// KHR_CAMERA_STEREO `stereoMode`.
+/// KHR_CAMERA_STEREO `stereoMode`, and cavetrace's interleaved modes for passive 3D displays
+/// (`ANARI_CAVETRACE_STEREO_INTERLEAVED`): every pixel is traced from the eye its row, column or
+/// checkerboard square belongs to. `right_first` (`interleaveStartRight`): the first row,
+/// column or the bottom-left pixel belongs to the right eye instead of the left.
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
 pub enum StereoMode {
     #[default]
@@ -80,6 +83,43 @@ pub enum StereoMode {
     Right,
     SideBySide,
     TopBottom,
+    RowInterleaved {
+        right_first: bool,
+    },
+    ColumnInterleaved {
+        right_first: bool,
+    },
+    Checkerboard {
+        right_first: bool,
+    },
+    /// Both eyes traced for every pixel, their colours combined for red-cyan glasses.
+    Anaglyph,
+}
+
+/// Which pixels of its rectangle an eye's viewport holds.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
+pub enum PixelSet {
+    #[default]
+    All,
+    /// Pixels whose row (y), column (x) or x + y has this parity.
+    Rows(u32),
+    Columns(u32),
+    Checkerboard(u32),
+    /// Every pixel, combined with the other eye's colour for red-cyan glasses.
+    Anaglyph,
+}
+
+impl PixelSet {
+    /// Whether frame pixel (x, y) belongs to the set.
+    #[inline]
+    pub fn holds(self, x: u32, y: u32) -> bool {
+        match self {
+            PixelSet::All | PixelSet::Anaglyph => true,
+            PixelSet::Rows(parity) => y % 2 == parity,
+            PixelSet::Columns(parity) => x % 2 == parity,
+            PixelSet::Checkerboard(parity) => (x + y) % 2 == parity,
+        }
+    }
 }
 
 impl StereoMode {
@@ -91,6 +131,10 @@ impl StereoMode {
             "right" => Some(StereoMode::Right),
             "sideBySide" => Some(StereoMode::SideBySide),
             "topBottom" => Some(StereoMode::TopBottom),
+            "rowInterleaved" => Some(StereoMode::RowInterleaved { right_first: false }),
+            "columnInterleaved" => Some(StereoMode::ColumnInterleaved { right_first: false }),
+            "checkerboard" => Some(StereoMode::Checkerboard { right_first: false }),
+            "anaglyph" => Some(StereoMode::Anaglyph),
             _ => None,
         }
     }
@@ -103,6 +147,10 @@ impl StereoMode {
             StereoMode::Right => "right",
             StereoMode::SideBySide => "sideBySide",
             StereoMode::TopBottom => "topBottom",
+            StereoMode::RowInterleaved { .. } => "rowInterleaved",
+            StereoMode::ColumnInterleaved { .. } => "columnInterleaved",
+            StereoMode::Checkerboard { .. } => "checkerboard",
+            StereoMode::Anaglyph => "anaglyph",
         }
     }
 
@@ -112,7 +160,17 @@ impl StereoMode {
             StereoMode::None => &[Eye::Mono],
             StereoMode::Left => &[Eye::Left],
             StereoMode::Right => &[Eye::Right],
-            StereoMode::SideBySide | StereoMode::TopBottom => &[Eye::Left, Eye::Right],
+            _ => &[Eye::Left, Eye::Right],
+        }
+    }
+
+    /// The mode with `interleaveStartRight` applied (interleaved modes only).
+    pub fn starting_right(self, right_first: bool) -> StereoMode {
+        match self {
+            StereoMode::RowInterleaved { .. } => StereoMode::RowInterleaved { right_first },
+            StereoMode::ColumnInterleaved { .. } => StereoMode::ColumnInterleaved { right_first },
+            StereoMode::Checkerboard { .. } => StereoMode::Checkerboard { right_first },
+            other => other,
         }
     }
 
@@ -130,8 +188,41 @@ impl StereoMode {
             y: 0,
             width,
             height,
+            pixels: PixelSet::All,
+        };
+        // Interleaved: both eyes span the frame; the left eye holds parity 0 unless the right
+        // eye comes first.
+        let interleaved = |set: fn(u32) -> PixelSet, right_first: bool| {
+            let left = u32::from(right_first);
+            vec![
+                EyeViewport {
+                    pixels: set(left),
+                    ..whole(Eye::Left)
+                },
+                EyeViewport {
+                    pixels: set(1 - left),
+                    ..whole(Eye::Right)
+                },
+            ]
         };
         match self {
+            StereoMode::Anaglyph => vec![
+                EyeViewport {
+                    pixels: PixelSet::Anaglyph,
+                    ..whole(Eye::Left)
+                },
+                EyeViewport {
+                    pixels: PixelSet::Anaglyph,
+                    ..whole(Eye::Right)
+                },
+            ],
+            StereoMode::RowInterleaved { right_first } => interleaved(PixelSet::Rows, right_first),
+            StereoMode::ColumnInterleaved { right_first } => {
+                interleaved(PixelSet::Columns, right_first)
+            }
+            StereoMode::Checkerboard { right_first } => {
+                interleaved(PixelSet::Checkerboard, right_first)
+            }
             StereoMode::None => vec![whole(Eye::Mono)],
             StereoMode::Left => vec![whole(Eye::Left)],
             StereoMode::Right => vec![whole(Eye::Right)],
@@ -144,6 +235,7 @@ impl StereoMode {
                         y: 0,
                         width: left_width,
                         height,
+                        pixels: PixelSet::All,
                     },
                     EyeViewport {
                         eye: Eye::Right,
@@ -151,6 +243,7 @@ impl StereoMode {
                         y: 0,
                         width: width - left_width,
                         height,
+                        pixels: PixelSet::All,
                     },
                 ]
             }
@@ -163,6 +256,7 @@ impl StereoMode {
                         y: bottom_height,
                         width,
                         height: height - bottom_height,
+                        pixels: PixelSet::All,
                     },
                     EyeViewport {
                         eye: Eye::Right,
@@ -170,6 +264,7 @@ impl StereoMode {
                         y: 0,
                         width,
                         height: bottom_height,
+                        pixels: PixelSet::All,
                     },
                 ]
             }
@@ -185,6 +280,23 @@ pub struct EyeViewport {
     pub y: u32,
     pub width: u32,
     pub height: u32,
+    /// The pixels of the rectangle this eye renders (all but for interleaved modes); rays are
+    /// made over the whole rectangle either way.
+    pub pixels: PixelSet,
+}
+
+impl EyeViewport {
+    /// Whether the eye renders every pixel of `[x0, x1) × [y0, y1)`.
+    #[inline]
+    pub fn holds(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> bool {
+        let inside =
+            x0 >= self.x && y0 >= self.y && x1 <= self.x + self.width && y1 <= self.y + self.height;
+        match self.pixels {
+            PixelSet::All | PixelSet::Anaglyph => inside,
+            // An interleaved eye holds single pixels of its parity, never a whole block.
+            set => inside && x1 == x0 + 1 && y1 == y0 + 1 && set.holds(x0, y0),
+        }
+    }
 }
 
 /// A camera validated at commit time, usable for any frame size; Send + Sync, shared by render
@@ -296,14 +408,16 @@ mod tests {
                     x: 0,
                     y: 0,
                     width: 50,
-                    height: 40
+                    height: 40,
+                    pixels: PixelSet::All,
                 },
                 EyeViewport {
                     eye: Eye::Right,
                     x: 50,
                     y: 0,
                     width: 51,
-                    height: 40
+                    height: 40,
+                    pixels: PixelSet::All,
                 },
             ]
         );
@@ -320,14 +434,16 @@ mod tests {
                     x: 0,
                     y: 15,
                     width: 64,
-                    height: 16
+                    height: 16,
+                    pixels: PixelSet::All,
                 },
                 EyeViewport {
                     eye: Eye::Right,
                     x: 0,
                     y: 0,
                     width: 64,
-                    height: 15
+                    height: 15,
+                    pixels: PixelSet::All,
                 },
             ]
         );
@@ -349,7 +465,8 @@ mod tests {
                     x: 0,
                     y: 0,
                     width: 7,
-                    height: 5
+                    height: 5,
+                    pixels: PixelSet::All,
                 }]
             );
         }

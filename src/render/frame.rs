@@ -10,7 +10,7 @@ use std::time::Instant;
 use glam::{Vec2, Vec3, Vec4};
 
 use crate::accel::{PacketScratch, Ray};
-use crate::camera::{Camera, CameraRay, EyeRays};
+use crate::camera::{Camera, CameraRay, EyeRays, PixelSet};
 use crate::device::datatype::*;
 use crate::device::property::PropertyValue;
 use crate::render::color::{srgb8_encoder, to_snorm16, to_unorm8};
@@ -830,20 +830,6 @@ const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
 /// other than colour.
 type FirstHit<'a> = (PrimaryHit, CameraRay, &'a EyeRays);
 
-/// Whether `viewport` holds the pixels `[x0, x1) × [y0, y1)`.
-fn viewport_holds(
-    viewport: &crate::camera::EyeViewport,
-    x0: u32,
-    y0: u32,
-    x1: u32,
-    y1: u32,
-) -> bool {
-    x0 >= viewport.x
-        && y0 >= viewport.y
-        && x1 <= viewport.x + viewport.width
-        && y1 <= viewport.y + viewport.height
-}
-
 /// The ray to trace for a camera ray.
 #[inline]
 fn traced(camera_ray: &CameraRay) -> Ray {
@@ -897,20 +883,149 @@ fn render_tile<'a>(
     // The tile's pixels are lattice points (sx, sy) of [tx, x_end) × [ty, y_end); for a tile
     // of the whole frame they are plain pixel coordinates.
     let area = map.area();
-    let (tx, ty, x_end, y_end) = (area.s0, area.t0, area.s1, area.t1);
-    let tile_width = x_end - tx;
+    let (tx, ty) = (area.s0, area.t0);
+    let tile_width = area.s1 - tx;
     let pixel_count = area.pixel_count();
     let samples = setup.settings.pixel_samples;
-    // The fast renderer's lean path: nothing but colour to compute.
-    let colour_only_fast = setup.settings.fast && !job.keeps_hits && setup.scene.volumes.is_empty();
     // Colour summed over the samples, and whether any eye covers the pixel.
     let mut colors = [Vec4::ZERO; TILE_PIXELS];
     let mut covered = [false; TILE_PIXELS];
-    let first_hits = &mut scratch.first_hits;
-    first_hits.clear();
+    scratch.first_hits.clear();
     if job.keeps_hits {
-        first_hits.resize(pixel_count, None);
+        scratch.first_hits.resize(pixel_count, None);
     }
+    match anaglyph_eyes(eyes) {
+        None => trace_blocks(job, eyes, map, scratch, &mut colors, &mut covered, true),
+        Some((left, right)) => {
+            // Both eyes for every pixel; the channels other than colour are the left eye's.
+            trace_blocks(job, left, map, scratch, &mut colors, &mut covered, true);
+            let mut right_colors = [Vec4::ZERO; TILE_PIXELS];
+            trace_blocks(
+                job,
+                right,
+                map,
+                scratch,
+                &mut right_colors,
+                &mut covered,
+                false,
+            );
+            for (color, right) in colors[..pixel_count].iter_mut().zip(&right_colors) {
+                *color = anaglyph(*color, *right);
+            }
+        }
+    }
+    let first_hits = &scratch.first_hits;
+    let passes = (job.pass + 1) as f32;
+    // Final colours: the samples' mean (the background where no eye looks), then the running
+    // mean over the passes when accumulating.
+    let mut color_sum = job.color_sum.as_ref().map(lock);
+    for (k, color) in colors[..pixel_count].iter_mut().enumerate() {
+        let (sx, sy) = (tx + k as u32 % tile_width, ty + k as u32 / tile_width);
+        if map.skips(sx, sy) {
+            continue;
+        }
+        let (x, y) = map.pixel(sx, sy);
+        *color = if covered[k] {
+            *color / samples as f32
+        } else {
+            setup.settings.background_at(Vec2::new(
+                (x as f32 + 0.5) / setup.width as f32,
+                (y as f32 + 0.5) / setup.height as f32,
+            ))
+        };
+        if let Some(sum) = color_sum.as_deref_mut()
+            && let Some(total) = sum.get_mut((y * setup.width + x) as usize)
+        {
+            *total += *color;
+            *color = *total / passes;
+        }
+    }
+    drop(color_sum);
+    let hit = |k: usize| {
+        first_hits
+            .get(k)
+            .and_then(Option::as_ref)
+            .map(|(hit, camera_ray, eye_rays)| (hit, camera_ray, *eye_rays))
+    };
+    // Encoded outside the lock; the lock is held only to copy the rows in.
+    for (index, format) in job.formats.iter().enumerate() {
+        let encoded = &mut scratch.encoded;
+        encoded.resize(pixel_count * format.pixel_bytes, 0);
+        format.encode(&colors[..pixel_count], hit, encoded);
+        if let Some(channel) = lock(&job.channels).get_mut(index) {
+            channel.write_area(&area, setup.width, encoded);
+        }
+    }
+}
+
+/// Dubois' least-squares red-cyan anaglyph matrices (rows: output red, green, blue), applied to
+/// linear RGB.
+const ANAGLYPH_LEFT: [[f32; 3]; 3] = [
+    [0.437, 0.449, 0.164],
+    [-0.062, -0.062, -0.024],
+    [-0.048, -0.050, -0.017],
+];
+const ANAGLYPH_RIGHT: [[f32; 3]; 3] = [
+    [-0.011, -0.032, -0.007],
+    [0.377, 0.761, 0.009],
+    [-0.026, -0.093, 1.234],
+];
+
+/// One anaglyph colour from the two eyes' colours, clamped to [0, 1]; the left eye's alpha.
+pub(crate) fn anaglyph(left: Vec4, right: Vec4) -> Vec4 {
+    let row = |k: usize| {
+        let l = ANAGLYPH_LEFT[k];
+        let r = ANAGLYPH_RIGHT[k];
+        (l[0] * left.x
+            + l[1] * left.y
+            + l[2] * left.z
+            + r[0] * right.x
+            + r[1] * right.y
+            + r[2] * right.z)
+            .clamp(0.0, 1.0)
+    };
+    Vec4::new(row(0), row(1), row(2), left.w)
+}
+
+/// Both eyes of an anaglyph frame (each renders every pixel), as one-eye slices.
+fn anaglyph_eyes<'a>(
+    eyes: &'a [(crate::camera::EyeViewport, EyeRays)],
+) -> Option<(
+    &'a [(crate::camera::EyeViewport, EyeRays)],
+    &'a [(crate::camera::EyeViewport, EyeRays)],
+)> {
+    match eyes {
+        [(left, _), (right, _)]
+            if left.pixels == PixelSet::Anaglyph && right.pixels == PixelSet::Anaglyph =>
+        {
+            Some((&eyes[..1], &eyes[1..]))
+        }
+        _ => None,
+    }
+}
+
+/// Traces the tile's pixels from `eyes`, summing each pixel's samples into `colors` and
+/// marking it `covered`; with `record_hits` (and a frame that keeps hits), each pixel's first
+/// hit goes into `scratch.first_hits`.
+#[allow(clippy::too_many_arguments)]
+fn trace_blocks<'a>(
+    job: &Job,
+    eyes: &'a [(crate::camera::EyeViewport, EyeRays)],
+    map: impl TileMap,
+    scratch: &mut TileScratch<'a>,
+    colors: &mut [Vec4; TILE_PIXELS],
+    covered: &mut [bool; TILE_PIXELS],
+    record_hits: bool,
+) {
+    let setup = &job.setup;
+    let area = map.area();
+    let (tx, ty, x_end, y_end) = (area.s0, area.t0, area.s1, area.t1);
+    let tile_width = x_end - tx;
+    let samples = setup.settings.pixel_samples;
+    // The fast renderer's lean path: nothing but colour to compute.
+    let colour_only_fast = setup.settings.fast && !job.keeps_hits && setup.scene.volumes.is_empty();
+    let keeps_hits = job.keeps_hits && record_hits;
+    let first_hits = &mut scratch.first_hits;
     let mut rays = [NO_RAY; 64];
     // Viewport coordinates of a block's rays, for cameras that make them four at a time.
     let mut batch: [Option<(f32, f32)>; 64] = [None; 64];
@@ -924,7 +1039,7 @@ fn render_tile<'a>(
             // Usually one eye's viewport holds the whole block; otherwise look per pixel.
             let block_eye = eyes
                 .iter()
-                .find(|(viewport, _)| viewport_holds(viewport, x0, y0, x1 + 1, y1 + 1));
+                .find(|(viewport, _)| viewport.holds(x0, y0, x1 + 1, y1 + 1));
             // Cameras that blend several viewers make their rays four at a time.
             let batched = block_eye.filter(|(_, eye_rays)| eye_rays.batches_rays());
             if batched.is_some() {
@@ -944,7 +1059,7 @@ fn render_tile<'a>(
                     let (x, y) = map.pixel(sx, sy);
                     let eye = block_eye.or_else(|| {
                         eyes.iter()
-                            .find(|(viewport, _)| viewport_holds(viewport, x, y, x + 1, y + 1))
+                            .find(|(viewport, _)| viewport.holds(x, y, x + 1, y + 1))
                     });
                     let Some((viewport, eye_rays)) = eye else {
                         continue;
@@ -1027,52 +1142,11 @@ fn render_tile<'a>(
                         &LightSampling::for_pixel(index, x, y),
                     );
                     colors[k] += sample.color;
-                    if s == 0 && job.keeps_hits {
+                    if s == 0 && keeps_hits {
                         first_hits[k] = sample.hit.map(|hit| (hit, camera_ray, eye_rays));
                     }
                 }
             }
-        }
-    }
-    let passes = (job.pass + 1) as f32;
-    // Final colours: the samples' mean (the background where no eye looks), then the running
-    // mean over the passes when accumulating.
-    let mut color_sum = job.color_sum.as_ref().map(lock);
-    for (k, color) in colors[..pixel_count].iter_mut().enumerate() {
-        let (sx, sy) = (tx + k as u32 % tile_width, ty + k as u32 / tile_width);
-        if map.skips(sx, sy) {
-            continue;
-        }
-        let (x, y) = map.pixel(sx, sy);
-        *color = if covered[k] {
-            *color / samples as f32
-        } else {
-            setup.settings.background_at(Vec2::new(
-                (x as f32 + 0.5) / setup.width as f32,
-                (y as f32 + 0.5) / setup.height as f32,
-            ))
-        };
-        if let Some(sum) = color_sum.as_deref_mut()
-            && let Some(total) = sum.get_mut((y * setup.width + x) as usize)
-        {
-            *total += *color;
-            *color = *total / passes;
-        }
-    }
-    drop(color_sum);
-    let hit = |k: usize| {
-        first_hits
-            .get(k)
-            .and_then(Option::as_ref)
-            .map(|(hit, camera_ray, eye_rays)| (hit, camera_ray, *eye_rays))
-    };
-    // Encoded outside the lock; the lock is held only to copy the rows in.
-    for (index, format) in job.formats.iter().enumerate() {
-        let encoded = &mut scratch.encoded;
-        encoded.resize(pixel_count * format.pixel_bytes, 0);
-        format.encode(&colors[..pixel_count], hit, encoded);
-        if let Some(channel) = lock(&job.channels).get_mut(index) {
-            channel.write_area(&area, setup.width, encoded);
         }
     }
 }

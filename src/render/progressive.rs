@@ -163,6 +163,10 @@ impl Plan {
             .copied()
             .filter(|v| v.width > 0 && v.height > 0)
             .collect();
+        // Interleaved eyes share one rectangle: its lattices are traced once, each point by
+        // the eye that holds it.
+        let mut viewports = viewports;
+        viewports.dedup_by(|a, b| (a.x, a.y, a.width, a.height) == (b.x, b.y, b.width, b.height));
         let mut units = Vec::new();
         let mut first_unit = [0; LEVELS.len() + 1];
         for (level, &stride) in LEVELS.iter().enumerate() {
