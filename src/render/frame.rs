@@ -958,6 +958,9 @@ fn render_tile<'a>(
     }
 }
 
+/// An eye's viewport with its ray generator for the frame.
+type PreparedEye = (crate::camera::EyeViewport, EyeRays);
+
 /// Dubois' least-squares red-cyan anaglyph matrices (rows: output red, green, blue), applied to
 /// linear RGB.
 const ANAGLYPH_LEFT: [[f32; 3]; 3] = [
@@ -988,12 +991,7 @@ pub(crate) fn anaglyph(left: Vec4, right: Vec4) -> Vec4 {
 }
 
 /// Both eyes of an anaglyph frame (each renders every pixel), as one-eye slices.
-fn anaglyph_eyes<'a>(
-    eyes: &'a [(crate::camera::EyeViewport, EyeRays)],
-) -> Option<(
-    &'a [(crate::camera::EyeViewport, EyeRays)],
-    &'a [(crate::camera::EyeViewport, EyeRays)],
-)> {
+fn anaglyph_eyes(eyes: &[PreparedEye]) -> Option<(&[PreparedEye], &[PreparedEye])> {
     match eyes {
         [(left, _), (right, _)]
             if left.pixels == PixelSet::Anaglyph && right.pixels == PixelSet::Anaglyph =>
