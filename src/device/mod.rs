@@ -3,6 +3,7 @@
 
 pub mod catalog;
 pub mod datatype;
+pub mod memory;
 pub mod object;
 pub mod params;
 pub mod pool;
@@ -203,6 +204,10 @@ impl Device {
                             "cannot allocate {dims:?} elements of {}",
                             type_name(element_type)
                         ),
+                    ),
+                    ArrayError::Exceeds(too_big) => (
+                        ANARI_STATUS_OUT_OF_MEMORY,
+                        format!("{dims:?} elements of {} {too_big}", type_name(element_type)),
                     ),
                 };
                 self.error(

@@ -287,13 +287,22 @@ pub fn render_frame(device: &Device, frame: &Object) {
         completion,
         budget: budget(&params),
     };
-    if !state.start(setup, &device.pool()) {
-        fail(
+    match state.start(setup, &device.pool()) {
+        Ok(()) => {}
+        Err(frame::StartError::Exceeds(too_big)) => fail(
+            ANARI_STATUS_OUT_OF_MEMORY,
+            format!(
+                "the buffers of a {}×{} frame (its channels and accumulation) {too_big}; \
+                 nothing is rendered",
+                size.x, size.y
+            ),
+        ),
+        Err(frame::StartError::OutOfMemory) => fail(
             ANARI_STATUS_OUT_OF_MEMORY,
             format!(
                 "cannot allocate the buffers of a {}×{} frame; nothing is rendered",
                 size.x, size.y
             ),
-        );
+        ),
     }
 }
