@@ -337,7 +337,7 @@ impl Device {
         let Some(value) = self.check_parameter(function, object, name, data_type, value) else {
             return;
         };
-        object.staging().params.set(name, value);
+        object.stage_set(name, value);
     }
 
     /// Validates a parameter against the object's table and resolves handles.
@@ -436,13 +436,13 @@ impl Device {
 
     pub fn unset_parameter(&self, function: &str, handle: usize, name: &str) {
         if let Some(target) = self.target(function, handle) {
-            target.object(self).staging().params.unset(name);
+            target.object(self).stage_unset(name);
         }
     }
 
     pub fn unset_all_parameters(&self, function: &str, handle: usize) {
         if let Some(target) = self.target(function, handle) {
-            target.object(self).staging().params.clear();
+            target.object(self).stage_clear();
         }
     }
 
@@ -521,7 +521,7 @@ impl Device {
             );
             return;
         }
-        object.staging().params.set(
+        object.stage_set(
             name,
             ParamValue::Object {
                 data_type,
@@ -680,7 +680,7 @@ impl Device {
         let pool = self.pool.lock().unwrap_or_else(|e| e.into_inner()).take();
         drop(pool);
         drop(objects);
-        self.self_object.staging().params.clear();
+        self.self_object.stage_clear();
     }
 }
 

@@ -1,6 +1,7 @@
 //! Rendering: renderers (shading), frames (tiles, threads, channels) and colour encoding.
 
 pub mod color;
+pub mod diagnostics;
 pub mod frame;
 pub mod progressive;
 pub mod renderer;
@@ -200,6 +201,7 @@ fn budget(params: &crate::device::params::ParamSet) -> Option<frame::Budget> {
 /// anariRenderFrame: snapshots the committed scene and starts rendering on the device's threads.
 pub fn render_frame(device: &Device, frame: &Object) {
     let Some(state) = &frame.frame else { return };
+    diagnostics::report_uncommitted(device, frame);
     let params = frame.committed();
     let fail = |code, text: String| {
         device.error(code, Some(frame), format!("anariRenderFrame: {text}"));
