@@ -2,6 +2,8 @@
 //! Everything here takes plain Rust values; the C boundary (`crate::capi`) converts arguments.
 
 pub mod catalog;
+#[cfg(test)]
+mod cycle_tests;
 pub mod datatype;
 pub mod memory;
 pub mod object;
@@ -14,7 +16,7 @@ pub mod status;
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, Weak};
 
 use crate::device::datatype::*;
 use crate::device::object::Object;
@@ -37,6 +39,10 @@ pub struct Device {
     pub handle: usize,
     app_references: AtomicU32,
     objects: Mutex<HashMap<usize, Arc<Object>>>,
+    /// Every object created, also those the application released: objects that refer to each
+    /// other (a parameter naming its own object, arrays holding each other) keep one another
+    /// alive, and the device's release breaks those cycles.
+    created: Mutex<Vec<Weak<Object>>>,
     pub status: Arc<StatusSink>,
     /// The device's own parameters (statusCallback, numThreads, …).
     pub self_object: Object,
@@ -62,6 +68,7 @@ impl Device {
             handle,
             app_references: AtomicU32::new(1),
             objects: Mutex::new(HashMap::new()),
+            created: Mutex::new(Vec::new()),
             status: Arc::new(StatusSink::new(handle, callback, user_data)),
             self_object: Object::new(handle, ANARI_DEVICE, "", Some(&catalog::DEVICE), None),
             pool: Mutex::new(None),
@@ -140,10 +147,19 @@ impl Device {
 
     fn register(&self, object: Object) -> usize {
         let handle = object.handle;
+        let object = Arc::new(object);
+        {
+            let mut created = self.created.lock().unwrap_or_else(|e| e.into_inner());
+            // Forgetting the dead now and then keeps the list as long as the live objects.
+            if created.len() >= 1024 && created.len().is_power_of_two() {
+                created.retain(|o| o.strong_count() > 0);
+            }
+            created.push(Arc::downgrade(&object));
+        }
         self.objects
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .insert(handle, Arc::new(object));
+            .insert(handle, object);
         handle
     }
 
@@ -681,6 +697,10 @@ impl Device {
         drop(pool);
         drop(objects);
         self.self_object.stage_clear();
+        let created = std::mem::take(&mut *self.created.lock().unwrap_or_else(|e| e.into_inner()));
+        for object in created.iter().filter_map(Weak::upgrade) {
+            object.break_references();
+        }
     }
 }
 

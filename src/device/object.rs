@@ -199,6 +199,21 @@ impl Object {
         *self.derived.write().unwrap_or_else(|e| e.into_inner()) = derived;
     }
 
+    /// Drops every reference this object holds to others (parameters, derived state, array
+    /// elements): the device's release uses it to free objects that refer to each other.
+    pub fn break_references(&self) {
+        {
+            let mut staging = self.staging();
+            staging.params.clear();
+            staging.mapped_arrays.clear();
+        }
+        *self.committed.write().unwrap_or_else(|e| e.into_inner()) = Arc::default();
+        self.set_derived(None);
+        if let Some(store) = &self.array {
+            store.lock().objects.clear();
+        }
+    }
+
     pub fn retain(&self) {
         self.app_references.fetch_add(1, Ordering::AcqRel);
     }
