@@ -134,10 +134,7 @@ for mode in plain sanitized; do
     -I"$root/include" "${extra[@]}" -o "$exe" "$here/fuzz.c" "${link[@]}" -lpthread; then
     # allocator_may_return_null: the fuzzer asks for arrays of terabytes on purpose; the library
     # allocates fallibly and reports OUT_OF_MEMORY, which ASan would otherwise abort on.
-    # The suppression covers only objects kept alive by reference cycles (a known leak, see
-    # the file); every other leak still fails the run.
     run_program "fuzz ($mode)" env ASAN_OPTIONS=detect_leaks=1:allocator_may_return_null=1 \
-      LSAN_OPTIONS=suppressions="$here/lsan-object-cycles.supp" \
       UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 timeout 300 "$exe"
   else
     record FAIL "fuzz ($mode): does not compile"

@@ -320,8 +320,17 @@ static void null_device_is_refused_without_a_crash(void) {
   /* A pointer that is not a device is refused the same way. */
   int not_a_device;
   CHECK(anariNewWorld(&not_a_device) == NULL);
-  /* There is no device to report through: nothing reaches this device's callback. */
-  CHECK(status_log.count == 0);
+  /* No device to report through: each call is reported through the callback given to
+   * anariLoadLibrary (the only library loaded), naming the function and the handle. */
+  CHECK(status_log.count == 10);
+  CHECK(log_find(ANARI_STATUS_INVALID_ARGUMENT, ANARI_SEVERITY_ERROR, "anariNewGeometry",
+                 "device handle is NULL", NULL));
+  CHECK(log_find(ANARI_STATUS_INVALID_ARGUMENT, ANARI_SEVERITY_ERROR, "anariGetObjectSubtypes",
+                 "device handle is NULL", NULL));
+  const StatusEntry *foreign = log_find(ANARI_STATUS_INVALID_ARGUMENT, ANARI_SEVERITY_ERROR,
+                                        "anariNewWorld", "not a live cavetrace device", NULL);
+  CHECK(foreign && foreign->source == (void *)&not_a_device &&
+        foreign->source_type == ANARI_DEVICE);
   CHECK(cavetraceLiveDeviceCount() >= 1); /* the release with a NULL device did nothing */
   close_device(library, device);
 }

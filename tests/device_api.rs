@@ -539,3 +539,42 @@ fn a_released_shared_array_is_copied_before_the_application_frees_it() {
     release_device(lib, dev);
     assert!(log.errors().is_empty());
 }
+
+#[test]
+fn map_frame_writes_only_the_outputs_it_is_given() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let (geometry, surface, world) = triangle_scene(dev, -2.0);
+    let frame = basic_frame(dev, world, [24, 16]);
+    render_and_wait(dev, frame);
+    let color = c("channel.color");
+    let null = std::ptr::null_mut::<u32>();
+    let no_type = std::ptr::null_mut::<ANARIDataType>();
+    // Every out pointer NULL: the pixels are still returned.
+    let pixels = anariMapFrame(dev, frame, color.as_ptr(), null, null, no_type);
+    assert!(!pixels.is_null());
+    anariUnmapFrame(dev, frame, color.as_ptr());
+    // Each one alone is written; the others stay NULL and are not touched.
+    let mut width = 0u32;
+    assert!(!anariMapFrame(dev, frame, color.as_ptr(), &mut width, null, no_type).is_null());
+    anariUnmapFrame(dev, frame, color.as_ptr());
+    let mut height = 0u32;
+    assert!(!anariMapFrame(dev, frame, color.as_ptr(), null, &mut height, no_type).is_null());
+    anariUnmapFrame(dev, frame, color.as_ptr());
+    let mut pixel_type = ANARI_UNKNOWN;
+    assert!(!anariMapFrame(dev, frame, color.as_ptr(), null, null, &mut pixel_type).is_null());
+    anariUnmapFrame(dev, frame, color.as_ptr());
+    assert_eq!((width, height, pixel_type), (24, 16, ANARI_FLOAT32_VEC4));
+    // A failed map writes 0, 0, ANARI_UNKNOWN to the pointers it has.
+    let missing = c("channel.albedo");
+    let mut width = 7u32;
+    assert!(anariMapFrame(dev, frame, missing.as_ptr(), &mut width, null, no_type).is_null());
+    assert_eq!(width, 0);
+    let errors = log.errors();
+    assert!(
+        errors.len() == 1 && errors[0].1.contains("'channel.albedo' is not available"),
+        "{errors:?}"
+    );
+    release_all(dev, &[geometry, surface, world, frame]);
+    release_device(lib, dev);
+}

@@ -43,24 +43,57 @@ pub(crate) fn guard<R>(
             let text = format!("{function}: internal error ({what}); the call had no effect");
             match registry::device(device as usize) {
                 Some(device) => device.error(ANARI_STATUS_UNKNOWN_ERROR, None, text),
-                None => eprintln!("[cavetrace] error: {text}"),
+                None => report_without_device(device, ANARI_STATUS_UNKNOWN_ERROR, text),
             }
             fallback
         }
     }
 }
 
-/// The live device behind a handle, or a report on stderr (there is no callback to use).
+/// Reports a problem with a call whose device handle is NULL or dead, so the device's own
+/// callback cannot be reached: through the status callback given to anariLoadLibrary when
+/// exactly one library is loaded, on stderr otherwise. The message's device and source are the
+/// handle the application passed.
+pub(crate) fn report_without_device(
+    device: *mut std::ffi::c_void,
+    code: ANARIStatusCode,
+    text: String,
+) {
+    let (callback, user_data) =
+        registry::sole_library().map_or((None, 0), |l| (l.default_callback, l.default_user_data));
+    StatusSink::new(device as usize, callback, user_data).report(&StatusMessage {
+        severity: ANARI_SEVERITY_ERROR,
+        code,
+        source: Source {
+            handle: device as usize,
+            kind: crate::device::datatype::ANARI_DEVICE,
+        },
+        text,
+    });
+}
+
+/// The live device behind a handle, or a report through [`report_without_device`].
 pub(crate) fn device_of(function: &str, device: *mut std::ffi::c_void) -> Option<Arc<Device>> {
     if device.is_null() {
-        eprintln!("[cavetrace] error: {function}: the device handle is NULL");
+        report_without_device(
+            device,
+            ANARI_STATUS_INVALID_ARGUMENT,
+            format!(
+                "{function}: the device handle is NULL (expected a device from anariNewDevice); \
+                 the call has no effect"
+            ),
+        );
         return None;
     }
     let found = registry::device(device as usize);
     if found.is_none() {
-        eprintln!(
-            "[cavetrace] error: {function}: {device:p} is not a live cavetrace device \
-             (never created, or already released)"
+        report_without_device(
+            device,
+            ANARI_STATUS_INVALID_ARGUMENT,
+            format!(
+                "{function}: device {device:p} is not a live cavetrace device (never created, \
+                 or already released); the call has no effect"
+            ),
         );
     }
     found

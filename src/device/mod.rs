@@ -2,7 +2,10 @@
 //! Everything here takes plain Rust values; the C boundary (`crate::capi`) converts arguments.
 
 pub mod catalog;
+#[cfg(test)]
+mod cycle_tests;
 pub mod datatype;
+pub mod memory;
 pub mod object;
 pub mod params;
 pub mod pool;
@@ -13,7 +16,7 @@ pub mod status;
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, Weak};
 
 use crate::device::datatype::*;
 use crate::device::object::Object;
@@ -36,6 +39,10 @@ pub struct Device {
     pub handle: usize,
     app_references: AtomicU32,
     objects: Mutex<HashMap<usize, Arc<Object>>>,
+    /// Every object created, also those the application released: objects that refer to each
+    /// other (a parameter naming its own object, arrays holding each other) keep one another
+    /// alive, and the device's release breaks those cycles.
+    created: Mutex<Vec<Weak<Object>>>,
     pub status: Arc<StatusSink>,
     /// The device's own parameters (statusCallback, numThreads, …).
     pub self_object: Object,
@@ -61,6 +68,7 @@ impl Device {
             handle,
             app_references: AtomicU32::new(1),
             objects: Mutex::new(HashMap::new()),
+            created: Mutex::new(Vec::new()),
             status: Arc::new(StatusSink::new(handle, callback, user_data)),
             self_object: Object::new(handle, ANARI_DEVICE, "", Some(&catalog::DEVICE), None),
             pool: Mutex::new(None),
@@ -139,10 +147,19 @@ impl Device {
 
     fn register(&self, object: Object) -> usize {
         let handle = object.handle;
+        let object = Arc::new(object);
+        {
+            let mut created = self.created.lock().unwrap_or_else(|e| e.into_inner());
+            // Forgetting the dead now and then keeps the list as long as the live objects.
+            if created.len() >= 1024 && created.len().is_power_of_two() {
+                created.retain(|o| o.strong_count() > 0);
+            }
+            created.push(Arc::downgrade(&object));
+        }
         self.objects
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .insert(handle, Arc::new(object));
+            .insert(handle, object);
         handle
     }
 
@@ -203,6 +220,10 @@ impl Device {
                             "cannot allocate {dims:?} elements of {}",
                             type_name(element_type)
                         ),
+                    ),
+                    ArrayError::Exceeds(too_big) => (
+                        ANARI_STATUS_OUT_OF_MEMORY,
+                        format!("{dims:?} elements of {} {too_big}", type_name(element_type)),
                     ),
                 };
                 self.error(
@@ -332,7 +353,7 @@ impl Device {
         let Some(value) = self.check_parameter(function, object, name, data_type, value) else {
             return;
         };
-        object.staging().params.set(name, value);
+        object.stage_set(name, value);
     }
 
     /// Validates a parameter against the object's table and resolves handles.
@@ -431,13 +452,13 @@ impl Device {
 
     pub fn unset_parameter(&self, function: &str, handle: usize, name: &str) {
         if let Some(target) = self.target(function, handle) {
-            target.object(self).staging().params.unset(name);
+            target.object(self).stage_unset(name);
         }
     }
 
     pub fn unset_all_parameters(&self, function: &str, handle: usize) {
         if let Some(target) = self.target(function, handle) {
-            target.object(self).staging().params.clear();
+            target.object(self).stage_clear();
         }
     }
 
@@ -516,7 +537,7 @@ impl Device {
             );
             return;
         }
-        object.staging().params.set(
+        object.stage_set(
             name,
             ParamValue::Object {
                 data_type,
@@ -675,7 +696,11 @@ impl Device {
         let pool = self.pool.lock().unwrap_or_else(|e| e.into_inner()).take();
         drop(pool);
         drop(objects);
-        self.self_object.staging().params.clear();
+        self.self_object.stage_clear();
+        let created = std::mem::take(&mut *self.created.lock().unwrap_or_else(|e| e.into_inner()));
+        for object in created.iter().filter_map(Weak::upgrade) {
+            object.break_references();
+        }
     }
 }
 

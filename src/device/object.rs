@@ -2,8 +2,8 @@
 //! the application's reference count, and the derived state its kind builds at commit.
 
 use std::any::Any;
-use std::collections::HashMap;
-use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::collections::{BTreeSet, HashMap};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, RwLock};
 
 use crate::device::datatype::*;
@@ -15,9 +15,18 @@ use crate::scene::array::ArrayStore;
 /// What the application has set but not yet committed.
 #[derive(Default)]
 pub struct Staging {
-    pub params: ParamSet,
+    params: ParamSet,
     /// Arrays handed out by anariMapParameterArray*, waiting for their unmap.
     pub mapped_arrays: HashMap<String, Arc<Object>>,
+    /// Names set or unset since the last commit (for the render-time diagnostics).
+    touched: BTreeSet<String>,
+}
+
+/// How a parameter's staged value differs from its committed one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Pending {
+    Set,
+    Unset,
 }
 
 /// Derived state built at commit (a geometry's BVH, a camera's model, …).
@@ -34,6 +43,11 @@ pub struct Object {
     staging: Mutex<Staging>,
     committed: RwLock<Arc<ParamSet>>,
     commit_count: AtomicU64,
+    /// Counts staged changes (sets and unsets); `reported_changes` is the count the render-time
+    /// diagnostics last looked at, so that each change is reported once.
+    changes: AtomicU64,
+    reported_changes: AtomicU64,
+    reported_uncommitted: AtomicBool,
     derived: RwLock<Option<Derived>>,
     /// Present for array objects only.
     pub array: Option<ArrayStore>,
@@ -65,6 +79,9 @@ impl Object {
             staging: Mutex::new(Staging::default()),
             committed: RwLock::new(Arc::new(ParamSet::default())),
             commit_count: AtomicU64::new(0),
+            changes: AtomicU64::new(0),
+            reported_changes: AtomicU64::new(0),
+            reported_uncommitted: AtomicBool::new(false),
             derived: RwLock::new(None),
             array,
             frame,
@@ -93,11 +110,73 @@ impl Object {
             .clone()
     }
 
+    /// Stages a parameter value (anariSetParameter, anariUnmapParameterArray).
+    pub fn stage_set(&self, name: &str, value: crate::device::params::ParamValue) {
+        let mut staging = self.staging();
+        staging.params.set(name, value);
+        staging.touched.insert(name.to_owned());
+        self.changes.fetch_add(1, Ordering::AcqRel);
+    }
+
+    /// Stages the removal of a parameter (anariUnsetParameter).
+    pub fn stage_unset(&self, name: &str) {
+        let mut staging = self.staging();
+        staging.params.unset(name);
+        staging.touched.insert(name.to_owned());
+        self.changes.fetch_add(1, Ordering::AcqRel);
+    }
+
+    /// Stages the removal of every parameter (anariUnsetAllParameters).
+    pub fn stage_clear(&self) {
+        let committed = self.committed();
+        let mut staging = self.staging();
+        let names: Vec<String> = staging
+            .params
+            .names()
+            .chain(committed.names())
+            .map(str::to_owned)
+            .collect();
+        staging.touched.extend(names);
+        staging.params.clear();
+        self.changes.fetch_add(1, Ordering::AcqRel);
+    }
+
     /// Snapshots the staged parameters as the committed ones and returns the new count.
     pub fn commit_staged(&self) -> u64 {
-        let snapshot = Arc::new(self.staging().params.clone());
+        let mut staging = self.staging();
+        let snapshot = Arc::new(staging.params.clone());
+        staging.touched.clear();
         *self.committed.write().unwrap_or_else(|e| e.into_inner()) = snapshot;
+        drop(staging);
         self.commit_count.fetch_add(1, Ordering::AcqRel) + 1
+    }
+
+    /// The parameters whose staged value differs from the committed one, when there are
+    /// changes not looked at before (each change is reported once); empty otherwise.
+    pub fn unreported_changes(&self) -> Vec<(String, Pending)> {
+        let changes = self.changes.load(Ordering::Acquire);
+        if self.reported_changes.swap(changes, Ordering::AcqRel) == changes {
+            return Vec::new();
+        }
+        let staging = self.staging();
+        let committed = self.committed();
+        staging
+            .touched
+            .iter()
+            .filter_map(
+                |name| match (staging.params.get(name), committed.get(name)) {
+                    (Some(staged), Some(old)) if staged.same_as(old) => None,
+                    (Some(_), _) => Some((name.clone(), Pending::Set)),
+                    (None, Some(_)) => Some((name.clone(), Pending::Unset)),
+                    (None, None) => None,
+                },
+            )
+            .collect()
+    }
+
+    /// True the first time it is asked (the diagnostics' "never committed" report is made once).
+    pub fn first_report_of_no_commit(&self) -> bool {
+        !self.reported_uncommitted.swap(true, Ordering::AcqRel)
     }
 
     pub fn commit_count(&self) -> u64 {
@@ -118,6 +197,21 @@ impl Object {
 
     pub fn set_derived(&self, derived: Option<Derived>) {
         *self.derived.write().unwrap_or_else(|e| e.into_inner()) = derived;
+    }
+
+    /// Drops every reference this object holds to others (parameters, derived state, array
+    /// elements): the device's release uses it to free objects that refer to each other.
+    pub fn break_references(&self) {
+        {
+            let mut staging = self.staging();
+            staging.params.clear();
+            staging.mapped_arrays.clear();
+        }
+        *self.committed.write().unwrap_or_else(|e| e.into_inner()) = Arc::default();
+        self.set_derived(None);
+        if let Some(store) = &self.array {
+            store.lock().objects.clear();
+        }
     }
 
     pub fn retain(&self) {

@@ -58,6 +58,35 @@ impl ParamValue {
         ParamValue::from_bytes(data_type, &bytes).expect("at most 16 floats")
     }
 
+    /// The same value: equal data, strings and pointers, the same object.
+    pub fn same_as(&self, other: &ParamValue) -> bool {
+        match (self, other) {
+            (
+                ParamValue::Data { data_type, bytes },
+                ParamValue::Data {
+                    data_type: t,
+                    bytes: b,
+                },
+            ) => data_type == t && bytes == b,
+            (ParamValue::String(a), ParamValue::String(b)) => a == b,
+            (
+                ParamValue::Object { data_type, object },
+                ParamValue::Object {
+                    data_type: t,
+                    object: o,
+                },
+            ) => data_type == t && Arc::ptr_eq(object, o),
+            (
+                ParamValue::Pointer { data_type, address },
+                ParamValue::Pointer {
+                    data_type: t,
+                    address: a,
+                },
+            ) => data_type == t && address == a,
+            _ => false,
+        }
+    }
+
     fn data(&self, expected: ANARIDataType) -> Option<&[u8; 64]> {
         match self {
             ParamValue::Data { data_type, bytes } if *data_type == expected => Some(bytes),
@@ -100,6 +129,11 @@ impl ParamSet {
     }
     pub fn names(&self) -> impl Iterator<Item = &str> {
         self.values.keys().map(String::as_str)
+    }
+    pub fn iter(&self) -> impl Iterator<Item = (&str, &ParamValue)> {
+        self.values
+            .iter()
+            .map(|(name, value)| (name.as_str(), value))
     }
     pub fn len(&self) -> usize {
         self.values.len()

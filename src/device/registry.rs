@@ -48,6 +48,17 @@ pub fn library(handle: usize) -> Option<LibraryRecord> {
         .copied()
 }
 
+/// The record of the loaded library when exactly one is loaded: calls on a NULL or dead device
+/// report through its status callback (with several, which one the caller meant is unknown).
+pub fn sole_library() -> Option<LibraryRecord> {
+    let libraries = libraries().lock().unwrap_or_else(|e| e.into_inner());
+    if libraries.len() == 1 {
+        libraries.values().next().copied()
+    } else {
+        None
+    }
+}
+
 pub fn remove_library(handle: usize) -> bool {
     libraries()
         .lock()

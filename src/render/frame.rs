@@ -12,6 +12,7 @@ use glam::{Vec2, Vec3, Vec4};
 use crate::accel::{PacketScratch, Ray};
 use crate::camera::{Camera, CameraRay, EyeRays, PixelSet};
 use crate::device::datatype::*;
+use crate::device::memory::{self, TooBig};
 use crate::device::property::PropertyValue;
 use crate::render::color::{srgb8_encoder, to_snorm16, to_unorm8};
 use crate::render::progressive::{Area, FrameTile, Plan, Throughput, TileMap};
@@ -256,10 +257,56 @@ impl Channel {
     }
 }
 
+/// Why a render could not start.
+#[derive(Debug, PartialEq, Eq)]
+pub enum StartError {
+    /// The new buffers are more than the system has available (checked before allocating).
+    Exceeds(TooBig),
+    /// The allocator refused them.
+    OutOfMemory,
+}
+
+/// Bytes of `pixels` pixels of `pixel_bytes` bytes, or OutOfMemory when that overflows.
+fn buffer_bytes(pixels: usize, pixel_bytes: usize) -> Result<usize, StartError> {
+    pixels
+        .checked_mul(pixel_bytes)
+        .ok_or(StartError::OutOfMemory)
+}
+
+/// Bytes a render will allocate: its channels and accumulation sum, less the buffers of the
+/// last render it can reuse (same size and type).
+fn new_buffer_bytes(setup: &RenderSetup, inner: &Inner) -> Result<u64, StartError> {
+    let pixels = setup.width as usize * setup.height as usize;
+    let same_size = |w: u32, h: u32| w == setup.width && h == setup.height;
+    let previous = inner
+        .output
+        .as_ref()
+        .filter(|o| same_size(o.width, o.height));
+    let mut bytes = 0u64;
+    for (&name, &data_type) in &setup.channels {
+        let reused = previous
+            .and_then(|o| o.channels.get(name))
+            .is_some_and(|(t, _)| *t == data_type);
+        if !reused {
+            let pixel_bytes = element_size(data_type).unwrap_or(0);
+            bytes = bytes.saturating_add(buffer_bytes(pixels, pixel_bytes)? as u64);
+        }
+    }
+    let sum_reused = matches!(&inner.accumulation, Some((_, _, _, w, h)) if same_size(*w, *h));
+    if setup.accumulate && !sum_reused {
+        let sum = buffer_bytes(pixels, std::mem::size_of::<Vec4>())?;
+        bytes = bytes.saturating_add(sum as u64);
+    }
+    Ok(bytes)
+}
+
 /// The channels of a render: the previous render's buffers when nobody has them mapped and
 /// they fit (a head-tracked application renders the same frame again and again), otherwise
-/// new ones. `None` when memory runs out.
-fn allocate_channels(setup: &RenderSetup, previous: Option<Output>) -> Option<Vec<Channel>> {
+/// new ones.
+fn allocate_channels(
+    setup: &RenderSetup,
+    previous: Option<Output>,
+) -> Result<Vec<Channel>, StartError> {
     let pixels = setup.width as usize * setup.height as usize;
     let mut reusable = match previous {
         Some(output) if output.width == setup.width && output.height == setup.height => {
@@ -269,14 +316,18 @@ fn allocate_channels(setup: &RenderSetup, previous: Option<Output>) -> Option<Ve
     };
     let mut channels = Vec::new();
     for (&name, &data_type) in &setup.channels {
-        let kind = ChannelKind::of(name)?;
-        let pixel_bytes = element_size(data_type)?;
+        let (Some(kind), Some(pixel_bytes)) = (ChannelKind::of(name), element_size(data_type))
+        else {
+            continue;
+        };
         let bytes = match reusable.remove(name) {
             Some((previous_type, bytes)) if previous_type == data_type => bytes,
             _ => {
-                let length = pixels.checked_mul(pixel_bytes)?;
+                let length = buffer_bytes(pixels, pixel_bytes)?;
                 let mut bytes = Vec::new();
-                bytes.try_reserve_exact(length).ok()?;
+                bytes
+                    .try_reserve_exact(length)
+                    .map_err(|_| StartError::OutOfMemory)?;
                 bytes.resize(length, 0);
                 bytes
             }
@@ -291,7 +342,7 @@ fn allocate_channels(setup: &RenderSetup, previous: Option<Output>) -> Option<Ve
             bytes,
         });
     }
-    Some(channels)
+    Ok(channels)
 }
 
 /// Encoded channels of a finished render; mapped pointers point into these.
@@ -453,18 +504,22 @@ impl FrameState {
         }
     }
 
-    /// Starts a render. `pixels` was checked by the caller; allocation failure returns false.
+    /// Starts a render. The size was checked by the caller; buffers beyond the memory available
+    /// or refused by the allocator are an error, and nothing is rendered.
     pub fn start(
         self: &Arc<Self>,
         setup: RenderSetup,
         pool: &crate::device::pool::WorkerPool,
-    ) -> bool {
+    ) -> Result<(), StartError> {
         // One render per frame at a time: a second request waits for the first.
         self.wait();
         let pixels = setup.width as usize * setup.height as usize;
         let threads = pool.thread_count();
         let (pass, color_sum, previous_output, budgeted) = {
             let mut inner = self.lock();
+            // Everything new is checked against the memory available before any of it is
+            // allocated (the allocator alone may promise memory the zero-filling cannot get).
+            memory::check(new_buffer_bytes(&setup, &inner)?).map_err(StartError::Exceeds)?;
             let budgeted = budgeted_run(&setup, &mut inner, threads);
             let (pass, sum) = match inner.accumulation.take() {
                 Some((sum, passes, version, w, h))
@@ -477,9 +532,8 @@ impl FrameState {
                 }
                 _ if setup.accumulate => {
                     let mut sum = Vec::new();
-                    if sum.try_reserve_exact(pixels).is_err() {
-                        return false;
-                    }
+                    sum.try_reserve_exact(pixels)
+                        .map_err(|_| StartError::OutOfMemory)?;
                     sum.resize(pixels, Vec4::ZERO);
                     (0, Some(sum))
                 }
@@ -503,9 +557,7 @@ impl FrameState {
             };
             (pass, sum, previous, budgeted)
         };
-        let Some(channels) = allocate_channels(&setup, previous_output) else {
-            return false;
-        };
+        let channels = allocate_channels(&setup, previous_output)?;
         let tiles_x = setup.width.div_ceil(TILE_SIZE);
         let tiles_y = setup.height.div_ceil(TILE_SIZE);
         let workers = threads;
@@ -531,7 +583,7 @@ impl FrameState {
             let job = Arc::clone(&job);
             pool.submit(move || frame.work(&job));
         }
-        true
+        Ok(())
     }
 
     /// One worker's share: tiles until none are left, then the last worker finishes the frame.

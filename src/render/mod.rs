@@ -1,6 +1,7 @@
 //! Rendering: renderers (shading), frames (tiles, threads, channels) and colour encoding.
 
 pub mod color;
+pub mod diagnostics;
 pub mod frame;
 pub mod progressive;
 pub mod renderer;
@@ -212,6 +213,7 @@ fn budget(params: &crate::device::params::ParamSet) -> Option<frame::Budget> {
 /// anariRenderFrame: snapshots the committed scene and starts rendering on the device's threads.
 pub fn render_frame(device: &Device, frame: &Object) {
     let Some(state) = &frame.frame else { return };
+    diagnostics::report_uncommitted(device, frame);
     let params = frame.committed();
     let fail = |code, text: String| {
         device.error(code, Some(frame), format!("anariRenderFrame: {text}"));
@@ -299,13 +301,22 @@ pub fn render_frame(device: &Device, frame: &Object) {
         completion,
         budget: budget(&params),
     };
-    if !state.start(setup, &device.pool()) {
-        fail(
+    match state.start(setup, &device.pool()) {
+        Ok(()) => {}
+        Err(frame::StartError::Exceeds(too_big)) => fail(
+            ANARI_STATUS_OUT_OF_MEMORY,
+            format!(
+                "the buffers of a {}×{} frame (its channels and accumulation) {too_big}; \
+                 nothing is rendered",
+                size.x, size.y
+            ),
+        ),
+        Err(frame::StartError::OutOfMemory) => fail(
             ANARI_STATUS_OUT_OF_MEMORY,
             format!(
                 "cannot allocate the buffers of a {}×{} frame; nothing is rendered",
                 size.x, size.y
             ),
-        );
+        ),
     }
 }

@@ -44,6 +44,8 @@ pub enum ArrayError {
     InvalidType,
     TooLarge,
     OutOfMemory,
+    /// More than the system has available (checked before allocating).
+    Exceeds(crate::device::memory::TooBig),
 }
 
 impl ArrayStore {
@@ -66,6 +68,7 @@ impl ArrayStore {
             .filter(|b| *b <= isize::MAX as u64)
             .ok_or(ArrayError::TooLarge)? as usize;
         let storage = if app_memory.is_null() {
+            crate::device::memory::check(bytes as u64).map_err(ArrayError::Exceeds)?;
             let words = bytes.div_ceil(8);
             let mut memory: Vec<u64> = Vec::new();
             memory

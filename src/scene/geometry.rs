@@ -505,6 +505,18 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
         "curve" => Shape::Curve,
         _ => return None,
     };
+    if let Err(refusal) = crate::scene::limits::check_geometry(&params) {
+        device.error(
+            refusal.code,
+            Some(object),
+            format!(
+                "anariCommitParameters: {} {}; nothing is rendered",
+                object.describe(),
+                refusal.reason
+            ),
+        );
+        return None;
+    }
     let Some(positions) = array(&params, "vertex.position").and_then(|a| a.read_vec3()) else {
         problems.report(
             "has no 'vertex.position' array of ANARI_FLOAT32_VEC3; nothing is rendered".into(),

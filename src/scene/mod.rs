@@ -7,6 +7,7 @@ pub mod geometry;
 pub mod group;
 pub mod instance;
 pub mod light;
+pub mod limits;
 pub mod material;
 pub mod sampler;
 pub mod spatial_field;
