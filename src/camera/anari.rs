@@ -606,7 +606,7 @@ mod tests {
     #[test]
     fn bad_values_are_reported_with_their_parameter() {
         let mut set = ParamSet::default();
-        set.set("stereoMode", ParamValue::String("anaglyph".into()));
+        set.set("stereoMode", ParamValue::String("hologram".into()));
         assert_eq!(
             camera_from_params("perspective", &set)
                 .unwrap_err()
@@ -647,6 +647,7 @@ mod tests {
                     "near",
                     "far",
                     "stereoMode",
+                    "interleaveStartRight",
                     "interpupillaryDistance",
                     "apertureRadius",
                     "focusDistance",
@@ -675,6 +676,7 @@ mod tests {
                     "position",
                     "right",
                     "stereoMode",
+                    "interleaveStartRight",
                     "interpupillaryDistance",
                     "near",
                     "far",
