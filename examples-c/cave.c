@@ -35,7 +35,9 @@
  * false colour: blue in front of the wall, green behind it, red beyond the comfort limit of
  * 0.03 × the head's distance to the wall) and a glossy gold sphere lit per eye and from the
  * point between the eyes (glossy_perEye_pair.png, glossy_cyclopean_pair.png;
- * ANARI_CAVETRACE_RENDERER_STEREO_LIGHTING).
+ * ANARI_CAVETRACE_RENDERER_STEREO_LIGHTING), and the front wall for passive 3D displays and
+ * red-cyan glasses (ANARI_CAVETRACE_STEREO_INTERLEAVED): front_rowInterleaved.png,
+ * front_checkerboard.png, front_anaglyph.png.
  *
  *   cc -std=c99 cave.c $(pkg-config --cflags --libs cavetrace) -lm -o cave
  *   ./cave [folder (default out/cave)] [wall resolution (default 256)] [head positions (4)]
@@ -767,6 +769,20 @@ int main(int argc, char **argv) {
       snprintf(name, sizeof name, "glossy_%s_pair.png", lightings[l]);
       ok &= write_png(device, stereo_folder, name, 2 * n, n, pair);
     }
+    /* Passive 3D displays and red-cyan glasses: the front wall, one frame of one eye's size. */
+    const char *interleaved[3] = {"rowInterleaved", "checkerboard", "anaglyph"};
+    ANARICamera shared_camera = anariNewCamera(device, "offAxis");
+    for (int m = 0; m < 3; m++) {
+      front_wall_camera(device, shared_camera, head, right, interleaved[m]);
+      render(device, eye_frame, shared_camera, NULL, 0);
+      char name[64];
+      snprintf(name, sizeof name, "front_%s.png", interleaved[m]);
+      char path[2048];
+      snprintf(path, sizeof path, "%s/%s", stereo_folder, name);
+      ok &= cavetraceWriteFramePNG(device, eye_frame, "channel.color", path) ==
+            ANARI_STATUS_NO_ERROR;
+    }
+    anariRelease(device, shared_camera);
     printf("stereo images in %s/\n", stereo_folder);
     ANARIObject stereo_objects[] = {mono_camera, pair_camera, glossy, lit, glossy_frame};
     for (size_t i = 0; i < sizeof stereo_objects / sizeof stereo_objects[0]; i++)

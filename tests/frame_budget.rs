@@ -150,7 +150,14 @@ fn a_converged_budgeted_frame_equals_the_unbudgeted_frame_in_every_channel() {
     let world = scene(dev);
     let size = [70, 45];
     for renderer_type in ["fast", "default"] {
-        for stereo in ["none", "sideBySide", "topBottom"] {
+        for stereo in [
+            "none",
+            "sideBySide",
+            "topBottom",
+            "rowInterleaved",
+            "checkerboard",
+            "anaglyph",
+        ] {
             let what = format!("{renderer_type} {stereo}");
             let camera = off_axis(dev, stereo, HEAD);
             let renderer = plain_renderer(dev, renderer_type);

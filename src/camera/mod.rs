@@ -286,6 +286,19 @@ pub struct EyeViewport {
 }
 
 impl EyeViewport {
+    /// Whether the eye renders every pixel of `[x0, x1) × [y0, y1)`, a block whose pixels are
+    /// all drawn from `set`.
+    #[inline]
+    pub fn holds_block(&self, x0: u32, y0: u32, x1: u32, y1: u32, set: PixelSet) -> bool {
+        let inside =
+            x0 >= self.x && y0 >= self.y && x1 <= self.x + self.width && y1 <= self.y + self.height;
+        inside
+            && match self.pixels {
+                PixelSet::All | PixelSet::Anaglyph => true,
+                own => own == set || (x1 == x0 + 1 && y1 == y0 + 1 && own.holds(x0, y0)),
+            }
+    }
+
     /// Whether the eye renders every pixel of `[x0, x1) × [y0, y1)`.
     #[inline]
     pub fn holds(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> bool {

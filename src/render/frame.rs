@@ -15,7 +15,8 @@ use crate::device::datatype::*;
 use crate::device::memory::{self, TooBig};
 use crate::device::property::PropertyValue;
 use crate::render::color::{srgb8_encoder, to_snorm16, to_unorm8};
-use crate::render::progressive::{Area, FrameTile, Plan, Throughput, TileMap};
+use crate::render::interleave::{InterleavedTile, lattice_size};
+use crate::render::progressive::{FrameTile, Plan, Throughput, TileMap};
 use crate::render::renderer::{PrimaryHit, RendererSettings, fast_surface_color, shade_primary_at};
 use crate::scene::light::LightSampling;
 use crate::scene::world::SceneSnapshot;
@@ -219,11 +220,11 @@ struct Channel {
 }
 
 impl Channel {
-    /// Copies the encoded pixels of `area` (in its order) to their places in a frame
+    /// Copies the encoded pixels of `map`'s tile (in its order) to their places in a frame
     /// `frame_width` pixels wide.
-    fn write_area(&mut self, area: &Area, frame_width: u32, tile: &[u8]) {
-        if area.lattice.stride == 1 && !area.skips_coarser {
-            let (x0, y0) = area.lattice.pixel(area.s0, area.t0);
+    fn write_area(&mut self, map: &impl TileMap, frame_width: u32, tile: &[u8]) {
+        let area = map.area();
+        if let Some((x0, y0)) = map.rectangle_origin() {
             self.write_tile(x0, y0, area.s1 - area.s0, frame_width, tile);
             return;
         }
@@ -232,10 +233,10 @@ impl Channel {
         for (k, source) in tile.chunks_exact(bytes).enumerate() {
             let s = area.s0 + (k % width) as u32;
             let t = area.t0 + (k / width) as u32;
-            if area.skips(s, t) {
+            if map.skips(s, t) {
                 continue;
             }
-            let (x, y) = area.lattice.pixel(s, t);
+            let (x, y) = map.pixel(s, t);
             let start = (y as usize * frame_width as usize + x as usize) * bytes;
             if let Some(target) = self.bytes.get_mut(start..start + bytes) {
                 target.copy_from_slice(source);
@@ -358,6 +359,8 @@ struct Job {
     next_tile: AtomicUsize,
     tiles_x: u32,
     tile_count: usize,
+    /// Interleaved stereo: the two eyes' pixel sets, each traced as a lattice of its own.
+    interleave: Option<[PixelSet; 2]>,
     workers_left: AtomicUsize,
     /// Threads rendering this job.
     workers: usize,
@@ -415,6 +418,26 @@ struct Refinement {
 }
 
 impl Job {
+    /// Tile `tile` of an unbudgeted interleaved render: the eyes' lattice tiles alternate.
+    fn interleaved_tile(&self, tile: usize, sets: [PixelSet; 2]) -> InterleavedTile {
+        let set = sets[tile % 2];
+        let (width, height) = lattice_size(set, self.setup.width, self.setup.height);
+        let tile = tile as u32 / 2;
+        let (s0, t0) = (
+            (tile % self.tiles_x) * TILE_SIZE,
+            (tile / self.tiles_x) * TILE_SIZE,
+        );
+        InterleavedTile {
+            set,
+            s0,
+            t0,
+            s1: (s0 + TILE_SIZE).min(width),
+            t1: (t0 + TILE_SIZE).min(height),
+            width: self.setup.width,
+            height: self.setup.height,
+        }
+    }
+
     /// Tile `tile` of an unbudgeted render: a square of the whole frame.
     fn frame_tile(&self, tile: usize) -> FrameTile {
         let x0 = (tile as u32 % self.tiles_x) * TILE_SIZE;
@@ -558,15 +581,25 @@ impl FrameState {
             (pass, sum, previous, budgeted)
         };
         let channels = allocate_channels(&setup, previous_output)?;
-        let tiles_x = setup.width.div_ceil(TILE_SIZE);
-        let tiles_y = setup.height.div_ceil(TILE_SIZE);
+        let interleave = interleaved_sets(&setup);
+        // Interleaved eyes are traced as lattices of their own pixels, both of one size.
+        let (lattice_width, lattice_height, eyes) = match interleave {
+            Some(sets) => {
+                let (width, height) = lattice_size(sets[0], setup.width, setup.height);
+                (width, height, 2)
+            }
+            None => (setup.width, setup.height, 1),
+        };
+        let tiles_x = lattice_width.div_ceil(TILE_SIZE);
+        let tiles_y = lattice_height.div_ceil(TILE_SIZE);
         let workers = threads;
         let job = Arc::new(Job {
             setup,
             cancel: AtomicBool::new(false),
             next_tile: AtomicUsize::new(0),
             tiles_x,
-            tile_count: (tiles_x * tiles_y) as usize,
+            tile_count: (tiles_x * tiles_y * eyes) as usize,
+            interleave,
             workers_left: AtomicUsize::new(workers),
             workers,
             keeps_hits: channels.iter().any(|c| c.format.kind != ChannelKind::Color),
@@ -594,7 +627,12 @@ impl FrameState {
             let next = job.next_tile.fetch_add(1, Ordering::AcqRel);
             match &job.budgeted {
                 None if next >= job.tile_count => break,
-                None => render_tile(job, &eyes, job.frame_tile(next), &mut scratch),
+                None => match job.interleave {
+                    Some(sets) => {
+                        render_tile(job, &eyes, job.interleaved_tile(next, sets), &mut scratch)
+                    }
+                    None => render_tile(job, &eyes, job.frame_tile(next), &mut scratch),
+                },
                 Some(run) => {
                     let index = run.start + next;
                     if run.declines(index) {
@@ -809,6 +847,18 @@ fn budgeted_run(setup: &RenderSetup, inner: &mut Inner, threads: usize) -> Optio
     })
 }
 
+/// The two eyes' pixel sets of an interleaved stereo frame.
+fn interleaved_sets(setup: &RenderSetup) -> Option<[PixelSet; 2]> {
+    let viewports = setup.camera.as_ref()?.viewports(setup.width, setup.height);
+    match viewports.as_slice() {
+        [left, right] => match (left.pixels, right.pixels) {
+            (PixelSet::All, _) | (PixelSet::Anaglyph, _) => None,
+            (left, right) => Some([left, right]),
+        },
+        _ => None,
+    }
+}
+
 /// Per-eye ray generators for the frame's viewports.
 fn prepare_eyes(setup: &RenderSetup) -> Vec<(crate::camera::EyeViewport, EyeRays)> {
     match &setup.camera {
@@ -1005,7 +1055,7 @@ fn render_tile<'a>(
         encoded.resize(pixel_count * format.pixel_bytes, 0);
         format.encode(&colors[..pixel_count], hit, encoded);
         if let Some(channel) = lock(&job.channels).get_mut(index) {
-            channel.write_area(&area, setup.width, encoded);
+            channel.write_area(&map, setup.width, encoded);
         }
     }
 }
@@ -1089,7 +1139,7 @@ fn trace_blocks<'a>(
             // Usually one eye's viewport holds the whole block; otherwise look per pixel.
             let block_eye = eyes
                 .iter()
-                .find(|(viewport, _)| viewport.holds(x0, y0, x1 + 1, y1 + 1));
+                .find(|(viewport, _)| viewport.holds_block(x0, y0, x1 + 1, y1 + 1, map.pixels()));
             // Cameras that blend several viewers make their rays four at a time.
             let batched = block_eye.filter(|(_, eye_rays)| eye_rays.batches_rays());
             if batched.is_some() {

@@ -3,6 +3,7 @@
 pub mod color;
 pub mod diagnostics;
 pub mod frame;
+pub mod interleave;
 pub mod progressive;
 pub mod renderer;
 

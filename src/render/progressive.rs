@@ -16,7 +16,7 @@
 //! Untraced pixels copy every channel from the nearest pixel traced so far (never blended:
 //! ids and depths stay values that exist in the scene).
 
-use crate::camera::EyeViewport;
+use crate::camera::{EyeViewport, PixelSet};
 
 /// Side, in lattice points, of one unit's tile.
 const UNIT_TILE: u32 = 32;
@@ -89,6 +89,13 @@ pub trait TileMap: Copy {
     fn pixel(&self, s: u32, t: u32) -> (u32, u32);
     fn skips(&self, s: u32, t: u32) -> bool;
     fn stride(&self) -> u32;
+    /// The frame pixel of the tile's first point when its points are a plain rectangle of
+    /// pixels (written row by row), `None` otherwise.
+    fn rectangle_origin(&self) -> Option<(u32, u32)>;
+    /// The pixels the tile's points are drawn from: an interleaved eye's, or all.
+    fn pixels(&self) -> PixelSet {
+        PixelSet::All
+    }
 }
 
 impl TileMap for Area {
@@ -105,6 +112,10 @@ impl TileMap for Area {
     }
     fn stride(&self) -> u32 {
         self.lattice.stride
+    }
+    fn rectangle_origin(&self) -> Option<(u32, u32)> {
+        (self.lattice.stride == 1 && !self.skips_coarser)
+            .then(|| self.lattice.pixel(self.s0, self.t0))
     }
 }
 
@@ -138,6 +149,9 @@ impl TileMap for FrameTile {
     }
     fn stride(&self) -> u32 {
         1
+    }
+    fn rectangle_origin(&self) -> Option<(u32, u32)> {
+        Some((self.x0, self.y0))
     }
 }
 
