@@ -541,6 +541,51 @@ static void wrong_parameter_types_name_object_parameter_and_types(void) {
   release_scene(&s);
 }
 
+/* What applications written for other devices send: ANARI_ARRAY and ANARI_OBJECT as the
+ * declared type, and object arrays of ANARI_OBJECT elements; checked by the handles' real kinds. */
+static void generic_handle_and_element_types_are_taken_by_their_real_kind(void) {
+  Scene s = red_square_scene();
+  /* The square's geometry again, from a vertex array declared ANARI_OBJECT; the surface's
+   * geometry and material declared ANARI_OBJECT. */
+  static const float square[18] = {-1, -1, -2, 1, -1, -2, 1, 1, -2, -1, -1, -2, 1, 1, -2, -1, 1, -2};
+  ANARIArray1D positions = managed_array(s.device, ANARI_FLOAT32_VEC3, square, 6, 12);
+  ANARIGeometry geometry = anariNewGeometry(s.device, "triangle");
+  anariSetParameter(s.device, geometry, "vertex.position", ANARI_OBJECT, &positions);
+  anariCommitParameters(s.device, geometry);
+  ANARISurface surface = anariNewSurface(s.device);
+  anariSetParameter(s.device, surface, "geometry", ANARI_OBJECT, &geometry);
+  anariSetParameter(s.device, surface, "material", ANARI_OBJECT, &s.material);
+  uint32_t id = 4;
+  anariSetParameter(s.device, surface, "id", ANARI_UINT32, &id);
+  anariCommitParameters(s.device, surface);
+  /* The world's surfaces as ANARI_ARRAY of ANARI_OBJECT elements, one of them a material. */
+  ANARIObject elements[2] = {s.material, surface};
+  ANARIArray1D surfaces = object_array(s.device, ANARI_OBJECT, elements, 2);
+  anariSetParameter(s.device, s.world, "surface", ANARI_ARRAY, &surfaces);
+  CHECK(log_find(ANARI_STATUS_INVALID_ARGUMENT, ANARI_SEVERITY_ERROR, "world", "'surface'",
+                 "element 0", "ANARI_MATERIAL", NULL));
+  CHECK(log_error_count() == 1);
+  anariCommitParameters(s.device, s.world);
+  render_and_wait(s.device, s.frame);
+  uint32_t *ids = copy_channel(s.device, s.frame, "channel.objectId", ANARI_UINT32, 4, NULL, NULL);
+  CHECK(ids && pixel_id(ids, 16, 8, 8) == 4); /* the surface renders, the material is left out */
+  free(ids);
+  /* A real kind that does not fit is still refused. */
+  log_clear();
+  anariSetParameter(s.device, surface, "material", ANARI_OBJECT, &geometry);
+  CHECK(log_find(ANARI_STATUS_INVALID_ARGUMENT, ANARI_SEVERITY_ERROR, "'material'",
+                 "ANARI_GEOMETRY", "ANARI_MATERIAL", NULL));
+  ANARIArray2D image = anariNewArray2D(s.device, NULL, NULL, NULL, ANARI_FLOAT32_VEC3, 2, 2);
+  anariSetParameter(s.device, geometry, "vertex.position", ANARI_ARRAY, &image);
+  CHECK(log_find(ANARI_STATUS_INVALID_ARGUMENT, ANARI_SEVERITY_ERROR, "'vertex.position'",
+                 "ANARI_ARRAY2D", "ANARI_ARRAY1D", NULL));
+  CHECK(log_error_count() == 2);
+  ANARIObject objects[] = {positions, geometry, surface, surfaces, image};
+  for (size_t i = 0; i < sizeof objects / sizeof objects[0]; i++)
+    anariRelease(s.device, objects[i]);
+  release_scene(&s);
+}
+
 static void frame_misuse_is_reported(void) {
   Scene s = red_square_scene();
   render_and_wait(s.device, s.frame);
@@ -620,6 +665,8 @@ int main(void) {
   run_test("overflowing_array_sizes_are_out_of_memory", overflowing_array_sizes_are_out_of_memory);
   run_test("wrong_parameter_types_name_object_parameter_and_types",
            wrong_parameter_types_name_object_parameter_and_types);
+  run_test("generic_handle_and_element_types_are_taken_by_their_real_kind",
+           generic_handle_and_element_types_are_taken_by_their_real_kind);
   run_test("frame_misuse_is_reported", frame_misuse_is_reported);
   run_test("library_module_and_device_names_are_checked",
            library_module_and_device_names_are_checked);

@@ -374,9 +374,10 @@ impl Device {
             );
             return None;
         }
+        let param = object.spec.and_then(|spec| spec.param(name));
         if let Some(spec) = object.spec {
             match spec.param(name) {
-                Some(param) if !param.types.contains(&data_type) => {
+                Some(param) if !accepts_declared(param.types, data_type) => {
                     let accepted: Vec<&str> = param.types.iter().map(|t| type_name(*t)).collect();
                     self.error(
                         ANARI_STATUS_INVALID_ARGUMENT,
@@ -421,22 +422,34 @@ impl Device {
                     );
                     return None;
                 }
-                if let (Some(param), Some(store)) =
-                    (object.spec.and_then(|s| s.param(name)), &target.array)
-                    && !param.element_types.is_empty()
-                    && !param.element_types.contains(&store.element_type)
+                // A generic declaration (ANARI_OBJECT, ANARI_ARRAY) is checked by what the
+                // handle really is, and stored as that.
+                let data_type = match param {
+                    Some(param) if data_type != target.kind => {
+                        if !param.types.contains(&target.kind) {
+                            let accepted: Vec<&str> =
+                                param.types.iter().map(|t| type_name(*t)).collect();
+                            self.error(
+                                ANARI_STATUS_INVALID_ARGUMENT,
+                                Some(object),
+                                format!(
+                                    "{what}: declared {}, the handle is a {} ({}), accepted {}; \
+                                     ignored",
+                                    type_name(data_type),
+                                    target.describe(),
+                                    type_name(target.kind),
+                                    accepted.join(" or ")
+                                ),
+                            );
+                            return None;
+                        }
+                        target.kind
+                    }
+                    _ => data_type,
+                };
+                if let (Some(param), Some(store)) = (param, &target.array)
+                    && !self.elements_accepted(&what, object, param.element_types, store)
                 {
-                    let accepted: Vec<&str> =
-                        param.element_types.iter().map(|t| type_name(*t)).collect();
-                    self.error(
-                        ANARI_STATUS_INVALID_ARGUMENT,
-                        Some(object),
-                        format!(
-                            "{what}: array elements are {}, accepted {}; ignored",
-                            type_name(store.element_type),
-                            accepted.join(" or ")
-                        ),
-                    );
                     return None;
                 }
                 Some(ParamValue::Object {
@@ -447,6 +460,67 @@ impl Device {
             IncomingValue::String(s) => Some(ParamValue::String(s)),
             IncomingValue::Pointer(address) => Some(ParamValue::Pointer { data_type, address }),
             IncomingValue::Data(bytes) => ParamValue::from_bytes(data_type, &bytes),
+        }
+    }
+
+    /// Whether an array with `store`'s elements may be the value of a parameter whose elements
+    /// must be `accepted` (any, when empty). Generic `ANARI_OBJECT` elements where objects are
+    /// expected are checked one by one: those of another kind, or released, are reported by
+    /// index and left out by the consumers, and the array is taken.
+    fn elements_accepted(
+        &self,
+        what: &str,
+        object: &Object,
+        accepted: &[ANARIDataType],
+        store: &ArrayStore,
+    ) -> bool {
+        if accepted.is_empty() || accepted.contains(&store.element_type) {
+            return true;
+        }
+        if store.element_type == ANARI_OBJECT && accepted.iter().all(|t| is_object(*t)) {
+            self.report_generic_elements(what, object, store, accepted);
+            return true;
+        }
+        let names: Vec<&str> = accepted.iter().map(|t| type_name(*t)).collect();
+        self.error(
+            ANARI_STATUS_INVALID_ARGUMENT,
+            Some(object),
+            format!(
+                "{what}: array elements are {}, accepted {}; ignored",
+                type_name(store.element_type),
+                names.join(" or ")
+            ),
+        );
+        false
+    }
+
+    /// Reports the elements of an `ANARI_OBJECT` array that are not of an `accepted` kind or not
+    /// live, by index; the consumers leave those out.
+    fn report_generic_elements(
+        &self,
+        what: &str,
+        object: &Object,
+        store: &ArrayStore,
+        accepted: &[ANARIDataType],
+    ) {
+        let names: Vec<&str> = accepted.iter().map(|t| type_name(*t)).collect();
+        for (index, handle) in store.handle_values().into_iter().enumerate() {
+            let problem = match self.lookup(handle) {
+                Some(element) if accepted.contains(&element.kind) => continue,
+                Some(element) => {
+                    format!("is a {} ({})", element.describe(), type_name(element.kind))
+                }
+                None => format!("({handle:#x}) is not a live object of this device"),
+            };
+            self.error(
+                ANARI_STATUS_INVALID_ARGUMENT,
+                Some(object),
+                format!(
+                    "{what}: element {index} of the ANARI_OBJECT array {problem}, accepted {}; \
+                     it is left out",
+                    names.join(" or ")
+                ),
+            );
         }
     }
 
@@ -523,19 +597,25 @@ impl Device {
         }
         self.resolve_array_objects(function, &array);
         let data_type = array.kind;
-        if let Some(param) = object.spec.and_then(|s| s.param(name))
-            && !param.types.contains(&data_type)
-        {
-            self.error(
-                ANARI_STATUS_INVALID_ARGUMENT,
-                Some(object),
-                format!(
-                    "{function}: {} parameter '{name}' does not accept {}; ignored",
-                    object.describe(),
-                    type_name(data_type)
-                ),
-            );
-            return;
+        if let Some(param) = object.spec.and_then(|s| s.param(name)) {
+            if !param.types.contains(&data_type) {
+                self.error(
+                    ANARI_STATUS_INVALID_ARGUMENT,
+                    Some(object),
+                    format!(
+                        "{function}: {} parameter '{name}' does not accept {}; ignored",
+                        object.describe(),
+                        type_name(data_type)
+                    ),
+                );
+                return;
+            }
+            let what = format!("{function}: {} parameter '{name}'", object.describe());
+            if let Some(store) = &array.array
+                && !self.elements_accepted(&what, object, param.element_types, store)
+            {
+                return;
+            }
         }
         object.stage_set(
             name,
@@ -721,4 +801,13 @@ impl Target {
 /// The spec of an object kind without subtypes, for messages and defaults.
 pub fn kind_spec(kind: ANARIDataType) -> Option<&'static ObjectSpec> {
     catalog::find(kind, "")
+}
+
+/// Whether a parameter declared `types` takes a value declared `data_type`: one of them, or the
+/// generic `ANARI_ARRAY` / `ANARI_OBJECT` where it takes an array / an object (the handle's real
+/// kind is checked when it is resolved).
+fn accepts_declared(types: &[ANARIDataType], data_type: ANARIDataType) -> bool {
+    types.contains(&data_type)
+        || (data_type == ANARI_ARRAY && types.iter().any(|t| is_array(*t)))
+        || (data_type == ANARI_OBJECT && types.iter().any(|t| is_object(*t)))
 }

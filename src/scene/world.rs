@@ -102,11 +102,15 @@ impl SceneSnapshot {
     }
 }
 
-fn objects_of(params: &ParamSet, name: &str) -> Vec<Arc<Object>> {
-    params
+/// The objects of kind `kind` in the object array `name` (an array of generic `ANARI_OBJECT`
+/// elements may hold others, reported when it was set; they are left out).
+fn objects_of(params: &ParamSet, name: &str, kind: ANARIDataType) -> Vec<Arc<Object>> {
+    let mut objects = params
         .get_object(name)
         .and_then(|o| o.array.as_ref().map(|a| a.objects()))
-        .unwrap_or_default()
+        .unwrap_or_default();
+    objects.retain(|object| object.kind == kind);
+    objects
 }
 
 fn surface_data(device: &Device, surface: &Object) -> Option<SurfaceData> {
@@ -159,17 +163,17 @@ struct GroupContents {
 }
 
 fn group_contents(device: &Device, params: &ParamSet) -> GroupContents {
-    let surfaces = objects_of(params, "surface")
+    let surfaces = objects_of(params, "surface", ANARI_SURFACE)
         .iter()
         .filter(|s| s.commit_count() > 0)
         .filter_map(|s| surface_data(device, s))
         .collect();
-    let lights = objects_of(params, "light")
+    let lights = objects_of(params, "light", ANARI_LIGHT)
         .iter()
         .filter(|l| l.commit_count() > 0)
         .filter_map(|l| Light::build(l))
         .collect();
-    let volumes = objects_of(params, "volume")
+    let volumes = objects_of(params, "volume", ANARI_VOLUME)
         .iter()
         .filter_map(|v| volume_data(v))
         .collect();
@@ -226,7 +230,7 @@ pub fn snapshot(device: &Device, world: &Object) -> SceneSnapshot {
         ));
     }
 
-    for instance in objects_of(&params, "instance") {
+    for instance in objects_of(&params, "instance", ANARI_INSTANCE) {
         if instance.spec.is_none() || instance.commit_count() == 0 {
             continue;
         }
