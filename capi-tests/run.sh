@@ -202,6 +202,15 @@ run_example "matrix_camera runs" "$build/examples/matrix_camera" "$out"
 run_example "cave runs (32×32 walls, one head position)" "$build/examples/cave" "$out/cave" 32 1
 run_example "cave runs with a 5 ms frame budget (32×32 walls, two head positions)" \
   "$build/examples/cave" "$out/cave_budget" 32 2 5
+# The Python example (ctypes, standard library only) where a python3 is installed.
+if command -v python3 >/dev/null; then
+  run_example "examples-python/cave_wall.py runs (64×64 per eye)" \
+    env CAVETRACE_LIBRARY="$library" python3 "$root/examples-python/cave_wall.py" \
+    "$out/cave_wall.png" 64
+else
+  skipped=$((skipped + 1))
+  echo "skip examples-python/cave_wall.py: python3 is not installed"
+fi
 
 echo "total: $passed passed, $failed failed, $skipped skipped"
 [ "$failed" -eq 0 ]
