@@ -492,6 +492,7 @@ fn the_light_extensions_are_advertised() {
         "ANARI_KHR_LIGHT_DIRECTIONAL",
         "ANARI_KHR_LIGHT_POINT",
         "ANARI_KHR_LIGHT_SPOT",
+        "ANARI_KHR_LIGHT_QUAD",
     ] {
         assert!(
             extensions.iter().any(|e| e == name),
@@ -500,4 +501,97 @@ fn the_light_extensions_are_advertised() {
     }
     anariRelease(dev, dev);
     anariUnloadLibrary(lib);
+}
+
+/// Irradiance at floor point (x, 0, z) (normal +y) from a diffuse polygon of radiance
+/// `radiance` with `corners` (Lambert's formula: half the radiance times the sum over the edges
+/// of the angle each subtends times the normal's share of that edge's plane).
+fn polygon_irradiance(corners: &[[f64; 3]], x: f64, z: f64, radiance: f64) -> f64 {
+    let to = |c: &[f64; 3]| {
+        let v = [c[0] - x, c[1], c[2] - z];
+        let length = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        v.map(|component| component / length)
+    };
+    let mut sum = 0.0;
+    for k in 0..corners.len() {
+        let (a, b) = (to(&corners[k]), to(&corners[(k + 1) % corners.len()]));
+        let cross = [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ];
+        let sin = (cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]).sqrt();
+        let cos = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        sum += sin.atan2(cos) * cross[1] / sin;
+    }
+    0.5 * radiance * sum.abs()
+}
+
+#[test]
+fn a_quad_light_gives_the_irradiance_of_lamberts_polygon_formula() {
+    let log = Log::new();
+    let scene = Scene::new(&log, false);
+    // A 0.5 m square 1 m above the floor, its front (edge1 × edge2) facing down.
+    let (position, edge1, edge2) = (
+        [-0.25f32, 1.0, -0.25],
+        [0.5f32, 0.0, 0.0],
+        [0.0f32, 0.0, 0.5],
+    );
+    let corners = [
+        [-0.25, 1.0, -0.25],
+        [0.25, 1.0, -0.25],
+        [0.25, 1.0, 0.25],
+        [-0.25, 1.0, 0.25],
+    ];
+    let quad_light = |floats: &[(&str, f32)], side: &str| {
+        let light = scene.light(
+            "quad",
+            floats,
+            &[("position", position), ("edge1", edge1), ("edge2", edge2)],
+        );
+        set_string(scene.dev, light, "side", side);
+        commit(scene.dev, light);
+        light
+    };
+    let front = quad_light(&[("radiance", 2.0)], "front");
+    let image = scene.render(front, 4, 64);
+    for (i, j) in [(16, 16), (8, 20), (2, 2), (30, 12), (16, 0)] {
+        let (x, z) = floor_point(i, j);
+        // A white matte floor: radiance albedo/π × irradiance.
+        let expected =
+            polygon_irradiance(&corners, f64::from(x), f64::from(z), 2.0) / std::f64::consts::PI;
+        let got = f64::from(pixel(&image, i, j));
+        assert!(
+            (got - expected).abs() <= 0.02 * expected,
+            "pixel ({i}, {j}) at ({x}, {z}): {got} vs {expected}"
+        );
+    }
+    // Both sides light the floor as the front does; the back alone leaves it dark.
+    let both = quad_light(&[("radiance", 2.0)], "both");
+    assert_same(&scene.render(both, 4, 64), &image, "both sides");
+    let back = quad_light(&[("radiance", 2.0)], "back");
+    assert!(scene.render(back, 1, 4).iter().all(|v| *v == 0.0));
+    // power = π·A·L per side and intensity = A·L give the same light.
+    let area = 0.25f32;
+    let by_power = quad_light(&[("power", PI * area * 2.0)], "front");
+    assert_close(&scene.render(by_power, 4, 64), &image, 1e-5);
+    let by_intensity = quad_light(&[("intensity", area * 2.0)], "front");
+    assert_close(&scene.render(by_intensity, 4, 64), &image, 1e-5);
+    release_all(scene.dev, &[front, both, back, by_power, by_intensity]);
+
+    // Edges that span no area are reported.
+    let flat = scene.light(
+        "quad",
+        &[],
+        &[("edge1", [1.0, 0.0, 0.0]), ("edge2", [2.0, 0.0, 0.0])],
+    );
+    let errors = log.errors();
+    assert!(
+        errors
+            .iter()
+            .any(|e| e.1.contains("'edge1'") && e.1.contains("no area")),
+        "{errors:?}"
+    );
+    anariRelease(scene.dev, flat);
+    scene.finish(&log);
 }

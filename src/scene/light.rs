@@ -1,6 +1,6 @@
-//! Lights: directional, point and spot, evaluated in world space. A directional light with an
-//! `angularDiameter` and a point light with a `radius` have extent and cast soft shadows: they
-//! are sampled per pixel sample (see `LightSampling`).
+//! Lights: directional, point, spot and quad, evaluated in world space. A directional light
+//! with an `angularDiameter`, a point light with a `radius` and a quad light have extent and
+//! cast soft shadows: they are sampled per pixel sample (see `LightSampling`).
 
 use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
@@ -120,6 +120,47 @@ pub const SPOT: ObjectSpec = ObjectSpec::new(
 )
 .extensions(&["ANARI_KHR_LIGHT_SPOT"]);
 
+pub const QUAD: ObjectSpec = ObjectSpec::new(
+    ANARI_LIGHT,
+    "quad",
+    "a parallelogram emitting like a diffuse surface (the same radiance in every direction) \
+     from one side or both; soft shadows",
+    &[
+        COLOR,
+        ParamSpec::new("position", &[ANARI_FLOAT32_VEC3], "a corner of the quad")
+            .default(SpecValue::Floats(&[0.0, 0.0, 0.0])),
+        ParamSpec::new("edge1", &[ANARI_FLOAT32_VEC3], "vector of the first edge")
+            .default(SpecValue::Floats(&[1.0, 0.0, 0.0])),
+        ParamSpec::new("edge2", &[ANARI_FLOAT32_VEC3], "vector of the second edge")
+            .default(SpecValue::Floats(&[0.0, 1.0, 0.0])),
+        ParamSpec::new(
+            "intensity",
+            &[ANARI_FLOAT32],
+            "radiant intensity (W/sr) along the quad's normal: radiance × area",
+        )
+        .default(SpecValue::Float(1.0))
+        .range(SpecValue::Float(0.0), SpecValue::None),
+        POWER,
+        RADIANCE,
+        ParamSpec::new(
+            "side",
+            &[ANARI_STRING],
+            "emitting sides: front (the side edge1 × edge2 points to), back or both",
+        )
+        .default(SpecValue::Str("front"))
+        .values(&["front", "back", "both"]),
+    ],
+)
+.extensions(&["ANARI_KHR_LIGHT_QUAD"]);
+
+/// Which sides of a quad light emit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum QuadSide {
+    Front,
+    Back,
+    Both,
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Light {
     /// `direction` is where the light travels (unit). `irradiance` (colour included) arrives at
@@ -142,6 +183,14 @@ pub enum Light {
         /// cos of half the opening angle, and cos where the falloff starts.
         cos_outer: f32,
         cos_inner: f32,
+    },
+    /// The parallelogram `position + u·edge1 + v·edge2`, u, v in [0, 1], of `radiance`.
+    Quad {
+        position: Vec3,
+        edge1: Vec3,
+        edge2: Vec3,
+        radiance: Vec3,
+        side: QuadSide,
     },
 }
 
@@ -268,6 +317,7 @@ fn checked_params(subtype: &str) -> &'static [(&'static str, Option<(f32, &'stat
             ("radiance", None),
         ],
         "spot" => &[("intensity", None), ("power", None)],
+        "quad" => &[("intensity", None), ("power", None), ("radiance", None)],
         _ => &[],
     }
 }
@@ -298,6 +348,37 @@ pub fn commit(device: &Device, object: &Object) {
                 ),
             );
         }
+    }
+    if subtype == "quad" {
+        let edge = |name: &str, default: Vec3| params.get_vec3(name).unwrap_or(default);
+        let area = edge("edge1", Vec3::X)
+            .cross(edge("edge2", Vec3::Y))
+            .length();
+        if !(area.is_finite() && area > 0.0) {
+            device.error(
+                ANARI_STATUS_INVALID_ARGUMENT,
+                Some(object),
+                format!(
+                    "anariCommitParameters: {} parameters 'edge1' and 'edge2' span no area \
+                     (parallel, zero or not finite); the light emits nothing",
+                    object.describe()
+                ),
+            );
+        }
+        if let Some(side) = params.get_string("side")
+            && !["front", "back", "both"].contains(&side)
+        {
+            device.error(
+                ANARI_STATUS_INVALID_ARGUMENT,
+                Some(object),
+                format!(
+                    "anariCommitParameters: {} parameter 'side' is '{side}', expected front, \
+                     back or both; using front",
+                    object.describe()
+                ),
+            );
+        }
+        return;
     }
     let extent = match subtype {
         "directional" => "angularDiameter",
@@ -386,6 +467,34 @@ impl Light {
                     cos_inner,
                 }
             }
+            "quad" => {
+                let edge1 = p.get_vec3("edge1").unwrap_or(Vec3::X);
+                let edge2 = p.get_vec3("edge2").unwrap_or(Vec3::Y);
+                let area = edge1.cross(edge2).length();
+                if !(area.is_finite() && area > 0.0 && position.is_finite()) {
+                    return None;
+                }
+                let side = match p.get_string("side") {
+                    Some("back") => QuadSide::Back,
+                    Some("both") => QuadSide::Both,
+                    _ => QuadSide::Front,
+                };
+                let sides = if side == QuadSide::Both { 2.0 } else { 1.0 };
+                // A diffuse emitter of radiance L and area A: intensity L·A along its normal,
+                // power L·A·π per emitting side.
+                let radiance = match (valid("radiance"), valid("power")) {
+                    (Some(radiance), _) => radiance,
+                    (_, Some(power)) => power / (PI * area * sides),
+                    _ => intensity / area,
+                };
+                Light::Quad {
+                    position,
+                    edge1,
+                    edge2,
+                    radiance: color * radiance,
+                    side,
+                }
+            }
             _ => return None,
         })
     }
@@ -429,6 +538,20 @@ impl Light {
                 cos_outer,
                 cos_inner,
             },
+            // A quad is placed and shaped by the transform; its radiance stays.
+            Light::Quad {
+                position,
+                edge1,
+                edge2,
+                radiance,
+                side,
+            } => Light::Quad {
+                position: transform.transform_point3(position),
+                edge1: transform.transform_vector3(edge1),
+                edge2: transform.transform_vector3(edge2),
+                radiance,
+                side,
+            },
         }
     }
 
@@ -438,6 +561,7 @@ impl Light {
             Light::Directional { cos_half_angle, .. } => cos_half_angle < 1.0,
             Light::Point { radius, .. } => radius > 0.0,
             Light::Spot { .. } => false,
+            Light::Quad { .. } => true,
         }
     }
 
@@ -485,8 +609,46 @@ impl Light {
                     radiance: sphere_radiance * solid_angle,
                 })
             }
+            Light::Quad { .. } => self.quad_incoming(point, sampling.point()),
             _ => self.incoming(point),
         }
+    }
+
+    /// One sample of a quad light seen from `point`: the quad's point at `(u, v)`, chosen
+    /// uniformly by area; the radiance estimate is L·cos θ_light·A / d² (the area density
+    /// turned into one per solid angle).
+    fn quad_incoming(&self, point: Vec3, uv: Vec2) -> Option<Incoming> {
+        let Light::Quad {
+            position,
+            edge1,
+            edge2,
+            radiance,
+            side,
+        } = *self
+        else {
+            return None;
+        };
+        let on_light = position + edge1 * uv.x + edge2 * uv.y;
+        let d = on_light - point;
+        let distance = d.length();
+        // NaN distances (a non-finite point) fail this too.
+        if distance.is_nan() || distance <= 0.0 {
+            return None;
+        }
+        let to_light = d / distance;
+        let normal_area = edge1.cross(edge2);
+        // cos θ_light × area: the front side faces along edge1 × edge2.
+        let facing = -to_light.dot(normal_area);
+        let projected = match side {
+            QuadSide::Front => facing,
+            QuadSide::Back => -facing,
+            QuadSide::Both => facing.abs(),
+        };
+        (projected > 0.0).then(|| Incoming {
+            to_light,
+            distance,
+            radiance: radiance * (projected / (distance * distance)),
+        })
     }
 
     /// Light arriving at `point` from the light's centre, before visibility.
@@ -543,6 +705,8 @@ impl Light {
                     radiance: intensity * smooth / (distance * distance),
                 })
             }
+            // From its centre.
+            Light::Quad { .. } => self.quad_incoming(point, Vec2::splat(0.5)),
         }
     }
 }

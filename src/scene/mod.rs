@@ -39,6 +39,7 @@ pub const SPECS: &[ObjectSpec] = &[
     light::DIRECTIONAL,
     light::POINT,
     light::SPOT,
+    light::QUAD,
     surface::SURFACE,
     spatial_field::STRUCTURED_REGULAR,
     volume::TRANSFER_FUNCTION1D,
