@@ -493,6 +493,7 @@ fn the_light_extensions_are_advertised() {
         "ANARI_KHR_LIGHT_POINT",
         "ANARI_KHR_LIGHT_SPOT",
         "ANARI_KHR_LIGHT_QUAD",
+        "ANARI_KHR_LIGHT_HDRI",
     ] {
         assert!(
             extensions.iter().any(|e| e == name),
@@ -593,5 +594,69 @@ fn a_quad_light_gives_the_irradiance_of_lamberts_polygon_formula() {
         "{errors:?}"
     );
     anariRelease(scene.dev, flat);
+    scene.finish(&log);
+}
+
+#[test]
+fn an_hdri_light_gives_a_diffuse_floor_the_radiance_of_its_sky() {
+    let log = Log::new();
+    let scene = Scene::new(&log, false);
+    let dev = scene.dev;
+    let (width, height) = (16u64, 8u64);
+    let sky = |bright_rows: u64| {
+        let texels: Vec<[f32; 3]> = (0..width * height)
+            .map(|k| {
+                if k / width < bright_rows {
+                    [0.5, 0.5, 0.5]
+                } else {
+                    [0.0; 3]
+                }
+            })
+            .collect();
+        array2d(dev, ANARI_FLOAT32_VEC3, &texels, [width, height])
+    };
+    let hdri = |image: ANARIArray2D, up: [f32; 3], scale: f32| {
+        let light = scene.light(
+            "hdri",
+            &[("scale", scale)],
+            &[("up", up), ("direction", [1.0, 0.0, 0.0])],
+        );
+        set_object(dev, light, "radiance", ANARI_ARRAY2D, image);
+        commit(dev, light);
+        light
+    };
+    let (uniform, upper_half) = (sky(height), sky(height / 2));
+    // A uniform sky of radiance L: a white matte floor sees πL and shows L.
+    let lit = hdri(uniform, [0.0, 1.0, 0.0], 1.0);
+    let image = scene.render(lit, 16, 64);
+    // Unbiased (the mean over the floor), and each pixel converged to a few per cent after
+    // 1024 samples of the whole sphere.
+    let mean = image.iter().sum::<f32>() / image.len() as f32;
+    assert!((mean - 0.5).abs() < 0.0025, "mean {mean}");
+    for (k, value) in image.iter().enumerate() {
+        assert!((value - 0.5).abs() < 0.015, "pixel {k}: {value}");
+    }
+    // Only the sky above the floor lights it: the upper half alone gives the same, the same
+    // half turned below the floor (up = −y) nothing.
+    let above = hdri(upper_half, [0.0, 1.0, 0.0], 1.0);
+    assert_close(&scene.render(above, 16, 64), &image, 0.04);
+    let below = hdri(upper_half, [0.0, -1.0, 0.0], 1.0);
+    assert!(scene.render(below, 1, 16).iter().all(|v| *v == 0.0));
+    // scale multiplies the radiance.
+    let doubled = hdri(uniform, [0.0, 1.0, 0.0], 2.0);
+    let twice: Vec<f32> = image.iter().map(|v| 2.0 * v).collect();
+    assert_close(&scene.render(doubled, 16, 64), &twice, 1e-5);
+    release_all(dev, &[lit, above, below, doubled, uniform, upper_half]);
+
+    // Without an image, or with up along direction, it is reported and emits nothing.
+    let empty = scene.light("hdri", &[], &[]);
+    let errors = log.errors();
+    assert!(
+        errors
+            .iter()
+            .any(|e| e.1.contains("hdri") && e.1.contains("'radiance'")),
+        "{errors:?}"
+    );
+    anariRelease(dev, empty);
     scene.finish(&log);
 }

@@ -1,8 +1,11 @@
-//! Lights: directional, point, spot and quad, evaluated in world space. A directional light
-//! with an `angularDiameter`, a point light with a `radius` and a quad light have extent and
-//! cast soft shadows: they are sampled per pixel sample (see `LightSampling`).
+//! Lights: directional, point, spot, quad and hdri, evaluated in world space. A directional
+//! light with an `angularDiameter`, a point light with a `radius`, a quad light and an
+//! environment (hdri) have extent and cast soft shadows: they are sampled per pixel sample (see
+//! `LightSampling`).
 
 use std::f32::consts::{FRAC_1_PI, PI, TAU};
+
+use std::sync::Arc;
 
 use glam::{Affine3A, Vec2, Vec3};
 
@@ -12,6 +15,8 @@ use crate::device::object::Object;
 use crate::device::params::ParamSet;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
+use crate::scene::attributes::read_values;
+use crate::scene::environment::EnvironmentMap;
 
 const COLOR: ParamSpec = ParamSpec::new("color", &[ANARI_FLOAT32_VEC3], "light colour")
     .default(SpecValue::Floats(&[1.0, 1.0, 1.0]))
@@ -153,6 +158,43 @@ pub const QUAD: ObjectSpec = ObjectSpec::new(
 )
 .extensions(&["ANARI_KHR_LIGHT_QUAD"]);
 
+pub const HDRI: ObjectSpec = ObjectSpec::new(
+    ANARI_LIGHT,
+    "hdri",
+    "light from an environment image around the scene (equirectangular), sampled by \
+     luminance; not seen by camera rays",
+    &[
+        COLOR,
+        ParamSpec::new(
+            "up",
+            &[ANARI_FLOAT32_VEC3],
+            "direction of the image's first row (its top edge)",
+        )
+        .default(SpecValue::Floats(&[0.0, 0.0, 1.0])),
+        ParamSpec::new(
+            "direction",
+            &[ANARI_FLOAT32_VEC3],
+            "direction the image's centre is seen in",
+        )
+        .default(SpecValue::Floats(&[1.0, 0.0, 0.0])),
+        ParamSpec::new(
+            "radiance",
+            &[ANARI_ARRAY2D],
+            "radiance image (W/sr/m²); columns run around up from direction towards \
+             direction × up, rows from up down",
+        )
+        .elements(&[ANARI_FLOAT32_VEC3])
+        .required(),
+        ParamSpec::new("layout", &[ANARI_STRING], "image layout")
+            .default(SpecValue::Str("equirectangular"))
+            .values(&["equirectangular"]),
+        ParamSpec::new("scale", &[ANARI_FLOAT32], "factor on the radiance")
+            .default(SpecValue::Float(1.0))
+            .range(SpecValue::Float(0.0), SpecValue::None),
+    ],
+)
+.extensions(&["ANARI_KHR_LIGHT_HDRI"]);
+
 /// Which sides of a quad light emit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum QuadSide {
@@ -161,7 +203,7 @@ pub enum QuadSide {
     Both,
 }
 
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum Light {
     /// `direction` is where the light travels (unit). `irradiance` (colour included) arrives at
     /// a surface facing the light. `cos_half_angle` < 1 makes it a disk of that angular radius.
@@ -191,6 +233,14 @@ pub enum Light {
         edge2: Vec3,
         radiance: Vec3,
         side: QuadSide,
+    },
+    /// An environment map (colour and scale included) with its frame's axes in world space:
+    /// `forward` (the image centre), `up` (its first row), `right` = forward × up.
+    Hdri {
+        map: Arc<EnvironmentMap>,
+        forward: Vec3,
+        up: Vec3,
+        right: Vec3,
     },
 }
 
@@ -278,6 +328,14 @@ fn sample_cone(axis: Vec3, cos_max: f32, u: Vec2) -> Vec3 {
         .normalize()
 }
 
+/// The environment frame from `up` and `direction`: unit (forward, up, right = forward × up),
+/// forward made perpendicular to up; `None` when they are parallel, zero or not finite.
+fn environment_axes(up: Vec3, direction: Vec3) -> Option<(Vec3, Vec3, Vec3)> {
+    let up = up.try_normalize()?;
+    let forward = (direction - up * direction.dot(up)).try_normalize()?;
+    Some((forward, up, forward.cross(up)))
+}
+
 /// A parameter that must be finite and within [0, `maximum`]: `Err` names what was wrong.
 fn checked(
     params: &ParamSet,
@@ -318,6 +376,7 @@ fn checked_params(subtype: &str) -> &'static [(&'static str, Option<(f32, &'stat
         ],
         "spot" => &[("intensity", None), ("power", None)],
         "quad" => &[("intensity", None), ("power", None), ("radiance", None)],
+        "hdri" => &[("scale", None)],
         _ => &[],
     }
 }
@@ -348,6 +407,21 @@ pub fn commit(device: &Device, object: &Object) {
                 ),
             );
         }
+    }
+    if subtype == "hdri" {
+        if Light::build(object).is_none() {
+            device.error(
+                ANARI_STATUS_INVALID_ARGUMENT,
+                Some(object),
+                format!(
+                    "anariCommitParameters: {} needs 'radiance' (an ARRAY2D of FLOAT32_VEC3 with \
+                     some light in it) and 'up' and 'direction' that are not parallel; it emits \
+                     nothing",
+                    object.describe()
+                ),
+            );
+        }
+        return;
     }
     if subtype == "quad" {
         let edge = |name: &str, default: Vec3| params.get_vec3(name).unwrap_or(default);
@@ -495,6 +569,26 @@ impl Light {
                     side,
                 }
             }
+            "hdri" => {
+                let array = p.get_object("radiance")?;
+                let store = array.array.as_ref()?;
+                let (width, height) = (store.dims[0] as usize, store.dims[1] as usize);
+                let scale = color * valid("scale").unwrap_or(1.0);
+                let texels = read_values(store)?
+                    .into_iter()
+                    .map(|texel| texel.truncate() * scale)
+                    .collect();
+                let map = EnvironmentMap::new(texels, width, height)?;
+                let up = p.get_vec3("up").unwrap_or(Vec3::Z);
+                let direction = p.get_vec3("direction").unwrap_or(Vec3::X);
+                let (forward, up, right) = environment_axes(up, direction)?;
+                Light::Hdri {
+                    map: Arc::new(map),
+                    forward,
+                    up,
+                    right,
+                }
+            }
             _ => return None,
         })
     }
@@ -552,6 +646,25 @@ impl Light {
                 radiance,
                 side,
             },
+            // The environment turns with the instance (a degenerate transform leaves it).
+            Light::Hdri {
+                ref map,
+                forward,
+                up,
+                ..
+            } => {
+                let turned = environment_axes(
+                    transform.transform_vector3(up),
+                    transform.transform_vector3(forward),
+                );
+                let (forward, up, right) = turned.unwrap_or((forward, up, forward.cross(up)));
+                Light::Hdri {
+                    map: map.clone(),
+                    forward,
+                    up,
+                    right,
+                }
+            }
         }
     }
 
@@ -561,7 +674,7 @@ impl Light {
             Light::Directional { cos_half_angle, .. } => cos_half_angle < 1.0,
             Light::Point { radius, .. } => radius > 0.0,
             Light::Spot { .. } => false,
-            Light::Quad { .. } => true,
+            Light::Quad { .. } | Light::Hdri { .. } => true,
         }
     }
 
@@ -610,6 +723,20 @@ impl Light {
                 })
             }
             Light::Quad { .. } => self.quad_incoming(point, sampling.point()),
+            Light::Hdri {
+                ref map,
+                forward,
+                up,
+                right,
+            } => {
+                let sample = map.sample(sampling.point())?;
+                let d = sample.direction;
+                Some(Incoming {
+                    to_light: (forward * d.x + up * d.y + right * d.z).normalize(),
+                    distance: f32::INFINITY,
+                    radiance: sample.radiance,
+                })
+            }
             _ => self.incoming(point),
         }
     }
@@ -707,6 +834,8 @@ impl Light {
             }
             // From its centre.
             Light::Quad { .. } => self.quad_incoming(point, Vec2::splat(0.5)),
+            // An environment has no one direction: a fixed sample of it.
+            Light::Hdri { .. } => self.incoming_sampled(point, &LightSampling::default()),
         }
     }
 }

@@ -3,6 +3,7 @@
 
 pub mod array;
 pub mod attributes;
+pub mod environment;
 pub mod geometry;
 pub mod group;
 pub mod instance;
@@ -40,6 +41,7 @@ pub const SPECS: &[ObjectSpec] = &[
     light::POINT,
     light::SPOT,
     light::QUAD,
+    light::HDRI,
     surface::SURFACE,
     spatial_field::STRUCTURED_REGULAR,
     volume::TRANSFER_FUNCTION1D,
