@@ -494,6 +494,7 @@ fn the_light_extensions_are_advertised() {
         "ANARI_KHR_LIGHT_SPOT",
         "ANARI_KHR_LIGHT_QUAD",
         "ANARI_KHR_LIGHT_HDRI",
+        "ANARI_KHR_LIGHT_RING",
     ] {
         assert!(
             extensions.iter().any(|e| e == name),
@@ -658,5 +659,84 @@ fn an_hdri_light_gives_a_diffuse_floor_the_radiance_of_its_sky() {
         "{errors:?}"
     );
     anariRelease(dev, empty);
+    scene.finish(&log);
+}
+
+#[test]
+fn a_ring_light_is_a_spot_spread_over_its_ring() {
+    let log = Log::new();
+    let scene = Scene::new(&log, false);
+    let dev = scene.dev;
+    let (x, z) = floor_point(16, 16);
+    let above = [x, 1.0, z];
+    let spot_like = |subtype: &str, floats: &[(&str, f32)]| {
+        let mut all = vec![("openingAngle", 2.0f32), ("falloffAngle", 0.2)];
+        all.extend_from_slice(floats);
+        scene.light(subtype, &all, &[("position", above), ("direction", DOWN)])
+    };
+    // Radius 0: the spot light, bit for bit (and power means what it means for the spot).
+    let (ring, spot) = (
+        spot_like("ring", &[("intensity", 3.0)]),
+        spot_like("spot", &[("intensity", 3.0)]),
+    );
+    assert_same(
+        &scene.render(ring, 1, 1),
+        &scene.render(spot, 1, 1),
+        "ring of radius 0",
+    );
+    let (ring_power, spot_power) = (
+        spot_like("ring", &[("power", 5.0)]),
+        spot_like("spot", &[("power", 5.0)]),
+    );
+    assert_same(
+        &scene.render(ring_power, 1, 1),
+        &scene.render(spot_power, 1, 1),
+        "power",
+    );
+    // A thin ring of radius R at height h: every point is √(h² + R²) away, so the floor point
+    // below its centre gets I·h / (h² + R²)^(3/2) from any one sample (the first pixel sample
+    // is the pixel's centre; later ones move across the pixel).
+    let (radius, height, intensity) = (0.5f32, 1.0f32, 3.0f32);
+    let thin = spot_like(
+        "ring",
+        &[
+            ("intensity", intensity),
+            ("radius", radius),
+            ("innerRadius", radius),
+        ],
+    );
+    let image = scene.render(thin, 1, 1);
+    let expected = intensity * height / (height * height + radius * radius).powf(1.5) / PI;
+    let got = pixel(&image, 16, 16);
+    assert!(
+        (got - expected).abs() < 1e-4 * expected,
+        "{got} vs {expected}"
+    );
+    // Radiance L over a disk of radius R is the intensity L·πR².
+    let by_radiance = spot_like("ring", &[("radiance", 2.0), ("radius", radius)]);
+    let by_intensity = spot_like(
+        "ring",
+        &[
+            ("intensity", 2.0 * PI * radius * radius),
+            ("radius", radius),
+        ],
+    );
+    assert_close(
+        &scene.render(by_radiance, 2, 16),
+        &scene.render(by_intensity, 2, 16),
+        1e-5,
+    );
+    release_all(
+        dev,
+        &[
+            ring,
+            spot,
+            ring_power,
+            spot_power,
+            thin,
+            by_radiance,
+            by_intensity,
+        ],
+    );
     scene.finish(&log);
 }

@@ -1,7 +1,7 @@
-//! Lights: directional, point, spot, quad and hdri, evaluated in world space. A directional
-//! light with an `angularDiameter`, a point light with a `radius`, a quad light and an
-//! environment (hdri) have extent and cast soft shadows: they are sampled per pixel sample (see
-//! `LightSampling`).
+//! Lights: directional, point, spot, ring, quad and hdri, evaluated in world space. A
+//! directional light with an `angularDiameter`, a point light with a `radius`, a ring with a
+//! radius, a quad light and an environment (hdri) have extent and cast soft shadows: they are
+//! sampled per pixel sample (see `LightSampling`).
 
 use std::f32::consts::{FRAC_1_PI, PI, TAU};
 
@@ -158,6 +158,58 @@ pub const QUAD: ObjectSpec = ObjectSpec::new(
 )
 .extensions(&["ANARI_KHR_LIGHT_QUAD"]);
 
+pub const RING: ObjectSpec = ObjectSpec::new(
+    ANARI_LIGHT,
+    "ring",
+    "a spot light spread over a ring (an annulus facing direction): each of its points \
+     emits as the spot would; soft shadows",
+    &[
+        COLOR,
+        ParamSpec::new("position", &[ANARI_FLOAT32_VEC3], "centre of the ring")
+            .default(SpecValue::Floats(&[0.0, 0.0, 0.0])),
+        ParamSpec::new(
+            "direction",
+            &[ANARI_FLOAT32_VEC3],
+            "the ring's axis, the main emission direction",
+        )
+        .default(SpecValue::Floats(&[0.0, 0.0, -1.0])),
+        ParamSpec::new(
+            "openingAngle",
+            &[ANARI_FLOAT32],
+            "full opening angle of the cone (radians)",
+        )
+        .default(SpecValue::Float(PI)),
+        ParamSpec::new(
+            "falloffAngle",
+            &[ANARI_FLOAT32],
+            "angle over which intensity falls to zero inside the cone edge (radians)",
+        )
+        .default(SpecValue::Float(0.1)),
+        ParamSpec::new(
+            "intensity",
+            &[ANARI_FLOAT32],
+            "radiant intensity (W/sr) of the whole ring along its axis",
+        )
+        .default(SpecValue::Float(1.0))
+        .range(SpecValue::Float(0.0), SpecValue::None),
+        POWER,
+        ParamSpec::new("radius", &[ANARI_FLOAT32], "outer radius of the ring")
+            .default(SpecValue::Float(0.0))
+            .range(SpecValue::Float(0.0), SpecValue::None),
+        ParamSpec::new("innerRadius", &[ANARI_FLOAT32], "inner radius of the ring")
+            .default(SpecValue::Float(0.0))
+            .range(SpecValue::Float(0.0), SpecValue::None),
+        ParamSpec::new(
+            "radiance",
+            &[ANARI_FLOAT32],
+            "radiance of the ring along its axis (W/sr/m²): intensity = radiance × area; \
+             overrides the other strengths when the ring has area",
+        )
+        .range(SpecValue::Float(0.0), SpecValue::None),
+    ],
+)
+.extensions(&["ANARI_KHR_LIGHT_RING"]);
+
 pub const HDRI: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
     "hdri",
@@ -233,6 +285,17 @@ pub enum Light {
         edge2: Vec3,
         radiance: Vec3,
         side: QuadSide,
+    },
+    /// A spot light spread evenly over the annulus of radii `inner`..`outer` around
+    /// `position` in the plane perpendicular to `direction` (radius 0: the spot light).
+    Ring {
+        position: Vec3,
+        direction: Vec3,
+        intensity: Vec3,
+        cos_outer: f32,
+        cos_inner: f32,
+        inner: f32,
+        outer: f32,
     },
     /// An environment map (colour and scale included) with its frame's axes in world space:
     /// `forward` (the image centre), `up` (its first row), `right` = forward × up.
@@ -377,6 +440,13 @@ fn checked_params(subtype: &str) -> &'static [(&'static str, Option<(f32, &'stat
         "spot" => &[("intensity", None), ("power", None)],
         "quad" => &[("intensity", None), ("power", None), ("radiance", None)],
         "hdri" => &[("scale", None)],
+        "ring" => &[
+            ("intensity", None),
+            ("power", None),
+            ("radius", None),
+            ("innerRadius", None),
+            ("radiance", None),
+        ],
         _ => &[],
     }
 }
@@ -541,6 +611,30 @@ impl Light {
                     cos_inner,
                 }
             }
+            "ring" => {
+                let half = 0.5 * p.get_f32("openingAngle").unwrap_or(PI);
+                let falloff = p.get_f32("falloffAngle").unwrap_or(0.1).max(0.0);
+                let (cos_outer, cos_inner) = (half.cos(), (half - falloff).max(0.0).cos());
+                let solid_angle = TAU * (1.0 - 0.5 * (cos_inner + cos_outer));
+                let outer = valid("radius").unwrap_or(0.0);
+                let inner = valid("innerRadius").unwrap_or(0.0).min(outer);
+                let area = PI * (outer * outer - inner * inner);
+                let intensity = match (valid("radiance"), valid("power")) {
+                    (Some(radiance), _) if area > 0.0 => radiance * area,
+                    (_, Some(power)) if solid_angle > 0.0 => power / solid_angle,
+                    (_, Some(_)) => 0.0,
+                    _ => intensity,
+                };
+                Light::Ring {
+                    position,
+                    direction,
+                    intensity: color * intensity,
+                    cos_outer,
+                    cos_inner,
+                    inner,
+                    outer,
+                }
+            }
             "quad" => {
                 let edge1 = p.get_vec3("edge1").unwrap_or(Vec3::X);
                 let edge2 = p.get_vec3("edge2").unwrap_or(Vec3::Y);
@@ -646,6 +740,25 @@ impl Light {
                 radiance,
                 side,
             },
+            Light::Ring {
+                position,
+                direction,
+                intensity,
+                cos_outer,
+                cos_inner,
+                inner,
+                outer,
+            } => Light::Ring {
+                position: transform.transform_point3(position),
+                direction: transform
+                    .transform_vector3(direction)
+                    .normalize_or(direction),
+                intensity,
+                cos_outer,
+                cos_inner,
+                inner,
+                outer,
+            },
             // The environment turns with the instance (a degenerate transform leaves it).
             Light::Hdri {
                 ref map,
@@ -674,6 +787,7 @@ impl Light {
             Light::Directional { cos_half_angle, .. } => cos_half_angle < 1.0,
             Light::Point { radius, .. } => radius > 0.0,
             Light::Spot { .. } => false,
+            Light::Ring { outer, .. } => outer > 0.0,
             Light::Quad { .. } | Light::Hdri { .. } => true,
         }
     }
@@ -723,6 +837,21 @@ impl Light {
                 })
             }
             Light::Quad { .. } => self.quad_incoming(point, sampling.point()),
+            Light::Ring {
+                position,
+                direction,
+                outer,
+                inner,
+                ..
+            } if outer > 0.0 => {
+                // A point of the annulus, uniform by area.
+                let u = sampling.point();
+                let radius = (inner * inner + u.x * (outer * outer - inner * inner)).sqrt();
+                let (tangent, bitangent) = direction.any_orthonormal_pair();
+                let angle = TAU * u.y;
+                let on_ring = position + (tangent * angle.cos() + bitangent * angle.sin()) * radius;
+                self.spot_from(on_ring, point)
+            }
             Light::Hdri {
                 ref map,
                 forward,
@@ -739,6 +868,28 @@ impl Light {
             }
             _ => self.incoming(point),
         }
+    }
+
+    /// A ring light's emission from its point `from` to `point`: the spot light's, at `from`.
+    fn spot_from(&self, from: Vec3, point: Vec3) -> Option<Incoming> {
+        let Light::Ring {
+            direction,
+            intensity,
+            cos_outer,
+            cos_inner,
+            ..
+        } = *self
+        else {
+            return None;
+        };
+        Light::Spot {
+            position: from,
+            direction,
+            intensity,
+            cos_outer,
+            cos_inner,
+        }
+        .incoming(point)
     }
 
     /// One sample of a quad light seen from `point`: the quad's point at `(u, v)`, chosen
@@ -834,6 +985,7 @@ impl Light {
             }
             // From its centre.
             Light::Quad { .. } => self.quad_incoming(point, Vec2::splat(0.5)),
+            Light::Ring { position, .. } => self.spot_from(position, point),
             // An environment has no one direction: a fixed sample of it.
             Light::Hdri { .. } => self.incoming_sampled(point, &LightSampling::default()),
         }

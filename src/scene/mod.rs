@@ -40,6 +40,7 @@ pub const SPECS: &[ObjectSpec] = &[
     light::DIRECTIONAL,
     light::POINT,
     light::SPOT,
+    light::RING,
     light::QUAD,
     light::HDRI,
     surface::SURFACE,
