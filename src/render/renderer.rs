@@ -268,6 +268,15 @@ struct ShadingPoint {
     metallic: f32,
     roughness: f32,
     emissive: Vec3,
+    /// The clear dielectric share of the non-metallic part (0: none), its index of refraction,
+    /// whether it bounds a volume (else a thin wall), and the volume's absorption per unit
+    /// distance (ln of the colour kept).
+    transmission: f32,
+    ior: f32,
+    volume: bool,
+    log_attenuation: Vec3,
+    /// Whether the ray arrived on the back of the surface (leaving a closed volume).
+    back_face: bool,
     primitive_id: u32,
     object_id: u32,
     instance_id: u32,
@@ -294,7 +303,8 @@ fn shading_point(scene: &SceneSnapshot, ray: &Ray, hit: &SceneHit) -> ShadingPoi
         None => hit.normal,
     };
     // Shade the side the ray arrives from.
-    if normal.dot(ray.direction) > 0.0 {
+    let back_face = normal.dot(ray.direction) > 0.0;
+    if back_face {
         normal = -normal;
     }
 
@@ -332,6 +342,20 @@ fn shading_point(scene: &SceneSnapshot, ray: &Ray, hit: &SceneHit) -> ShadingPoi
         },
         emissive: evaluate_input(&material.emissive, &attributes, primitive_id)
             .map_or(Vec3::ZERO, |v| v.truncate()),
+        transmission: material
+            .transmission
+            .as_ref()
+            .map_or(0.0, |t| scalar(&t.weight, 0.0).clamp(0.0, 1.0)),
+        ior: material.transmission.as_ref().map_or(1.0, |t| t.ior),
+        volume: material
+            .transmission
+            .as_ref()
+            .is_some_and(|t| scalar(&t.thickness, 0.0) > 0.0),
+        log_attenuation: material
+            .transmission
+            .as_ref()
+            .map_or(Vec3::ZERO, |t| t.log_attenuation),
+        back_face,
         primitive_id,
         object_id: surface.id,
         instance_id: instance.id,
@@ -441,7 +465,9 @@ fn shade(
     screen: Option<Vec2>,
     sampling: &LightSampling,
 ) -> Vec3 {
-    let diffuse_weight = 1.0 - sp.metallic;
+    // Non-metallic: diffuse, or by `transmission` a clear dielectric.
+    let clear = (1.0 - sp.metallic) * sp.transmission;
+    let diffuse_weight = (1.0 - sp.metallic) * (1.0 - sp.transmission);
     // Ambient light is radiance from every direction: it arrives as irradiance π·L.
     let light =
         direct_light(scene, settings, sp, sampling) + settings.ambient * std::f32::consts::PI;
@@ -466,6 +492,14 @@ fn shade(
         let rough_metal = sp.metallic * sp.roughness;
         color += sp.base_color * std::f32::consts::FRAC_1_PI * light * rough_metal;
     }
+    if clear > 0.0 && depth < settings.max_ray_depth {
+        color += clear * dielectric(scene, settings, ray, view, sp, depth, screen, sampling);
+    }
+    if sp.volume && sp.back_face && sp.log_attenuation != Vec3::ZERO {
+        // What comes back along this ray crossed the volume from `ray`'s start to here.
+        let travelled = (sp.point - ray.origin).length();
+        color *= (sp.log_attenuation * travelled).exp();
+    }
     if sp.opacity < 1.0 && depth < settings.max_ray_depth {
         let behind = trace(
             scene,
@@ -478,6 +512,73 @@ fn shade(
         color = color * sp.opacity + behind.truncate() * (1.0 - sp.opacity);
     }
     color
+}
+
+/// Radiance from a clear dielectric surface: Fresnel-weighted reflection (along `view`, so
+/// cyclopean lighting applies to it) and transmission (along the ray's own direction, refracted
+/// where the surface bounds a volume, straight through a thin wall; tinted by the base colour),
+/// total internal reflection where refraction is impossible.
+#[allow(clippy::too_many_arguments)]
+fn dielectric(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    ray: &Ray,
+    view: Vec3,
+    sp: &ShadingPoint,
+    depth: u32,
+    screen: Option<Vec2>,
+    sampling: &LightSampling,
+) -> Vec3 {
+    // Relative index across the surface, in the direction the ray travels.
+    let eta = if sp.volume && sp.back_face {
+        sp.ior
+    } else {
+        1.0 / sp.ior
+    };
+    let cos_in = (-ray.direction.dot(sp.normal)).clamp(0.0, 1.0);
+    let (reflectance, refracted) = fresnel_refraction(ray.direction, sp.normal, cos_in, eta);
+    let reflected = view - 2.0 * view.dot(sp.normal) * sp.normal;
+    let mut color = Vec3::ZERO;
+    if reflectance > 0.0 {
+        let incoming = trace(
+            scene,
+            settings,
+            &offset_ray(sp.point, reflected, f32::INFINITY),
+            depth + 1,
+            screen,
+            sampling,
+        );
+        color += reflectance * incoming.truncate();
+    }
+    if reflectance < 1.0 {
+        let through = if sp.volume { refracted } else { ray.direction };
+        let incoming = trace(
+            scene,
+            settings,
+            &offset_ray(sp.point, through, f32::INFINITY),
+            depth + 1,
+            screen,
+            sampling,
+        );
+        color += (1.0 - reflectance) * sp.base_color * incoming.truncate();
+    }
+    color
+}
+
+/// The exact Fresnel reflectance of unpolarised light arriving along `direction` at a surface
+/// of normal `normal` (facing the ray; `cos_in` = −direction·normal) with relative index `eta`
+/// (n₁/n₂), and the refracted direction (any, when the reflectance is 1: total internal
+/// reflection).
+fn fresnel_refraction(direction: Vec3, normal: Vec3, cos_in: f32, eta: f32) -> (f32, Vec3) {
+    let sin2_out = eta * eta * (1.0 - cos_in * cos_in);
+    if sin2_out >= 1.0 {
+        return (1.0, direction);
+    }
+    let cos_out = (1.0 - sin2_out).sqrt();
+    let s = (eta * cos_in - cos_out) / (eta * cos_in + cos_out);
+    let p = (cos_in - eta * cos_out) / (cos_in + eta * cos_out);
+    let refracted = (direction * eta + normal * (eta * cos_in - cos_out)).normalize_or(direction);
+    (0.5 * (s * s + p * p), refracted)
 }
 
 /// One primary sample: colour plus the auxiliary channel values.

@@ -81,12 +81,54 @@ pub const PHYSICALLY_BASED: ObjectSpec = ObjectSpec::new(
         ParamSpec::new("emissive", COLOR_INPUT, "emitted radiance")
             .default(SpecValue::Floats(&[0.0, 0.0, 0.0]))
             .values(ATTRIBUTES),
+        ParamSpec::new(
+            "transmission",
+            SCALAR_INPUT,
+            "share of the non-metallic part that is a clear dielectric (glass): Fresnel \
+             reflection and refraction, total internal reflection",
+        )
+        .default(SpecValue::Float(0.0))
+        .values(ATTRIBUTES),
+        ParamSpec::new("ior", &[ANARI_FLOAT32], "index of refraction")
+            .default(SpecValue::Float(1.5))
+            .range(SpecValue::Float(1.0), SpecValue::None),
+        ParamSpec::new(
+            "thickness",
+            SCALAR_INPUT,
+            "0: a thin wall (light passes straight through); more: the surface bounds a volume \
+             that refracts and absorbs",
+        )
+        .default(SpecValue::Float(0.0))
+        .values(ATTRIBUTES),
+        ParamSpec::new(
+            "attenuationDistance",
+            &[ANARI_FLOAT32],
+            "distance inside the volume after which light keeps attenuationColor of itself",
+        )
+        .default(SpecValue::Float(f32::INFINITY)),
+        ParamSpec::new(
+            "attenuationColor",
+            &[ANARI_FLOAT32_VEC3],
+            "colour light inside the volume tends to over attenuationDistance",
+        )
+        .default(SpecValue::Floats(&[1.0, 1.0, 1.0])),
         ALPHA_MODE,
         ALPHA_CUTOFF,
     ],
 );
-// KHR_MATERIAL_PHYSICALLY_BASED is not advertised: clearcoat, sheen, transmission, normal maps
-// and the other optional inputs are not implemented.
+// KHR_MATERIAL_PHYSICALLY_BASED is not advertised: clearcoat, sheen, specular, iridescence,
+// normal and occlusion maps are not implemented.
+
+/// The clear dielectric part of a physicallyBased material (glTF KHR_materials_transmission,
+/// _ior and _volume).
+#[derive(Clone, Debug)]
+pub struct Transmission {
+    pub weight: Input,
+    pub ior: f32,
+    pub thickness: Input,
+    /// Per unit distance inside the volume, ln of the colour kept (≤ 0; 0: clear).
+    pub log_attenuation: Vec3,
+}
 
 /// How opacity is used.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -179,6 +221,8 @@ pub struct Material {
     pub roughness: Input,
     pub emissive: Input,
     pub alpha: AlphaMode,
+    /// `None` where there is no transmission.
+    pub transmission: Option<Transmission>,
 }
 
 impl Material {
@@ -192,6 +236,7 @@ impl Material {
             roughness: Input::Constant(Vec4::ONE),
             emissive: Input::Constant(Vec4::ZERO),
             alpha: AlphaMode::Opaque,
+            transmission: None,
         }
     }
 
@@ -205,7 +250,40 @@ impl Material {
         ]
         .iter()
         .any(|i| i.uses_attributes())
+            || self
+                .transmission
+                .as_ref()
+                .is_some_and(|t| t.weight.uses_attributes() || t.thickness.uses_attributes())
     }
+}
+
+fn read_transmission(params: &ParamSet) -> Option<Transmission> {
+    let weight = read_input(params, "transmission", Vec4::ZERO);
+    if matches!(weight, Input::Constant(v) if v.x <= 0.0) {
+        return None;
+    }
+    let ior = params
+        .get_f32("ior")
+        .filter(|ior| ior.is_finite() && *ior >= 1.0)
+        .unwrap_or(1.5);
+    let distance = params
+        .get_f32("attenuationDistance")
+        .filter(|d| *d > 0.0)
+        .unwrap_or(f32::INFINITY);
+    let color = params
+        .get_vec3("attenuationColor")
+        .unwrap_or(Vec3::ONE)
+        .clamp(Vec3::splat(1e-6), Vec3::ONE);
+    Some(Transmission {
+        weight,
+        ior,
+        thickness: read_input(params, "thickness", Vec4::ZERO),
+        log_attenuation: if distance.is_finite() {
+            Vec3::new(color.x.ln(), color.y.ln(), color.z.ln()) / distance
+        } else {
+            Vec3::ZERO
+        },
+    })
 }
 
 /// Builds the material from its committed parameters. Cheap, so it runs when a frame starts and
@@ -221,6 +299,7 @@ pub fn build(object: &Object) -> Option<Material> {
             roughness: Input::Constant(Vec4::ONE),
             emissive: Input::Constant(Vec4::ZERO),
             alpha: AlphaMode::read(&params),
+            transmission: None,
         },
         "physicallyBased" => Material {
             kind: MaterialKind::PhysicallyBased,
@@ -230,6 +309,7 @@ pub fn build(object: &Object) -> Option<Material> {
             roughness: read_input(&params, "roughness", Vec4::ONE),
             emissive: read_input(&params, "emissive", Vec3::ZERO.extend(1.0)),
             alpha: AlphaMode::read(&params),
+            transmission: read_transmission(&params),
         },
         _ => return None,
     })
