@@ -479,15 +479,10 @@ fn shade(
         let reflectivity = sp.metallic * (1.0 - sp.roughness);
         if reflectivity > 0.0 {
             let reflected = view - 2.0 * view.dot(sp.normal) * sp.normal;
-            let incoming = trace(
-                scene,
-                settings,
-                &offset_ray(sp.point, reflected, f32::INFINITY),
-                depth + 1,
-                screen,
-                sampling,
+            let incoming = traced_from(
+                scene, settings, sp.point, reflected, depth, screen, sampling,
             );
-            color += sp.base_color * incoming.truncate() * reflectivity;
+            color += sp.base_color * incoming * reflectivity;
         }
         let rough_metal = sp.metallic * sp.roughness;
         color += sp.base_color * std::f32::consts::FRAC_1_PI * light * rough_metal;
@@ -501,17 +496,32 @@ fn shade(
         color *= (sp.log_attenuation * travelled).exp();
     }
     if sp.opacity < 1.0 && depth < settings.max_ray_depth {
-        let behind = trace(
+        let behind = traced_from(
             scene,
             settings,
-            &offset_ray(sp.point, ray.direction, f32::INFINITY),
-            depth + 1,
+            sp.point,
+            ray.direction,
+            depth,
             screen,
             sampling,
         );
-        color = color * sp.opacity + behind.truncate() * (1.0 - sp.opacity);
+        color = color * sp.opacity + behind * (1.0 - sp.opacity);
     }
     color
+}
+
+/// Radiance arriving at `point` from `direction` (a secondary ray one bounce deeper).
+fn traced_from(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    point: Vec3,
+    direction: Vec3,
+    depth: u32,
+    screen: Option<Vec2>,
+    sampling: &LightSampling,
+) -> Vec3 {
+    let ray = offset_ray(point, direction, f32::INFINITY);
+    trace(scene, settings, &ray, depth + 1, screen, sampling).truncate()
 }
 
 /// Radiance from a clear dielectric surface: Fresnel-weighted reflection (along `view`, so
@@ -539,28 +549,17 @@ fn dielectric(
     let (reflectance, refracted) = fresnel_refraction(ray.direction, sp.normal, cos_in, eta);
     let reflected = view - 2.0 * view.dot(sp.normal) * sp.normal;
     let mut color = Vec3::ZERO;
+    let incoming = |direction| {
+        traced_from(
+            scene, settings, sp.point, direction, depth, screen, sampling,
+        )
+    };
     if reflectance > 0.0 {
-        let incoming = trace(
-            scene,
-            settings,
-            &offset_ray(sp.point, reflected, f32::INFINITY),
-            depth + 1,
-            screen,
-            sampling,
-        );
-        color += reflectance * incoming.truncate();
+        color += reflectance * incoming(reflected);
     }
     if reflectance < 1.0 {
         let through = if sp.volume { refracted } else { ray.direction };
-        let incoming = trace(
-            scene,
-            settings,
-            &offset_ray(sp.point, through, f32::INFINITY),
-            depth + 1,
-            screen,
-            sampling,
-        );
-        color += (1.0 - reflectance) * sp.base_color * incoming.truncate();
+        color += (1.0 - reflectance) * sp.base_color * incoming(through);
     }
     color
 }

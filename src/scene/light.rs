@@ -40,6 +40,20 @@ const RADIANCE: ParamSpec = ParamSpec::new(
 )
 .range(SpecValue::Float(0.0), SpecValue::None);
 
+// The emission cone of spot and ring lights.
+const OPENING_ANGLE: ParamSpec = ParamSpec::new(
+    "openingAngle",
+    &[ANARI_FLOAT32],
+    "full opening angle of the cone (radians)",
+)
+.default(SpecValue::Float(PI));
+const FALLOFF_ANGLE: ParamSpec = ParamSpec::new(
+    "falloffAngle",
+    &[ANARI_FLOAT32],
+    "angle over which intensity falls to zero inside the cone edge (radians)",
+)
+.default(SpecValue::Float(0.1));
+
 pub const DIRECTIONAL: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
     "directional",
@@ -105,18 +119,8 @@ pub const SPOT: ObjectSpec = ObjectSpec::new(
             "main emission direction",
         )
         .default(SpecValue::Floats(&[0.0, 0.0, -1.0])),
-        ParamSpec::new(
-            "openingAngle",
-            &[ANARI_FLOAT32],
-            "full opening angle of the cone (radians)",
-        )
-        .default(SpecValue::Float(PI)),
-        ParamSpec::new(
-            "falloffAngle",
-            &[ANARI_FLOAT32],
-            "angle over which intensity falls to zero inside the cone edge (radians)",
-        )
-        .default(SpecValue::Float(0.1)),
+        OPENING_ANGLE,
+        FALLOFF_ANGLE,
         ParamSpec::new("intensity", &[ANARI_FLOAT32], "radiant intensity (W/sr)")
             .default(SpecValue::Float(1.0))
             .range(SpecValue::Float(0.0), SpecValue::None),
@@ -173,18 +177,8 @@ pub const RING: ObjectSpec = ObjectSpec::new(
             "the ring's axis, the main emission direction",
         )
         .default(SpecValue::Floats(&[0.0, 0.0, -1.0])),
-        ParamSpec::new(
-            "openingAngle",
-            &[ANARI_FLOAT32],
-            "full opening angle of the cone (radians)",
-        )
-        .default(SpecValue::Float(PI)),
-        ParamSpec::new(
-            "falloffAngle",
-            &[ANARI_FLOAT32],
-            "angle over which intensity falls to zero inside the cone edge (radians)",
-        )
-        .default(SpecValue::Float(0.1)),
+        OPENING_ANGLE,
+        FALLOFF_ANGLE,
         ParamSpec::new(
             "intensity",
             &[ANARI_FLOAT32],
@@ -391,6 +385,20 @@ fn sample_cone(axis: Vec3, cos_max: f32, u: Vec2) -> Vec3 {
         .normalize()
 }
 
+/// A spot or ring light's cone: cos of half the opening angle, cos where the falloff starts,
+/// and the cone's solid angle weighted by the smoothstep falloff (smooth in cos θ, so its
+/// integral over the falloff band is half the band).
+fn emission_cone(p: &ParamSet) -> (f32, f32, f32) {
+    let half = 0.5 * p.get_f32("openingAngle").unwrap_or(PI);
+    let falloff = p.get_f32("falloffAngle").unwrap_or(0.1).max(0.0);
+    let (cos_outer, cos_inner) = (half.cos(), (half - falloff).max(0.0).cos());
+    (
+        cos_outer,
+        cos_inner,
+        TAU * (1.0 - 0.5 * (cos_inner + cos_outer)),
+    )
+}
+
 /// The environment frame from `up` and `direction`: unit (forward, up, right = forward × up),
 /// forward made perpendicular to up; `None` when they are parallel, zero or not finite.
 fn environment_axes(up: Vec3, direction: Vec3) -> Option<(Vec3, Vec3, Vec3)> {
@@ -591,13 +599,7 @@ impl Light {
                 }
             }
             "spot" => {
-                let half = 0.5 * p.get_f32("openingAngle").unwrap_or(PI);
-                let falloff = p.get_f32("falloffAngle").unwrap_or(0.1).max(0.0);
-                let cos_outer = half.cos();
-                let cos_inner = (half - falloff).max(0.0).cos();
-                // The cone's solid angle weighted by the smoothstep falloff (smooth in cos θ,
-                // so its integral over the falloff band is half the band).
-                let solid_angle = TAU * (1.0 - 0.5 * (cos_inner + cos_outer));
+                let (cos_outer, cos_inner, solid_angle) = emission_cone(&p);
                 let intensity = match valid("power") {
                     Some(power) if solid_angle > 0.0 => power / solid_angle,
                     Some(_) => 0.0,
@@ -612,10 +614,7 @@ impl Light {
                 }
             }
             "ring" => {
-                let half = 0.5 * p.get_f32("openingAngle").unwrap_or(PI);
-                let falloff = p.get_f32("falloffAngle").unwrap_or(0.1).max(0.0);
-                let (cos_outer, cos_inner) = (half.cos(), (half - falloff).max(0.0).cos());
-                let solid_angle = TAU * (1.0 - 0.5 * (cos_inner + cos_outer));
+                let (cos_outer, cos_inner, solid_angle) = emission_cone(&p);
                 let outer = valid("radius").unwrap_or(0.0);
                 let inner = valid("innerRadius").unwrap_or(0.0).min(outer);
                 let area = PI * (outer * outer - inner * inner);
