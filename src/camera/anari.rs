@@ -7,6 +7,7 @@ use crate::device::datatype::*;
 use crate::device::params::ParamSet;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 
+use super::light_field::LightFieldDesc;
 use super::viewers::{DEFAULT_CUTOFF_ANGLE, DEFAULT_TILES, MAX_VIEWERS};
 use super::{
     Camera, CameraError, DEFAULT_INTERPUPILLARY_DISTANCE, MatrixDesc, OffAxisDesc,
@@ -25,6 +26,7 @@ pub fn camera_from_params(
         "orthographic" => orthographic_desc(params).build(),
         "matrix" => matrix_desc(params).build(),
         "offAxis" => offaxis_desc(params)?.build(),
+        "lightField" => light_field_desc(params).build(),
         other => Err(CameraError::new(
             "subtype",
             format!("unknown camera subtype '{other}'"),
@@ -122,6 +124,28 @@ fn offaxis_desc(params: &ParamSet) -> Result<OffAxisDesc, CameraError> {
             .unwrap_or(defaults.image_region),
         viewers: viewer_desc(params)?,
     })
+}
+
+fn light_field_desc(params: &ParamSet) -> LightFieldDesc {
+    let defaults = LightFieldDesc::default();
+    let float = |name: &str, default: f32| params.get_f32(name).unwrap_or(default);
+    let flag = |name: &str| params.get_bool(name).unwrap_or(false);
+    LightFieldDesc {
+        lower_left: params.get_vec3("screen.lowerLeft"),
+        lower_right: params.get_vec3("screen.lowerRight"),
+        upper_right: params.get_vec3("screen.upperRight"),
+        pitch: float("pitch", defaults.pitch),
+        slope: float("slope", defaults.slope),
+        center: float("center", defaults.center),
+        dpi: float("dpi", defaults.dpi),
+        inv_view: flag("invView"),
+        view_cone: float("viewCone", defaults.view_cone),
+        flip_image_x: flag("flipImageX"),
+        flip_image_y: flag("flipImageY"),
+        flip_subpixels: flag("flipSubpixels"),
+        viewing_distance: params.get_f32("viewingDistance"),
+        views: params.get_u32("views").unwrap_or(0),
+    }
 }
 
 /// The `viewer*` parameters of an offAxis camera; `None` without `viewer.position`.
@@ -326,30 +350,111 @@ const IDENTITY: [f32; 16] = [
     1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0,
 ];
 
+// A physical screen rectangle (offAxis and lightField cameras).
+const SCREEN_LOWER_LEFT: ParamSpec = ParamSpec::new(
+    "screen.lowerLeft",
+    &[ANARI_FLOAT32_VEC3],
+    "lower-left screen corner in world space",
+)
+.required();
+const SCREEN_LOWER_RIGHT: ParamSpec = ParamSpec::new(
+    "screen.lowerRight",
+    &[ANARI_FLOAT32_VEC3],
+    "lower-right screen corner in world space",
+)
+.required();
+const SCREEN_UPPER_RIGHT: ParamSpec = ParamSpec::new(
+    "screen.upperRight",
+    &[ANARI_FLOAT32_VEC3],
+    "upper-right screen corner in world space",
+)
+.required();
+
+pub const LIGHT_FIELD: ObjectSpec = ObjectSpec::new(
+    ANARI_CAMERA,
+    "lightField",
+    "a slanted-lenticular light-field display: one ray per R, G and B subpixel, from the eye of \
+     the view the display's calibration gives that subpixel, through the subpixel's centre",
+    &[
+        SCREEN_LOWER_LEFT,
+        SCREEN_LOWER_RIGHT,
+        SCREEN_UPPER_RIGHT,
+        ParamSpec::new(
+            "pitch",
+            &[ANARI_FLOAT32],
+            "lenticules per inch (calibration)",
+        )
+        .default(SpecValue::Float(49.82)),
+        ParamSpec::new("slope", &[ANARI_FLOAT32], "lenticule slope (calibration)")
+            .default(SpecValue::Float(5.04)),
+        ParamSpec::new(
+            "center",
+            &[ANARI_FLOAT32],
+            "lenticular phase offset (calibration)",
+        )
+        .default(SpecValue::Float(0.177)),
+        ParamSpec::new(
+            "dpi",
+            &[ANARI_FLOAT32],
+            "panel pixels per inch (calibration)",
+        )
+        .default(SpecValue::Float(338.0)),
+        ParamSpec::new(
+            "invView",
+            &[ANARI_BOOL],
+            "views run the other way (calibration)",
+        )
+        .default(SpecValue::Bool(false)),
+        ParamSpec::new(
+            "viewCone",
+            &[ANARI_FLOAT32],
+            "angle the views span, in degrees (calibration)",
+        )
+        .default(SpecValue::Float(40.0)),
+        ParamSpec::new(
+            "flipImageX",
+            &[ANARI_BOOL],
+            "mirror the image left to right",
+        )
+        .default(SpecValue::Bool(false)),
+        ParamSpec::new(
+            "flipImageY",
+            &[ANARI_BOOL],
+            "mirror the image top to bottom",
+        )
+        .default(SpecValue::Bool(false)),
+        ParamSpec::new(
+            "flipSubpixels",
+            &[ANARI_BOOL],
+            "subpixels are B, G, R from the left (calibration flipSubp)",
+        )
+        .default(SpecValue::Bool(false)),
+        ParamSpec::new(
+            "viewingDistance",
+            &[ANARI_FLOAT32],
+            "distance of the views' eyes from the screen (default: the screen's height spans \
+             14°)",
+        ),
+        ParamSpec::new(
+            "views",
+            &[ANARI_UINT32],
+            "0: every subpixel its own view fraction; N: snapped to the nearest of N views, as \
+             quilt-based drivers do",
+        )
+        .default(SpecValue::UInt(0)),
+    ],
+)
+.extensions(&["ANARI_CAVETRACE_CAMERA_LIGHT_FIELD"]);
+
 pub const OFF_AXIS: ObjectSpec = ObjectSpec::new(
     ANARI_CAMERA,
     "offAxis",
     "tracked eye looking at a physical screen rectangle (CAVE wall, powerwall): each eye gets \
      its exact off-axis frustum, the screen is the zero-parallax plane",
     &[
-        ParamSpec::new(
-            "screen.lowerLeft",
-            &[ANARI_FLOAT32_VEC3],
-            "lower-left screen corner in world space",
-        )
-        .required(),
-        ParamSpec::new(
-            "screen.lowerRight",
-            &[ANARI_FLOAT32_VEC3],
-            "lower-right screen corner in world space",
-        )
-        .required(),
-        ParamSpec::new(
-            "screen.upperRight",
-            &[ANARI_FLOAT32_VEC3],
-            "upper-right screen corner in world space",
-        )
-        .required(),
+        SCREEN_LOWER_LEFT,
+        SCREEN_LOWER_RIGHT,
+        SCREEN_UPPER_RIGHT,
         ParamSpec::new(
             "position",
             &[ANARI_FLOAT32_VEC3],
@@ -429,7 +534,7 @@ pub const OFF_AXIS: ObjectSpec = ObjectSpec::new(
 const _: () = assert!(MAX_VIEWERS == 64, "the viewer.position description says 64");
 
 /// The camera subtypes this module implements.
-pub const SPECS: &[ObjectSpec] = &[PERSPECTIVE, ORTHOGRAPHIC, MATRIX, OFF_AXIS];
+pub const SPECS: &[ObjectSpec] = &[PERSPECTIVE, ORTHOGRAPHIC, MATRIX, OFF_AXIS, LIGHT_FIELD];
 
 #[cfg(test)]
 mod tests {

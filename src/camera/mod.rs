@@ -7,6 +7,7 @@
 //! - Geometry is computed in f64 and rounded to f32 only in the outputs.
 
 pub mod anari;
+pub mod light_field;
 pub mod matrix;
 pub mod offaxis;
 pub mod orthographic;

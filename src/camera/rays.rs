@@ -89,6 +89,53 @@ pub(crate) struct Blended {
     pub eye_offset: f64,
 }
 
+/// Rays of a light-field display's subpixels (`lightField` camera): each from the eye of its
+/// view fraction through its subpixel's centre (see `camera::light_field`). Called with the
+/// subpixel's own viewport coordinates: s = (3x + k + ½) / 3W for subpixel k of pixel x.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct LightFieldRays {
+    pub window_origin: DVec3,
+    pub window_right: DVec3,
+    pub window_up: DVec3,
+    pub forward: DVec3,
+    pub clip: ClipRange,
+    pub tilt: f64,
+    pub pitch: f64,
+    /// One subpixel's share of the lenticular phase (pitch / 3W).
+    pub subpixel: f64,
+    pub center: f64,
+    pub inv_view: bool,
+    pub views: u32,
+    /// Radians.
+    pub view_cone: f64,
+    pub flip_x: bool,
+    pub flip_y: bool,
+    pub flip_subpixels: bool,
+    /// The eye of view fraction ½ (in front of the screen's centre), and the screen's unit x
+    /// axis times the viewing distance.
+    pub view_centre: DVec3,
+    pub view_x: DVec3,
+}
+
+impl LightFieldRays {
+    /// The view fraction of the subpixel at viewport coordinates (s, t).
+    #[inline]
+    fn view_fraction(&self, s: f64, t: f64) -> f64 {
+        // s is the subpixel's centre; the calibration's phase is written for the pixel's
+        // centre plus k subpixels, which is s plus one subpixel.
+        let mut f =
+            ((s + t * self.tilt) * self.pitch - self.center + self.subpixel).rem_euclid(1.0);
+        if self.inv_view {
+            f = 1.0 - f;
+        }
+        if self.views > 0 {
+            let n = f64::from(self.views);
+            f = ((f * n).floor().min(n - 1.0) + 0.5) / n;
+        }
+        f
+    }
+}
+
 /// Rays unprojected from NDC through proj⁻¹ then view⁻¹: matrix camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Unproject {
@@ -199,6 +246,7 @@ impl Unproject {
 enum Generator {
     Pinhole(Pinhole),
     Blended(Blended),
+    LightField(LightFieldRays),
     Parallel(Parallel),
     /// With the pinhole that traces the same rays, for perspective projections.
     Unproject(Unproject, Option<Pinhole>),
@@ -243,6 +291,24 @@ impl EyeRays {
             region,
             generator: Generator::Blended(blended),
             stereo: None,
+        }
+    }
+
+    pub(crate) fn light_field(region: ImageRegion, rays: LightFieldRays) -> EyeRays {
+        EyeRays {
+            region,
+            generator: Generator::LightField(rays),
+            stereo: None,
+        }
+    }
+
+    /// For a light-field display: the colour channel each of a pixel's three subpixels (left
+    /// to right) shows; `None` for every other camera (one ray per pixel).
+    pub fn subpixel_channels(&self) -> Option<[usize; 3]> {
+        match &self.generator {
+            Generator::LightField(l) if l.flip_subpixels => Some([2, 1, 0]),
+            Generator::LightField(_) => Some([0, 1, 2]),
+            _ => None,
         }
     }
 
@@ -305,6 +371,16 @@ impl EyeRays {
                 ray
             }
             Generator::Blended(_) => self.rays4([s; 4], [t; 4], lens)[0],
+            Generator::LightField(l) => {
+                let f = l.view_fraction(st.x, st.y);
+                let eye = l.view_centre + l.view_x * ((f - 0.5) * l.view_cone).tan();
+                // Rounded as an application's FLOAT32 eye position would be.
+                let eye = eye.as_vec3().as_dvec3();
+                let s = if l.flip_x { 1.0 - st.x } else { st.x };
+                let t = if l.flip_y { 1.0 - st.y } else { st.y };
+                let target = l.window_origin + s * l.window_right + t * l.window_up;
+                clipped_ray(eye, target, l.forward, &l.clip)
+            }
             Generator::Parallel(p) => CameraRay {
                 origin: (p.plane_origin + st.x * p.plane_right + st.y * p.plane_up).as_vec3(),
                 direction: p.forward.as_vec3(),
@@ -385,7 +461,10 @@ impl EyeRays {
                 return t;
             }
             Generator::Pinhole(p) => p.eye,
-            Generator::Blended(_) | Generator::Parallel(_) | Generator::Unproject(..) => {
+            Generator::Blended(_)
+            | Generator::LightField(_)
+            | Generator::Parallel(_)
+            | Generator::Unproject(..) => {
                 return t;
             }
         };
@@ -419,6 +498,7 @@ impl EyeRays {
                 frustum_depth(pinhole.eye, pinhole.forward, &pinhole.clip)
             }
             Generator::Blended(b) => frustum_depth(ray.origin.as_dvec3(), b.forward, &b.clip),
+            Generator::LightField(l) => frustum_depth(ray.origin.as_dvec3(), l.forward, &l.clip),
             Generator::Parallel(parallel) => {
                 let z = (p - parallel.plane_origin).dot(parallel.forward);
                 let near = parallel.clip.near.unwrap_or(0.0);
@@ -501,7 +581,7 @@ impl EyeRays {
                 };
                 Some((head - 0.5 * right, head + 0.5 * right))
             }
-            Generator::Parallel(_) | Generator::Unproject(..) => None,
+            Generator::LightField(_) | Generator::Parallel(_) | Generator::Unproject(..) => None,
         }
     }
 

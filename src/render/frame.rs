@@ -996,11 +996,21 @@ fn render_tile<'a>(
     if job.keeps_hits {
         scratch.first_hits.resize(pixel_count, None);
     }
-    match anaglyph_eyes(eyes) {
-        None => trace_blocks(job, eyes, map, scratch, &mut colors, &mut covered, true),
-        Some((left, right)) => {
+    let subpixel_channels = eyes.first().and_then(|(_, rays)| rays.subpixel_channels());
+    match (anaglyph_eyes(eyes), subpixel_channels) {
+        (Some((left, right)), _) => {
             // Both eyes for every pixel; the channels other than colour are the left eye's.
-            trace_blocks(job, left, map, scratch, &mut colors, &mut covered, true);
+            let all = PixelRays::All;
+            trace_blocks(
+                job,
+                left,
+                map,
+                scratch,
+                &mut colors,
+                &mut covered,
+                true,
+                all,
+            );
             let mut right_colors = [Vec4::ZERO; TILE_PIXELS];
             trace_blocks(
                 job,
@@ -1010,10 +1020,41 @@ fn render_tile<'a>(
                 &mut right_colors,
                 &mut covered,
                 false,
+                all,
             );
             for (color, right) in colors[..pixel_count].iter_mut().zip(&right_colors) {
                 *color = anaglyph(*color, *right);
             }
+        }
+        (None, Some(channels)) => {
+            // A light-field display: a ray per subpixel, each giving its colour channel; alpha
+            // and the other channels come from the green subpixel's ray.
+            let mut passes = [[Vec4::ZERO; TILE_PIXELS]; 3];
+            for (k, pass) in passes.iter_mut().enumerate() {
+                let green = channels[k] == 1;
+                let rays = PixelRays::Subpixel(k as u32);
+                trace_blocks(job, eyes, map, scratch, pass, &mut covered, green, rays);
+            }
+            let green = channels.iter().position(|c| *c == 1).unwrap_or(1);
+            for (index, color) in colors[..pixel_count].iter_mut().enumerate() {
+                *color = passes[green][index];
+                for (k, channel) in channels.iter().enumerate() {
+                    color[*channel] = passes[k][index][*channel];
+                }
+            }
+        }
+        (None, None) => {
+            let all = PixelRays::All;
+            trace_blocks(
+                job,
+                eyes,
+                map,
+                scratch,
+                &mut colors,
+                &mut covered,
+                true,
+                all,
+            );
         }
     }
     let first_hits = &scratch.first_hits;
@@ -1058,6 +1099,14 @@ fn render_tile<'a>(
             channel.write_area(&map, setup.width, encoded);
         }
     }
+}
+
+/// Which ray of a pixel a pass traces: the pixel's own, or (light-field displays) the ray of
+/// its subpixel k (0, 1, 2 from the left).
+#[derive(Clone, Copy)]
+enum PixelRays {
+    All,
+    Subpixel(u32),
 }
 
 /// An eye's viewport with its ray generator for the frame.
@@ -1116,6 +1165,7 @@ fn trace_blocks<'a>(
     colors: &mut [Vec4; TILE_PIXELS],
     covered: &mut [bool; TILE_PIXELS],
     record_hits: bool,
+    pixel_rays: PixelRays,
 ) {
     let setup = &job.setup;
     let area = map.area();
@@ -1164,7 +1214,16 @@ fn trace_blocks<'a>(
                     let Some((viewport, eye_rays)) = eye else {
                         continue;
                     };
-                    let u = ((x - viewport.x) as f32 + offset.x) / viewport.width as f32;
+                    let u = match pixel_rays {
+                        PixelRays::All => {
+                            ((x - viewport.x) as f32 + offset.x) / viewport.width as f32
+                        }
+                        // The subpixel as a pixel of a frame three times as wide.
+                        PixelRays::Subpixel(k) => {
+                            ((3 * (x - viewport.x) + k) as f32 + offset.x)
+                                / (3 * viewport.width) as f32
+                        }
+                    };
                     let v = ((y - viewport.y) as f32 + offset.y) / viewport.height as f32;
                     if batched.is_some() {
                         batch[lane] = Some((u, v));

@@ -1,0 +1,297 @@
+//! The `lightField` camera (ANARI_CAVETRACE_CAMERA_LIGHT_FIELD): one ray per R, G and B
+//! subpixel of a slanted-lenticular light-field display, from the display's calibration.
+//!
+//! With u = (x+½)/W, v = (y+½)/H (rows from the bottom): tilt = −H/(W·slope),
+//! p = pitch·(W/dpi)·cos(atan2(1, slope)), subp = p/(3W); subpixel k (0, 1, 2 from the left) of
+//! pixel (x, y) shows view fraction f = frac((u + v·tilt)·p − center + k·subp), 1 − f with
+//! `invView`; `views` = N > 0 snaps it to the nearest of the views (i+½)/N. View f looks from
+//! E(f) = S + d·n + d·tan((f − ½)·viewCone)·X (S the screen's centre, n its normal towards the
+//! viewer, X its unit x axis, d the viewing distance), and the subpixel's ray runs from E(f)
+//! through the subpixel's centre LL + ((x + (k+½)/3)/W)(LR−LL) + ((y+½)/H)(UR−LR) (mirrored by
+//! `flipImageX`/`flipImageY`). Its shading gives that subpixel's colour channel: R, G, B left to
+//! right, B, G, R with `flipSubpixels`. This follows the lenticular interleaving shaders
+//! published for such displays, which compute the same view index per subpixel from the same
+//! calibration values (pitch, slope, center, dpi, invView, flipSubp) before looking up a quilt.
+
+use std::sync::Arc;
+
+use glam::Vec3;
+
+use super::offaxis::ScreenFrame;
+use super::rays::{ClipRange, EyeRays, ImageRegion, LightFieldRays};
+use super::validate;
+use super::{Camera, CameraError, Eye, EyeViewport, StereoMode};
+
+/// Half the vertical field of view the default viewing distance gives the screen: the usual
+/// 14° of light-field displays.
+const DEFAULT_HALF_FIELD_OF_VIEW_DEGREES: f64 = 7.0;
+
+/// Parameters of a lightField camera as the application set them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightFieldDesc {
+    pub lower_left: Option<Vec3>,
+    pub lower_right: Option<Vec3>,
+    pub upper_right: Option<Vec3>,
+    pub pitch: f32,
+    pub slope: f32,
+    pub center: f32,
+    pub dpi: f32,
+    pub inv_view: bool,
+    /// Degrees.
+    pub view_cone: f32,
+    pub flip_image_x: bool,
+    pub flip_image_y: bool,
+    pub flip_subpixels: bool,
+    pub viewing_distance: Option<f32>,
+    pub views: u32,
+}
+
+impl Default for LightFieldDesc {
+    /// The sample calibration of a 2560×1600 panel.
+    fn default() -> LightFieldDesc {
+        LightFieldDesc {
+            lower_left: None,
+            lower_right: None,
+            upper_right: None,
+            pitch: 49.82,
+            slope: 5.04,
+            center: 0.177,
+            dpi: 338.0,
+            inv_view: false,
+            view_cone: 40.0,
+            flip_image_x: false,
+            flip_image_y: false,
+            flip_subpixels: false,
+            viewing_distance: None,
+            views: 0,
+        }
+    }
+}
+
+impl LightFieldDesc {
+    pub fn build(&self) -> Result<Arc<dyn Camera>, CameraError> {
+        Ok(Arc::new(LightFieldCamera::new(self)?))
+    }
+}
+
+/// A validated lightField camera.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightFieldCamera {
+    screen: ScreenFrame,
+    desc: LightFieldDesc,
+    viewing_distance: f64,
+}
+
+impl LightFieldCamera {
+    pub fn new(desc: &LightFieldDesc) -> Result<LightFieldCamera, CameraError> {
+        let corner = |name: &str, value: Option<Vec3>| match value {
+            Some(value) => validate::finite_point(name, value),
+            None => Err(CameraError::new(name, "is required")),
+        };
+        let ll = corner("screen.lowerLeft", desc.lower_left)?;
+        let lr = corner("screen.lowerRight", desc.lower_right)?;
+        let ur = corner("screen.upperRight", desc.upper_right)?;
+        let screen = ScreenFrame::new(ll, lr, ur)
+            .map_err(|error| CameraError::new("screen.upperRight", error.to_string()))?;
+        let finite = |name: &str, value: f32| {
+            if value.is_finite() {
+                Ok(f64::from(value))
+            } else {
+                Err(CameraError::new(
+                    name,
+                    format!("must be finite, got {value}"),
+                ))
+            }
+        };
+        finite("center", desc.center)?;
+        if finite("slope", desc.slope)? == 0.0 {
+            return Err(CameraError::new("slope", "must not be 0"));
+        }
+        validate::positive("pitch", desc.pitch)?;
+        validate::positive("dpi", desc.dpi)?;
+        let cone = finite("viewCone", desc.view_cone)?;
+        if !(cone > 0.0 && cone < 180.0) {
+            return Err(CameraError::new(
+                "viewCone",
+                format!("must be in (0°, 180°), got {cone}"),
+            ));
+        }
+        let height = (ur - lr).length();
+        let viewing_distance = match desc.viewing_distance {
+            Some(distance) => validate::positive("viewingDistance", distance)?,
+            None => 0.5 * height / DEFAULT_HALF_FIELD_OF_VIEW_DEGREES.to_radians().tan(),
+        };
+        Ok(LightFieldCamera {
+            screen,
+            desc: desc.clone(),
+            viewing_distance,
+        })
+    }
+}
+
+impl Camera for LightFieldCamera {
+    fn viewports(&self, width: u32, height: u32) -> Vec<EyeViewport> {
+        StereoMode::None.viewports(width, height)
+    }
+
+    /// The calibration turned into what every subpixel ray needs, for a `width`×`height` panel.
+    fn prepare(&self, _eye: Eye, width: u32, height: u32) -> EyeRays {
+        let d = &self.desc;
+        let (w, h) = (f64::from(width.max(1)), f64::from(height.max(1)));
+        let slope = f64::from(d.slope);
+        let p = f64::from(d.pitch) * (w / f64::from(d.dpi)) * 1f64.atan2(slope).cos();
+        let s = &self.screen;
+        let centre = s.lower_left
+            + 0.5 * (s.lower_right - s.lower_left)
+            + 0.5 * (s.upper_right - s.lower_right);
+        EyeRays::light_field(
+            ImageRegion::from_box([0.0, 0.0, 1.0, 1.0]),
+            LightFieldRays {
+                window_origin: s.lower_left,
+                window_right: s.lower_right - s.lower_left,
+                window_up: s.upper_right - s.lower_right,
+                forward: -s.z,
+                clip: ClipRange::default(),
+                tilt: -h / (w * slope),
+                pitch: p,
+                subpixel: p / (3.0 * w),
+                center: f64::from(d.center),
+                inv_view: d.inv_view,
+                views: d.views,
+                view_cone: f64::from(d.view_cone).to_radians(),
+                flip_x: d.flip_image_x,
+                flip_y: d.flip_image_y,
+                flip_subpixels: d.flip_subpixels,
+                view_centre: centre + s.z * self.viewing_distance,
+                view_x: s.x * self.viewing_distance,
+            },
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::{DVec3, Vec2};
+
+    fn camera(desc: LightFieldDesc) -> LightFieldCamera {
+        LightFieldCamera::new(&LightFieldDesc {
+            lower_left: Some(Vec3::new(-0.3, -0.2, 0.0)),
+            lower_right: Some(Vec3::new(0.3, -0.2, 0.0)),
+            upper_right: Some(Vec3::new(0.3, 0.2, 0.0)),
+            ..desc
+        })
+        .unwrap()
+    }
+
+    /// The definition, in f64, for subpixel k of pixel (x, y) of a W×H panel.
+    fn view_fraction(d: &LightFieldDesc, x: u32, y: u32, k: u32, w: f64, h: f64) -> f64 {
+        let (u, v) = ((f64::from(x) + 0.5) / w, (f64::from(y) + 0.5) / h);
+        let slope = f64::from(d.slope);
+        let tilt = -h / (w * slope);
+        let p = f64::from(d.pitch) * (w / f64::from(d.dpi)) * 1f64.atan2(slope).cos();
+        let subp = p / (3.0 * w);
+        let f = ((u + v * tilt) * p - f64::from(d.center) + f64::from(k) * subp).rem_euclid(1.0);
+        if d.inv_view { 1.0 - f } else { f }
+    }
+
+    #[test]
+    fn subpixel_rays_start_at_the_eye_of_their_view_fraction() {
+        let (w, h) = (2560u32, 1600u32);
+        for inv_view in [false, true] {
+            let desc = LightFieldDesc {
+                inv_view,
+                ..LightFieldDesc::default()
+            };
+            let cam = camera(desc.clone());
+            let rays = cam.prepare(Eye::Mono, w, h);
+            let d = cam.viewing_distance;
+            let cone = f64::from(desc.view_cone).to_radians();
+            for (x, y) in [(0, 0), (1, 0), (1279, 800), (2559, 1599), (17, 1203)] {
+                for k in 0..3 {
+                    let f = view_fraction(&desc, x, y, k, f64::from(w), f64::from(h));
+                    let eye = DVec3::new(d * ((f - 0.5) * cone).tan(), 0.0, d);
+                    let s = ((3 * x + k) as f32 + 0.5) / (3 * w) as f32;
+                    let t = (y as f32 + 0.5) / h as f32;
+                    let ray = rays.ray(s, t, Vec2::ZERO);
+                    // The frame's subpixel coordinate is an f32: across 370 lenticular cycles
+                    // its rounding moves the view fraction by up to ~1e-5.
+                    assert!(
+                        (ray.origin.as_dvec3() - eye).length() < 2e-5 * d.max(1.0),
+                        "({x}, {y}) subpixel {k}: {} vs {eye} (f {f})",
+                        ray.origin
+                    );
+                    // The ray passes through the subpixel's centre on the screen.
+                    let target =
+                        DVec3::new(-0.3 + 0.6 * f64::from(s), -0.2 + 0.4 * f64::from(t), 0.0);
+                    let along = (target - ray.origin.as_dvec3()).normalize();
+                    assert!((along - ray.direction.as_dvec3()).length() < 1e-6);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn bad_calibration_is_refused_naming_the_parameter() {
+        for (desc, parameter) in [
+            (
+                LightFieldDesc {
+                    slope: 0.0,
+                    ..LightFieldDesc::default()
+                },
+                "slope",
+            ),
+            (
+                LightFieldDesc {
+                    dpi: 0.0,
+                    ..LightFieldDesc::default()
+                },
+                "dpi",
+            ),
+            (
+                LightFieldDesc {
+                    pitch: f32::NAN,
+                    ..LightFieldDesc::default()
+                },
+                "pitch",
+            ),
+            (
+                LightFieldDesc {
+                    view_cone: 180.0,
+                    ..LightFieldDesc::default()
+                },
+                "viewCone",
+            ),
+            (
+                LightFieldDesc {
+                    view_cone: 0.0,
+                    ..LightFieldDesc::default()
+                },
+                "viewCone",
+            ),
+            (
+                LightFieldDesc {
+                    center: f32::INFINITY,
+                    ..LightFieldDesc::default()
+                },
+                "center",
+            ),
+            (
+                LightFieldDesc {
+                    viewing_distance: Some(-1.0),
+                    ..LightFieldDesc::default()
+                },
+                "viewingDistance",
+            ),
+        ] {
+            let error = LightFieldCamera::new(&LightFieldDesc {
+                lower_left: Some(Vec3::new(-0.3, -0.2, 0.0)),
+                lower_right: Some(Vec3::new(0.3, -0.2, 0.0)),
+                upper_right: Some(Vec3::new(0.3, 0.2, 0.0)),
+                ..desc
+            })
+            .unwrap_err();
+            assert_eq!(error.parameter, parameter);
+        }
+    }
+}
