@@ -9,6 +9,7 @@
 //!                                            matrix camera against one viewer, same view)
 //!     cargo bench --bench render -- stereo  (sideBySide, topBottom, interleaved and anaglyph
 //!                                            frames against mono, both renderers, both scenes)
+//!     cargo bench --bench render -- lightfield (lightField frames against a mono frame)
 //!
 //! Scenes: a height field of ~1M triangles seen by a tracked head (the camera moves every
 //! frame), rendered (a) by the "fast" renderer and (b) by the "default" renderer with one
@@ -741,6 +742,70 @@ fn stereo_section(dev: ANARIDevice, scenes: &[(&str, ANARIGeometry)], size: u32,
     }
 }
 
+/// Light-field frames against a mono frame of the same size
+/// (`cargo bench --bench render -- lightfield`): the height field through the benchmark's
+/// screen, seen by one offAxis eye 1 m in front, and by the lightField camera (sample
+/// calibration, views 1 m in front) with 45 snapped views and with continuous ones. Cases
+/// alternate frame by frame.
+fn light_field_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: u32) {
+    let screen = bench_screen();
+    let eye = head_at(0).to_array();
+    let cases: [(&str, &str, Option<u32>); 3] = [
+        ("offAxis, one eye", "offAxis", None),
+        ("lightField, 45 views", "lightField", Some(45)),
+        ("lightField, continuous views", "lightField", Some(0)),
+    ];
+    let setups: Vec<Setup> = cases
+        .iter()
+        .map(|(_, subtype, views)| {
+            let s = setup(dev, geometry, "fast", size);
+            let camera = anariNewCamera(dev, c(subtype).as_ptr());
+            let [ll, lr, ur] = screen.corners;
+            set(dev, camera, "screen.lowerLeft", ANARI_FLOAT32_VEC3, &ll);
+            set(dev, camera, "screen.lowerRight", ANARI_FLOAT32_VEC3, &lr);
+            set(dev, camera, "screen.upperRight", ANARI_FLOAT32_VEC3, &ur);
+            match views {
+                None => set(dev, camera, "position", ANARI_FLOAT32_VEC3, &eye),
+                Some(views) => {
+                    set(dev, camera, "views", ANARI_UINT32, views);
+                    set(dev, camera, "viewingDistance", ANARI_FLOAT32, &1.0f32);
+                }
+            }
+            commit(dev, camera);
+            set_object(dev, s.frame, "camera", ANARI_CAMERA, camera);
+            commit(dev, s.frame);
+            anariRelease(dev, s.camera);
+            let s = Setup { camera, ..s };
+            render_once(&s);
+            s
+        })
+        .collect();
+    let mut wall = vec![Vec::new(); cases.len()];
+    let mut cpu = vec![Vec::new(); cases.len()];
+    for _ in 0..frames {
+        for (k, s) in setups.iter().enumerate() {
+            let cpu_start = cpu_seconds();
+            wall[k].push(render_once(s));
+            cpu[k].push((cpu_seconds() - cpu_start) * 1e3);
+        }
+    }
+    let medians: Vec<(f64, f64)> = wall
+        .into_iter()
+        .zip(cpu)
+        .map(|(w, c)| (median(w), median(c)))
+        .collect();
+    println!("light field, height field, fast renderer, {size}x{size}, {frames} frames each:");
+    for (k, (label, _, _)) in cases.iter().enumerate() {
+        let (wall, cpu) = medians[k];
+        println!(
+            "  {label}: {wall:.1} ms ({cpu:.0} ms CPU), {:.2}x the mono frame ({:.2}x in CPU time)",
+            wall / medians[0].0,
+            cpu / medians[0].1
+        );
+    }
+    setups.into_iter().for_each(release);
+}
+
 fn main() {
     if std::env::args().any(|a| a == "--list") {
         return;
@@ -788,6 +853,13 @@ fn main() {
         ];
         stereo_section(dev, &scenes, size, if quick { 3 } else { 7 });
         anariRelease(dev, cloud);
+        anariRelease(dev, geometry);
+        anariRelease(dev, dev);
+        anariUnloadLibrary(lib);
+        return;
+    }
+    if std::env::args().skip(1).any(|a| a == "lightfield") {
+        light_field_section(dev, geometry, size, if quick { 3 } else { 7 });
         anariRelease(dev, geometry);
         anariRelease(dev, dev);
         anariUnloadLibrary(lib);

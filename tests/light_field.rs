@@ -106,12 +106,7 @@ fn light_field(dev: ANARIDevice, cal: &Calibration) -> ANARICamera {
 type Image = (Vec<[f32; 4]>, Vec<u32>);
 
 /// (colours, primitive ids) of `camera` at `size`, fast renderer.
-fn render(
-    dev: ANARIDevice,
-    world: ANARIWorld,
-    camera: ANARICamera,
-    size: [u32; 2],
-) -> Image {
+fn render(dev: ANARIDevice, world: ANARIWorld, camera: ANARICamera, size: [u32; 2]) -> Image {
     let renderer = plain_renderer(dev, "fast");
     let frame = frame_for(dev, world, camera, renderer, size);
     let (colors, _, _) = render_channel::<[f32; 4]>(dev, frame, "channel.color");

@@ -1254,8 +1254,10 @@ fn trace_blocks<'a>(
                         }
                     }
                 }
-                if map.stride() >= SINGLE_RAY_STRIDE {
-                    // Sparse lattices make incoherent packets: ray by ray is cheaper there.
+                let subpixels = matches!(pixel_rays, PixelRays::Subpixel(_));
+                if map.stride() >= SINGLE_RAY_STRIDE || subpixels {
+                    // Sparse lattices make incoherent packets, and a light field's neighbouring
+                    // subpixels look from eyes centimetres apart: ray by ray is cheaper there.
                     for (hit, ray) in hits.iter_mut().zip(&rays) {
                         *hit = setup.scene.bvh.intersect(ray);
                     }
