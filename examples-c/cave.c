@@ -37,7 +37,8 @@
  * point between the eyes (glossy_perEye_pair.png, glossy_cyclopean_pair.png;
  * ANARI_CAVETRACE_RENDERER_STEREO_LIGHTING), and the front wall for passive 3D displays and
  * red-cyan glasses (ANARI_CAVETRACE_STEREO_INTERLEAVED): front_rowInterleaved.png,
- * front_checkerboard.png, front_anaglyph.png.
+ * front_checkerboard.png, front_anaglyph.png; and as a light-field display would show it
+ * (lightField camera, sample calibration, 45 views): front_hologram.png.
  *
  *   cc -std=c99 cave.c $(pkg-config --cflags --libs cavetrace) -lm -o cave
  *   ./cave [folder (default out/cave)] [wall resolution (default 256)] [head positions (4)]
@@ -783,6 +784,29 @@ int main(int argc, char **argv) {
             ANARI_STATUS_NO_ERROR;
     }
     anariRelease(device, shared_camera);
+
+    /* A light-field display in the front wall's place (sample calibration, 45 views): one ray
+     * per subpixel, written as the panel shows it (ANARI_CAVETRACE_CAMERA_LIGHT_FIELD). */
+    ANARICamera hologram = anariNewCamera(device, "lightField");
+    anariSetParameter(device, hologram, "screen.lowerLeft", ANARI_FLOAT32_VEC3,
+                      WALL[0].lower_left);
+    anariSetParameter(device, hologram, "screen.lowerRight", ANARI_FLOAT32_VEC3,
+                      WALL[0].lower_right);
+    anariSetParameter(device, hologram, "screen.upperRight", ANARI_FLOAT32_VEC3,
+                      WALL[0].upper_right);
+    uint32_t views = 45;
+    anariSetParameter(device, hologram, "views", ANARI_UINT32, &views);
+    anariCommitParameters(device, hologram);
+    ANARIFrame hologram_frame = color_frame(device, n, n, world, renderer);
+    double hologram_seconds = render(device, hologram_frame, hologram, NULL, 0);
+    char hologram_path[2048];
+    snprintf(hologram_path, sizeof hologram_path, "%s/front_hologram.png", stereo_folder);
+    ok &= cavetraceWriteFramePNG(device, hologram_frame, "channel.color", hologram_path) ==
+          ANARI_STATUS_NO_ERROR;
+    printf("light field: front wall %u×%u, one ray per subpixel, in %.1f ms\n", n, n,
+           1e3 * hologram_seconds);
+    anariRelease(device, hologram_frame);
+    anariRelease(device, hologram);
     printf("stereo images in %s/\n", stereo_folder);
     ANARIObject stereo_objects[] = {mono_camera, pair_camera, glossy, lit, glossy_frame};
     for (size_t i = 0; i < sizeof stereo_objects / sizeof stereo_objects[0]; i++)
