@@ -282,6 +282,7 @@ struct ShadingPoint {
     instance_id: u32,
 }
 
+#[inline(always)]
 fn shading_point(scene: &SceneSnapshot, ray: &Ray, hit: &SceneHit) -> ShadingPoint {
     let instance = &scene.instances[hit.instance as usize];
     let surface = &instance.surfaces[hit.geometry as usize];
