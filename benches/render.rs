@@ -505,6 +505,30 @@ fn head_at(step: u32) -> Vec3 {
     Vec3::new(0.1 * t.sin(), 1.2 + 0.02 * t.cos(), 1.6)
 }
 
+/// Renders `setups` in turn, `frames` rounds (`prepare(k, round)` runs before each render, outside
+/// the timing): per setup the median (wall ms, CPU ms). Cases take turns frame by frame, so that
+/// drift on a shared machine hits them alike.
+fn alternating_medians(
+    setups: &[Setup],
+    frames: u32,
+    mut prepare: impl FnMut(usize, u32),
+) -> Vec<(f64, f64)> {
+    let mut wall = vec![Vec::new(); setups.len()];
+    let mut cpu = vec![Vec::new(); setups.len()];
+    for round in 0..frames {
+        for (k, s) in setups.iter().enumerate() {
+            prepare(k, round);
+            let cpu_start = cpu_seconds();
+            wall[k].push(render_once(s));
+            cpu[k].push((cpu_seconds() - cpu_start) * 1e3);
+        }
+    }
+    wall.into_iter()
+        .zip(cpu)
+        .map(|(w, c)| (median(w), median(c)))
+        .collect()
+}
+
 /// Viewer cameras of the `viewers` section: `setup` commits the camera for frame `step`.
 enum ViewerCase {
     OneViewer,
@@ -656,21 +680,13 @@ fn viewers_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames:
                 }
             })
             .collect();
-        // Cases take turns frame by frame, so that drift on a shared machine hits them alike.
-        let mut wall = vec![Vec::new(); cases.len()];
-        let mut cpu = vec![Vec::new(); cases.len()];
-        for step in 0..frames {
-            for (k, (_, case)) in cases.iter().enumerate() {
-                commit_camera(&setups[k], case, step);
-                let cpu_start = cpu_seconds();
-                wall[k].push(render_once(&setups[k]));
-                cpu[k].push((cpu_seconds() - cpu_start) * 1e3);
-            }
-        }
-        let (base_wall, base_cpu) = (median(wall[0].clone()), median(cpu[0].clone()));
+        let medians = alternating_medians(&setups, frames, |k, step| {
+            commit_camera(&setups[k], &cases[k].1, step)
+        });
+        let (base_wall, base_cpu) = medians[0];
         println!("several viewers, {renderer} renderer, {size}x{size}, {frames} frames each:");
         for (k, (label, _)) in cases.iter().enumerate() {
-            let (w, c) = (median(wall[k].clone()), median(cpu[k].clone()));
+            let (w, c) = medians[k];
             println!(
                 "  {label:<26} median frame {w:6.1} ms ({:.2}x), {c:6.0} ms CPU ({:.2}x)",
                 w / base_wall,
@@ -711,21 +727,8 @@ fn stereo_section(dev: ANARIDevice, scenes: &[(&str, ANARIGeometry)], size: u32,
                     s
                 })
                 .collect();
-            let mut wall = vec![Vec::new(); cases.len()];
-            let mut cpu = vec![Vec::new(); cases.len()];
-            for step in 0..frames {
-                for (k, s) in setups.iter().enumerate() {
-                    track_head(s, step);
-                    let cpu_start = cpu_seconds();
-                    wall[k].push(render_once(s));
-                    cpu[k].push((cpu_seconds() - cpu_start) * 1e3);
-                }
-            }
-            let medians: Vec<(f64, f64)> = wall
-                .into_iter()
-                .zip(cpu)
-                .map(|(w, c)| (median(w), median(c)))
-                .collect();
+            let medians =
+                alternating_medians(&setups, frames, |k, step| track_head(&setups[k], step));
             println!(
                 "stereo, {scene}, {renderer} renderer, {size}x{size} per eye, {frames} frames each:"
             );
@@ -780,20 +783,7 @@ fn light_field_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, fra
             s
         })
         .collect();
-    let mut wall = vec![Vec::new(); cases.len()];
-    let mut cpu = vec![Vec::new(); cases.len()];
-    for _ in 0..frames {
-        for (k, s) in setups.iter().enumerate() {
-            let cpu_start = cpu_seconds();
-            wall[k].push(render_once(s));
-            cpu[k].push((cpu_seconds() - cpu_start) * 1e3);
-        }
-    }
-    let medians: Vec<(f64, f64)> = wall
-        .into_iter()
-        .zip(cpu)
-        .map(|(w, c)| (median(w), median(c)))
-        .collect();
+    let medians = alternating_medians(&setups, frames, |_, _| {});
     println!("light field, height field, fast renderer, {size}x{size}, {frames} frames each:");
     for (k, (label, _, _)) in cases.iter().enumerate() {
         let (wall, cpu) = medians[k];
@@ -837,14 +827,27 @@ fn main() {
         bytes as f64 / triangles as f64
     );
 
-    if std::env::args().skip(1).any(|a| a == "viewers") {
+    // The sections run alone, on the height field.
+    let section = |name: &str| std::env::args().skip(1).any(|a| a == name);
+    let section_run = if section("viewers") {
         viewers_section(dev, geometry, size, if quick { 4 } else { 15 });
+        true
+    } else if section("lightfield") {
+        light_field_section(dev, geometry, size, if quick { 3 } else { 7 });
+        true
+    } else if section("budget") {
+        budget_section(dev, geometry, size, if quick { 10 } else { 60 });
+        true
+    } else {
+        false
+    };
+    if section_run {
         anariRelease(dev, geometry);
         anariRelease(dev, dev);
         anariUnloadLibrary(lib);
         return;
     }
-    if std::env::args().skip(1).any(|a| a == "stereo") {
+    if section("stereo") {
         let cloud = sphere_cloud(dev, spheres);
         commit(dev, cloud);
         let scenes = [
@@ -853,20 +856,6 @@ fn main() {
         ];
         stereo_section(dev, &scenes, size, if quick { 3 } else { 7 });
         anariRelease(dev, cloud);
-        anariRelease(dev, geometry);
-        anariRelease(dev, dev);
-        anariUnloadLibrary(lib);
-        return;
-    }
-    if std::env::args().skip(1).any(|a| a == "lightfield") {
-        light_field_section(dev, geometry, size, if quick { 3 } else { 7 });
-        anariRelease(dev, geometry);
-        anariRelease(dev, dev);
-        anariUnloadLibrary(lib);
-        return;
-    }
-    if std::env::args().skip(1).any(|a| a == "budget") {
-        budget_section(dev, geometry, size, if quick { 10 } else { 60 });
         anariRelease(dev, geometry);
         anariRelease(dev, dev);
         anariUnloadLibrary(lib);
