@@ -284,3 +284,60 @@ fn the_panel_plane_looks_the_same_from_every_view_and_flip_image_x_mirrors_it() 
     release_all(dev, &[plain, mirrored, world]);
     release_device(lib, dev);
 }
+
+/// The eye of quilt view k of n, as the issue defines it: E((k+½)/n).
+fn quilt_eye(k: u32, n: u32) -> [f32; 3] {
+    let f = (f64::from(k) + 0.5) / f64::from(n);
+    let offset = DISTANCE * ((f - 0.5) * f64::from(SAMPLE.view_cone).to_radians()).tan();
+    [offset as f32, 0.0, DISTANCE as f32]
+}
+
+#[test]
+fn every_quilt_view_is_the_off_axis_frame_of_its_eye() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let world = world(dev);
+    // 4 × 3 views on a frame the views do not divide evenly: view columns 12, 13, 12, 13
+    // pixels wide, rows 10, 10, 11 high.
+    let (w, h, columns, rows) = (50u32, 31u32, 4u32, 3u32);
+    let camera = light_field(dev, &SAMPLE);
+    set(dev, camera, "quilt", ANARI_UINT32_VEC2, &[columns, rows]);
+    commit(dev, camera);
+    let (colors, ids) = render(dev, world, camera, [w, h]);
+    let split = |size: u32, parts: u32, i: u32| size * i / parts;
+    let mut distinct: Vec<Vec<[f32; 4]>> = Vec::new();
+    for row in 0..rows {
+        for column in 0..columns {
+            // View 0 at the bottom left, rows bottom to top.
+            let k = row * columns + column;
+            let (x0, y0) = (split(w, columns, column), split(h, rows, row));
+            let (vw, vh) = (
+                split(w, columns, column + 1) - x0,
+                split(h, rows, row + 1) - y0,
+            );
+            let view = off_axis(dev, quilt_eye(k, columns * rows));
+            let (view_colors, view_ids) = render(dev, world, view, [vw, vh]);
+            anariRelease(dev, view);
+            for y in 0..vh {
+                for x in 0..vw {
+                    let i = ((y0 + y) * w + x0 + x) as usize;
+                    let j = (y * vw + x) as usize;
+                    assert_eq!(colors[i], view_colors[j], "view {k} pixel ({x}, {y})");
+                    assert_eq!(ids[i], view_ids[j], "view {k} pixel ({x}, {y})");
+                }
+            }
+            if !distinct.contains(&view_colors) && vw == 12 && vh == 10 {
+                distinct.push(view_colors);
+            }
+        }
+    }
+    // The spheres off the panel's plane shift from view to view.
+    assert!(distinct.len() >= 3, "{} distinct 12×10 views", distinct.len());
+    // Half a quilt is reported naming the parameter.
+    set(dev, camera, "quilt", ANARI_UINT32_VEC2, &[4u32, 0]);
+    commit(dev, camera);
+    let errors = log.errors();
+    assert!(errors.iter().any(|e| e.1.contains("'quilt'")), "{errors:?}");
+    release_all(dev, &[camera, world]);
+    release_device(lib, dev);
+}

@@ -145,6 +145,7 @@ fn light_field_desc(params: &ParamSet) -> LightFieldDesc {
         flip_subpixels: flag("flipSubpixels"),
         viewing_distance: params.get_f32("viewingDistance"),
         views: params.get_u32("views").unwrap_or(0),
+        quilt: params.get_uvec2("quilt").map_or([0, 0], |quilt| quilt.to_array()),
     }
 }
 
@@ -442,6 +443,13 @@ pub const LIGHT_FIELD: ObjectSpec = ObjectSpec::new(
              quilt-based drivers do",
         )
         .default(SpecValue::UInt(0)),
+        ParamSpec::new(
+            "quilt",
+            &[ANARI_UINT32_VEC2],
+            "columns × rows: render a quilt of that many whole views instead (view 0 at the \
+             bottom left, rows bottom to top); 0 × 0: one ray per subpixel",
+        )
+        .default(SpecValue::UInts(&[0, 0])),
     ],
 )
 .extensions(&["ANARI_CAVETRACE_CAMERA_LIGHT_FIELD"]);

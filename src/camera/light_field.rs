@@ -15,12 +15,15 @@
 
 use std::sync::Arc;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use super::offaxis::ScreenFrame;
-use super::rays::{ClipRange, EyeRays, ImageRegion, LightFieldRays};
+use super::rays::{ClipRange, EyeRays, ImageRegion, LightFieldRays, Pinhole};
 use super::validate;
-use super::{Camera, CameraError, Eye, EyeViewport, StereoMode};
+use super::{Camera, CameraError, Eye, EyeViewport, PixelSet, StereoMode};
+
+/// Most views a quilt may have (quilts of light-field displays have 45 to 100).
+pub const MAX_QUILT_VIEWS: u32 = 4096;
 
 /// Half the vertical field of view the default viewing distance gives the screen: the usual
 /// 14° of light-field displays.
@@ -44,6 +47,8 @@ pub struct LightFieldDesc {
     pub flip_subpixels: bool,
     pub viewing_distance: Option<f32>,
     pub views: u32,
+    /// Columns × rows of a quilt of whole views; [0, 0] traces one ray per subpixel.
+    pub quilt: [u32; 2],
 }
 
 impl Default for LightFieldDesc {
@@ -64,6 +69,7 @@ impl Default for LightFieldDesc {
             flip_subpixels: false,
             viewing_distance: None,
             views: 0,
+            quilt: [0, 0],
         }
     }
 }
@@ -116,6 +122,16 @@ impl LightFieldCamera {
                 format!("must be in (0°, 180°), got {cone}"),
             ));
         }
+        let [columns, rows] = desc.quilt;
+        if (columns == 0) != (rows == 0) || u64::from(columns) * u64::from(rows) > u64::from(MAX_QUILT_VIEWS) {
+            return Err(CameraError::new(
+                "quilt",
+                format!(
+                    "must be 0 × 0 (no quilt) or columns × rows of 1 to {MAX_QUILT_VIEWS} views, \
+                     got {columns} × {rows}"
+                ),
+            ));
+        }
         let height = (ur - lr).length();
         let viewing_distance = match desc.viewing_distance {
             Some(distance) => validate::positive("viewingDistance", distance)?,
@@ -129,21 +145,89 @@ impl LightFieldCamera {
     }
 }
 
-impl Camera for LightFieldCamera {
-    fn viewports(&self, width: u32, height: u32) -> Vec<EyeViewport> {
-        StereoMode::None.viewports(width, height)
+impl LightFieldCamera {
+    /// The eye of view fraction f: E(f) = S + d·n + d·tan((f − ½)·viewCone)·X, rounded as an
+    /// application's FLOAT32 eye position would be.
+    pub(crate) fn view_eye(view_centre: DVec3, view_x: DVec3, view_cone: f64, f: f64) -> DVec3 {
+        let eye = view_centre + view_x * ((f - 0.5) * view_cone).tan();
+        eye.as_vec3().as_dvec3()
     }
 
-    /// The calibration turned into what every subpixel ray needs, for a `width`×`height` panel.
-    fn prepare(&self, _eye: Eye, width: u32, height: u32) -> EyeRays {
+    fn view_centre(&self) -> DVec3 {
+        let s = &self.screen;
+        let centre = s.lower_left
+            + 0.5 * (s.lower_right - s.lower_left)
+            + 0.5 * (s.upper_right - s.lower_right);
+        centre + s.z * self.viewing_distance
+    }
+
+    /// Quilt view k of n: the exact off-axis frustum of the screen from E((k+½)/n).
+    fn quilt_view(&self, k: u32, n: u32) -> EyeRays {
+        let s = &self.screen;
+        let f = (f64::from(k) + 0.5) / f64::from(n);
+        let eye = LightFieldCamera::view_eye(
+            self.view_centre(),
+            s.x * self.viewing_distance,
+            f64::from(self.desc.view_cone).to_radians(),
+            f,
+        );
+        EyeRays::pinhole(
+            ImageRegion::from_box([0.0, 0.0, 1.0, 1.0]),
+            Pinhole {
+                eye,
+                window_origin: s.lower_left,
+                window_right: s.lower_right - s.lower_left,
+                window_up: s.upper_right - s.lower_right,
+                forward: -s.z,
+                lens_right: DVec3::ZERO,
+                lens_up: DVec3::ZERO,
+                clip: ClipRange::default(),
+            },
+        )
+    }
+}
+
+impl Camera for LightFieldCamera {
+    /// One viewport, or a quilt's: view k = row·columns + column, column from the left, row
+    /// from the bottom; view rectangles split the frame as evenly as whole pixels allow.
+    fn viewports(&self, width: u32, height: u32) -> Vec<EyeViewport> {
+        let [columns, rows] = self.desc.quilt;
+        if columns == 0 {
+            return StereoMode::None.viewports(width, height);
+        }
+        let split = |size: u32, parts: u32, i: u32| {
+            (u64::from(size) * u64::from(i) / u64::from(parts)) as u32
+        };
+        (0..rows)
+            .flat_map(|row| (0..columns).map(move |column| (row, column)))
+            .map(|(row, column)| {
+                let (x, y) = (split(width, columns, column), split(height, rows, row));
+                EyeViewport {
+                    eye: Eye::View(row * columns + column),
+                    x,
+                    y,
+                    width: split(width, columns, column + 1) - x,
+                    height: split(height, rows, row + 1) - y,
+                    pixels: PixelSet::All,
+                }
+            })
+            .collect()
+    }
+
+    /// The calibration turned into what every subpixel ray needs, for a `width`×`height` panel;
+    /// or, for a quilt, the view's whole-frame rays.
+    fn prepare(&self, eye: Eye, width: u32, height: u32) -> EyeRays {
+        let [columns, rows] = self.desc.quilt;
+        if let Eye::View(k) = eye {
+            if columns > 0 {
+                return self.quilt_view(k.min(columns * rows - 1), columns * rows);
+            }
+        }
         let d = &self.desc;
         let (w, h) = (f64::from(width.max(1)), f64::from(height.max(1)));
         let slope = f64::from(d.slope);
         let p = f64::from(d.pitch) * (w / f64::from(d.dpi)) * 1f64.atan2(slope).cos();
         let s = &self.screen;
-        let centre = s.lower_left
-            + 0.5 * (s.lower_right - s.lower_left)
-            + 0.5 * (s.upper_right - s.lower_right);
         EyeRays::light_field(
             ImageRegion::from_box([0.0, 0.0, 1.0, 1.0]),
             LightFieldRays {
@@ -162,7 +246,7 @@ impl Camera for LightFieldCamera {
                 flip_x: d.flip_image_x,
                 flip_y: d.flip_image_y,
                 flip_subpixels: d.flip_subpixels,
-                view_centre: centre + s.z * self.viewing_distance,
+                view_centre: self.view_centre(),
                 view_x: s.x * self.viewing_distance,
             },
         )

@@ -58,6 +58,8 @@ pub enum Eye {
     Mono,
     Left,
     Right,
+    /// View k of a light-field quilt.
+    View(u32),
 }
 
 impl Eye {
@@ -65,7 +67,7 @@ impl Eye {
     /// interpupillary distance.
     pub(crate) fn ipd_fraction(self) -> f64 {
         match self {
-            Eye::Mono => 0.0,
+            Eye::Mono | Eye::View(_) => 0.0,
             Eye::Left => -0.5,
             Eye::Right => 0.5,
         }

@@ -5,6 +5,7 @@ use std::sync::Arc;
 use glam::{DMat4, DVec2, DVec3, DVec4, Vec2, Vec3};
 
 use super::CameraRay;
+use super::light_field::LightFieldCamera;
 use super::viewers::ViewerSet;
 
 /// Near plane used by `EyeRays::window_depth` for perspective-like cameras whose `near` is
@@ -373,9 +374,7 @@ impl EyeRays {
             Generator::Blended(_) => self.rays4([s; 4], [t; 4], lens)[0],
             Generator::LightField(l) => {
                 let f = l.view_fraction(st.x, st.y);
-                let eye = l.view_centre + l.view_x * ((f - 0.5) * l.view_cone).tan();
-                // Rounded as an application's FLOAT32 eye position would be.
-                let eye = eye.as_vec3().as_dvec3();
+                let eye = LightFieldCamera::view_eye(l.view_centre, l.view_x, l.view_cone, f);
                 let s = if l.flip_x { 1.0 - st.x } else { st.x };
                 let t = if l.flip_y { 1.0 - st.y } else { st.y };
                 let target = l.window_origin + s * l.window_right + t * l.window_up;

@@ -140,7 +140,7 @@ impl OffAxisCamera {
             let eye_position = camera.eye_position(eye);
             if let Err(error) = screen.eye_distance(eye_position) {
                 let which = match eye {
-                    Eye::Mono => "the eye".to_string(),
+                    Eye::Mono | Eye::View(_) => "the eye".to_string(),
                     Eye::Left | Eye::Right => format!("the {eye:?} eye at {eye_position}"),
                 };
                 return Err(CameraError::new("position", format!("{which}: {error}")));
