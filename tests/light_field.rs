@@ -332,7 +332,11 @@ fn every_quilt_view_is_the_off_axis_frame_of_its_eye() {
         }
     }
     // The spheres off the panel's plane shift from view to view.
-    assert!(distinct.len() >= 3, "{} distinct 12×10 views", distinct.len());
+    assert!(
+        distinct.len() >= 3,
+        "{} distinct 12×10 views",
+        distinct.len()
+    );
     // Half a quilt is reported naming the parameter.
     set(dev, camera, "quilt", ANARI_UINT32_VEC2, &[4u32, 0]);
     commit(dev, camera);

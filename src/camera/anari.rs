@@ -145,7 +145,9 @@ fn light_field_desc(params: &ParamSet) -> LightFieldDesc {
         flip_subpixels: flag("flipSubpixels"),
         viewing_distance: params.get_f32("viewingDistance"),
         views: params.get_u32("views").unwrap_or(0),
-        quilt: params.get_uvec2("quilt").map_or([0, 0], |quilt| quilt.to_array()),
+        quilt: params
+            .get_uvec2("quilt")
+            .map_or([0, 0], |quilt| quilt.to_array()),
     }
 }
 

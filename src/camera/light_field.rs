@@ -23,7 +23,7 @@ use super::validate;
 use super::{Camera, CameraError, Eye, EyeViewport, PixelSet, StereoMode};
 
 /// Most views a quilt may have (quilts of light-field displays have 45 to 100).
-pub const MAX_QUILT_VIEWS: u32 = 4096;
+const MAX_QUILT_VIEWS: u32 = 4096;
 
 /// Half the vertical field of view the default viewing distance gives the screen: the usual
 /// 14° of light-field displays.
@@ -123,7 +123,9 @@ impl LightFieldCamera {
             ));
         }
         let [columns, rows] = desc.quilt;
-        if (columns == 0) != (rows == 0) || u64::from(columns) * u64::from(rows) > u64::from(MAX_QUILT_VIEWS) {
+        if (columns == 0) != (rows == 0)
+            || u64::from(columns) * u64::from(rows) > u64::from(MAX_QUILT_VIEWS)
+        {
             return Err(CameraError::new(
                 "quilt",
                 format!(

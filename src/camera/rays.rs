@@ -353,7 +353,9 @@ impl EyeRays {
     /// projection with `t_min` on the near plane (so rays of neighbouring pixels share their
     /// origin and trace as packets); an orthographic one's starts on the near plane. Both end on
     /// the far plane.
-    #[inline]
+    // Inlined into the frame's loop: returned through memory, its ray waited on a store that
+    // could not be forwarded (the whole fast frame of a small scene 9 % slower).
+    #[inline(always)]
     pub fn ray(&self, s: f32, t: f32, lens: Vec2) -> CameraRay {
         let st = self.region.apply(s, t);
         match &self.generator {

@@ -56,6 +56,30 @@ pub fn srgb8_encoder() -> impl Fn(f32) -> u8 + Copy {
     move |linear: f32| table[(linear.clamp(0.0, 1.0) * SRGB_TABLE_STEPS as f32 + 0.5) as usize]
 }
 
+/// A linear RGBA colour → sRGB bytes of R, G, B and a linear alpha byte: what
+/// [`srgb8_encoder`] and [`to_unorm8`] give channel by channel (NaN → 0 as there), with the
+/// clamping and scaling done on the four channels at once.
+pub fn srgb8_rgba_encoder() -> impl Fn(glam::Vec4) -> [u8; 4] + Copy {
+    let table = srgb_table();
+    let scale = glam::Vec4::new(
+        SRGB_TABLE_STEPS as f32,
+        SRGB_TABLE_STEPS as f32,
+        SRGB_TABLE_STEPS as f32,
+        255.0,
+    );
+    move |linear: glam::Vec4| {
+        // max(NaN, 0) is 0, as `NaN.clamp(0, 1) as usize` is.
+        let clamped = linear.max(glam::Vec4::ZERO).min(glam::Vec4::ONE);
+        let index = (clamped * scale + glam::Vec4::splat(0.5)).as_ivec4();
+        [
+            table[index.x as usize],
+            table[index.y as usize],
+            table[index.z as usize],
+            index.w as u8,
+        ]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -74,6 +98,23 @@ mod tests {
         assert_eq!(to_unorm8(0.5), 128);
         assert_eq!(encode_srgb8(-1.0), 0);
         assert_eq!(encode_srgb8(7.0), 255);
+    }
+
+    #[test]
+    fn the_four_channel_encoder_encodes_each_channel_as_the_single_ones() {
+        let rgba = srgb8_rgba_encoder();
+        let srgb = srgb8_encoder();
+        let mut values = vec![f32::NAN, -0.0, -1.0, 2.0, f32::INFINITY, f32::NEG_INFINITY];
+        values.extend((0..=70_000).map(|i| i as f32 / 65_536.0));
+        for (i, &v) in values.iter().enumerate() {
+            let w = values[(i * 7919) % values.len()];
+            let bytes = rgba(glam::Vec4::new(v, w, 0.25 * v, w));
+            assert_eq!(
+                bytes,
+                [srgb(v), srgb(w), srgb(0.25 * v), to_unorm8(w)],
+                "{v} {w}"
+            );
+        }
     }
 
     #[test]

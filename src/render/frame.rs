@@ -14,7 +14,7 @@ use crate::camera::{Camera, CameraRay, EyeRays, PixelSet};
 use crate::device::datatype::*;
 use crate::device::memory::{self, TooBig};
 use crate::device::property::PropertyValue;
-use crate::render::color::{srgb8_encoder, to_snorm16, to_unorm8};
+use crate::render::color::{srgb8_encoder, srgb8_rgba_encoder, to_snorm16, to_unorm8};
 use crate::render::interleave::{InterleavedTile, lattice_size};
 use crate::render::progressive::{FrameTile, Plan, Throughput, TileMap};
 use crate::render::renderer::{PrimaryHit, RendererSettings, fast_surface_color, shade_primary_at};
@@ -156,11 +156,8 @@ impl ChannelFormat {
         };
         match (self.kind, self.data_type) {
             (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB) => {
-                let srgb = srgb8_encoder();
-                self.encode_pixels(out, |k| {
-                    let c = color(k);
-                    [srgb(c.x), srgb(c.y), srgb(c.z), to_unorm8(c.w)]
-                })
+                let srgba = srgb8_rgba_encoder();
+                self.encode_pixels(out, |k| srgba(color(k)))
             }
             (ChannelKind::Color, ANARI_UFIXED8_VEC4) => {
                 self.encode_pixels(out, |k| color(k).to_array().map(to_unorm8))
@@ -1069,7 +1066,12 @@ fn render_tile<'a>(
         }
         let (x, y) = map.pixel(sx, sy);
         *color = if covered[k] {
-            *color / samples as f32
+            // x / 1 is x: one sample (the usual case) needs no division.
+            if samples == 1 {
+                *color
+            } else {
+                *color / samples as f32
+            }
         } else {
             setup.settings.background_at(Vec2::new(
                 (x as f32 + 0.5) / setup.width as f32,

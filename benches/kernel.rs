@@ -1,0 +1,253 @@
+//! The ray kernel against Embree's (`cargo bench --bench kernel`): the scene and camera of the
+//! Embree probe `embree_rays` (a GRID×GRID height field over [-1,1]², 2·GRID² triangles; an
+//! orbiting perspective camera, fovy 60°, 1600×1600 pixel centres), for GRID 22, 71, 224, 708 and
+//! 1414 (968 to 4M triangles). Per size it prints, as medians of frames 1..FRAMES (frame 0 warms
+//! up), the kernel alone (the frame's own primary rays, made beforehand, traced by the packet
+//! traversal on every core, no shading) and the whole `fast` frame through the device (rays,
+//! traversal, shading, sRGB bytes). Run the probe in the same session with the same arguments
+//! (`embree_rays GRID 1600 1600 FRAMES THREADS`) and compare; the hit checksum (sum of
+//! primitive index + 1 over hits) is the probe's, so equal checksums mean the same hits up to
+//! rays that graze an edge.
+//!
+//! `CAVETRACE_BENCH_QUICK=1`: two sizes at 256×256, 3 frames. `CAVETRACE_BENCH_GRIDS=22,708`:
+//! only those sizes (for profiling one).
+
+#[path = "../tests/common/mod.rs"]
+mod common;
+use common::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::time::Instant;
+
+use cavetrace::accel::{InstanceDesc, PacketScratch, Ray, SceneBvh};
+use cavetrace::camera::CameraModel;
+use cavetrace::scene::geometry::Geometry;
+
+/// CPU milliseconds used by this process so far (all threads): figures per CPU time stay
+/// comparable on a shared machine.
+fn cpu_ms() -> f64 {
+    let mut now = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `now` is a valid, writable timespec for the duration of the call.
+    let status = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut now) };
+    if status != 0 {
+        return 0.0;
+    }
+    now.tv_sec as f64 * 1e3 + now.tv_nsec as f64 * 1e-6
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+/// The probe's height field: vertex (i, j) at x = −1 + 2i/G, y = −1 + 2j/G,
+/// z = 0.08 sin(9x) cos(7y) + 0.05 sin(23xy); cell triangles (a, b, d), (a, d, c).
+fn height_field(dev: ANARIDevice, grid: u32) -> ANARIGeometry {
+    let n = grid + 1;
+    let mut positions = Vec::with_capacity((n * n) as usize);
+    for j in 0..n {
+        for i in 0..n {
+            let x = -1.0 + 2.0 * i as f32 / grid as f32;
+            let y = -1.0 + 2.0 * j as f32 / grid as f32;
+            let z = 0.08 * (9.0 * x).sin() * (7.0 * y).cos() + 0.05 * (23.0 * x * y).sin();
+            positions.push([x, y, z]);
+        }
+    }
+    let mut indices = Vec::with_capacity((grid * grid * 2) as usize);
+    for j in 0..grid {
+        for i in 0..grid {
+            let a = j * n + i;
+            let (b, c, d) = (a + 1, a + n, a + n + 1);
+            indices.push([a, b, d]);
+            indices.push([a, d, c]);
+        }
+    }
+    let geometry = anariNewGeometry(dev, c("triangle").as_ptr());
+    let p = array1d(dev, ANARI_FLOAT32_VEC3, &positions);
+    let ix = array1d(dev, ANARI_UINT32_VEC3, &indices);
+    set_object(dev, geometry, "vertex.position", ANARI_ARRAY1D, p);
+    set_object(dev, geometry, "primitive.index", ANARI_ARRAY1D, ix);
+    release_all(dev, &[p, ix]);
+    commit(dev, geometry);
+    geometry
+}
+
+/// The probe's camera of frame f: position (2.2 cos a, 2.2 sin a, 1.3), a = 0.02 f, looking at
+/// −position + (0, 0, 0.1), up +z, fovy 60°.
+fn place_camera(dev: ANARIDevice, camera: ANARICamera, frame: u32) {
+    let a = 0.02 * frame as f32;
+    let eye = [2.2 * a.cos(), 2.2 * a.sin(), 1.3f32];
+    let direction = [-eye[0], -eye[1], -eye[2] + 0.1];
+    set(dev, camera, "position", ANARI_FLOAT32_VEC3, &eye);
+    set(dev, camera, "direction", ANARI_FLOAT32_VEC3, &direction);
+    set(dev, camera, "up", ANARI_FLOAT32_VEC3, &[0.0f32, 0.0, 1.0]);
+    set(
+        dev,
+        camera,
+        "fovy",
+        ANARI_FLOAT32,
+        &std::f32::consts::FRAC_PI_3,
+    );
+    set(dev, camera, "aspect", ANARI_FLOAT32, &1.0f32);
+    commit(dev, camera);
+}
+
+/// The camera's rays through the pixel centres of a `size`×`size` frame, in the order the
+/// frame traces them (8×8 blocks of sixteen 2×2 quads), block rows of 16×16 tiles together.
+fn camera_rays(dev: ANARIDevice, camera: ANARICamera, size: u32) -> Vec<Ray> {
+    let model = cavetrace::device::registry::device(dev as usize)
+        .and_then(|d| d.lookup(camera as usize))
+        .and_then(|o| o.derived_as::<CameraModel>())
+        .expect("committed camera");
+    let viewport = model.0.viewports(size, size)[0];
+    let eye = model.0.prepare(viewport.eye, size, size);
+    let mut rays = Vec::with_capacity((size * size) as usize);
+    for by in (0..size).step_by(8) {
+        for bx in (0..size).step_by(8) {
+            for i in 0..64 {
+                let (quad, lane) = (i / 4, i % 4);
+                let x = bx + (quad % 4) * 2 + lane % 2;
+                let y = by + (quad / 4) * 2 + lane / 2;
+                let (u, v) = (
+                    (x as f32 + 0.5) / size as f32,
+                    (y as f32 + 0.5) / size as f32,
+                );
+                let r = eye.ray(u, v, glam::Vec2::ZERO);
+                rays.push(Ray::new(r.origin, r.direction, r.t_min, r.t_max));
+            }
+        }
+    }
+    rays
+}
+
+/// Traces `rays` in 64-ray packets on `threads` threads, 16 packets at a time; (wall ms, CPU
+/// ms, hit checksum).
+fn trace(scene: &SceneBvh, rays: &[Ray], threads: usize) -> (f64, f64, u64) {
+    let next = AtomicUsize::new(0);
+    let packets = rays.len().div_ceil(64);
+    let (start, cpu_start) = (Instant::now(), cpu_ms());
+    let checksum = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                scope.spawn(|| {
+                    let mut scratch = PacketScratch::new();
+                    let mut hits = [None; 64];
+                    let mut checksum = 0u64;
+                    loop {
+                        let first = next.fetch_add(16, Ordering::Relaxed);
+                        if first >= packets {
+                            break checksum;
+                        }
+                        for packet in first..(first + 16).min(packets) {
+                            let chunk = &rays[packet * 64..((packet + 1) * 64).min(rays.len())];
+                            scene.intersect_packet_with(&mut scratch, chunk, &mut hits);
+                            checksum += hits[..chunk.len()]
+                                .iter()
+                                .flatten()
+                                .map(|hit| u64::from(hit.primitive) + 1)
+                                .sum::<u64>();
+                        }
+                    }
+                })
+            })
+            .collect();
+        workers.into_iter().map(|w| w.join().unwrap()).sum()
+    });
+    (
+        start.elapsed().as_secs_f64() * 1e3,
+        cpu_ms() - cpu_start,
+        checksum,
+    )
+}
+
+fn main() {
+    if std::env::args().any(|a| a == "--list") {
+        return;
+    }
+    let quick = std::env::var_os("CAVETRACE_BENCH_QUICK").is_some();
+    let (grids, size, frames): (&[u32], u32, u32) = if quick {
+        (&[22, 224], 256, 3)
+    } else {
+        (&[22, 71, 224, 708, 1414], 1600, 7)
+    };
+    let chosen: Option<Vec<u32>> = std::env::var("CAVETRACE_BENCH_GRIDS").ok().map(|list| {
+        list.split(',')
+            .filter_map(|g| g.trim().parse().ok())
+            .collect()
+    });
+    let grids = chosen.as_deref().unwrap_or(grids);
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    println!(
+        "kernel: the embree_rays scene, {size}x{size}, {threads} threads, medians of frames \
+         1..{frames}"
+    );
+    for &grid in grids {
+        let geometry = height_field(dev, grid);
+        let bvh = cavetrace::device::registry::device(dev as usize)
+            .and_then(|d| d.lookup(geometry as usize))
+            .and_then(|o| o.derived_as::<Geometry>())
+            .map(|g| g.bvh.clone())
+            .expect("committed geometry");
+        let scene = SceneBvh::build(vec![InstanceDesc {
+            transform: glam::Affine3A::IDENTITY,
+            geometries: vec![bvh],
+        }]);
+        let surface = matte_surface(dev, geometry, [0.7, 0.7, 0.7]);
+        let world = world_of(dev, &[surface]);
+        let camera = anariNewCamera(dev, c("perspective").as_ptr());
+        let renderer = anariNewRenderer(dev, c("fast").as_ptr());
+        commit(dev, renderer);
+        let frame = anariNewFrame(dev);
+        set(dev, frame, "size", ANARI_UINT32_VEC2, &[size, size]);
+        set(
+            dev,
+            frame,
+            "channel.color",
+            ANARI_DATA_TYPE,
+            &ANARI_UFIXED8_RGBA_SRGB,
+        );
+        set_object(dev, frame, "world", ANARI_WORLD, world);
+        set_object(dev, frame, "camera", ANARI_CAMERA, camera);
+        set_object(dev, frame, "renderer", ANARI_RENDERER, renderer);
+        commit(dev, frame);
+        let (mut kernel, mut whole) = (Vec::new(), Vec::new());
+        let (mut kernel_cpu, mut whole_cpu) = (Vec::new(), Vec::new());
+        let mut checksum = 0;
+        for f in 0..=frames {
+            place_camera(dev, camera, f);
+            let rays = camera_rays(dev, camera, size);
+            let (ms, cpu, sum) = trace(&scene, &rays, threads);
+            let (start, cpu_start) = (Instant::now(), cpu_ms());
+            anariRenderFrame(dev, frame);
+            anariFrameReady(dev, frame, ANARI_WAIT);
+            let frame_ms = start.elapsed().as_secs_f64() * 1e3;
+            let frame_cpu = cpu_ms() - cpu_start;
+            if f == 1 {
+                checksum = sum;
+            }
+            if f > 0 {
+                kernel.push(ms);
+                whole.push(frame_ms);
+                kernel_cpu.push(cpu);
+                whole_cpu.push(frame_cpu);
+            }
+        }
+        let (kernel, whole) = (median(kernel), median(whole));
+        let (kernel_cpu, whole_cpu) = (median(kernel_cpu), median(whole_cpu));
+        println!(
+            "  {:>9} triangles: kernel {kernel:6.1} ms ({kernel_cpu:4.0} ms CPU), whole fast \
+             frame {whole:6.1} ms ({whole_cpu:4.0} ms CPU), frame/kernel {:.2} (CPU {:.2}), \
+             checksum {checksum}",
+            2 * grid * grid,
+            whole / kernel,
+            whole_cpu / kernel_cpu
+        );
+        release_all(dev, &[frame, renderer, camera, world, surface, geometry]);
+    }
+    assert!(log.errors().is_empty(), "{:?}", log.errors());
+    release_device(lib, dev);
+}
