@@ -220,10 +220,10 @@ impl Camera for LightFieldCamera {
     /// or, for a quilt, the view's whole-frame rays.
     fn prepare(&self, eye: Eye, width: u32, height: u32) -> EyeRays {
         let [columns, rows] = self.desc.quilt;
-        if let Eye::View(k) = eye {
-            if columns > 0 {
-                return self.quilt_view(k.min(columns * rows - 1), columns * rows);
-            }
+        if let Eye::View(k) = eye
+            && columns > 0
+        {
+            return self.quilt_view(k.min(columns * rows - 1), columns * rows);
         }
         let d = &self.desc;
         let (w, h) = (f64::from(width.max(1)), f64::from(height.max(1)));
