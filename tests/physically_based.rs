@@ -321,16 +321,22 @@ fn sheen_reflects_its_albedo_and_the_base_below_loses_as_much() {
         ],
     );
     assert_near(pixel, [1.0, 1.0 - albedo, 1.0 - albedo], "red sheen");
-    // On black only the sheen shows.
-    let pixel = render_with(
-        dev,
-        &[
-            ("baseColor", Value::Color([0.0, 0.0, 0.0])),
-            ("sheenColor", Value::Color([1.0, 1.0, 1.0])),
-            ("sheenRoughness", Value::Float(roughness)),
-        ],
-    );
-    assert!((pixel[0] - albedo).abs() < 0.01, "{pixel:?} vs {albedo}");
+    // On black only the sheen shows, its albedo by its roughness.
+    for roughness in [0.3f32, 0.8] {
+        let albedo = sheen_albedo_facing(f64::from(roughness)) as f32;
+        let pixel = render_with(
+            dev,
+            &[
+                ("baseColor", Value::Color([0.0, 0.0, 0.0])),
+                ("sheenColor", Value::Color([1.0, 1.0, 1.0])),
+                ("sheenRoughness", Value::Float(roughness)),
+            ],
+        );
+        assert!(
+            (pixel[0] - albedo).abs() < 0.003,
+            "roughness {roughness}: {pixel:?} vs {albedo}"
+        );
+    }
     assert!(log.errors().is_empty(), "{:?}", log.errors());
     release_device(lib, dev);
 }
@@ -340,7 +346,7 @@ fn iridescence_colours_a_metal_by_the_film_thickness() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     // A smooth grey metal mirroring a white sky (no ambient light).
-    let metal = |iridescence: f32, thickness: f32| {
+    let metal_in = |iridescence: f32, thickness: f32, ior: f32| {
         let geometry = square(dev, None);
         let material = material(
             dev,
@@ -349,6 +355,7 @@ fn iridescence_colours_a_metal_by_the_film_thickness() {
                 ("roughness", Value::Float(0.0)),
                 ("iridescence", Value::Float(iridescence)),
                 ("iridescenceThickness", Value::Float(thickness)),
+                ("iridescenceIor", Value::Float(ior)),
             ],
         );
         let surface = surface_of(dev, geometry, material);
@@ -356,6 +363,7 @@ fn iridescence_colours_a_metal_by_the_film_thickness() {
         release_all(dev, &[geometry, material, surface]);
         pixel
     };
+    let metal = |iridescence: f32, thickness: f32| metal_in(iridescence, thickness, 1.3);
     assert_near(metal(0.0, 400.0), [0.5; 3], "no iridescence");
     assert_near(metal(1.0, 0.0), [0.5; 3], "no film");
     let film = metal(1.0, 400.0);
@@ -366,6 +374,11 @@ fn iridescence_colours_a_metal_by_the_film_thickness() {
     assert!(
         (0..3).any(|i| (film[i] - other[i]).abs() > 0.05),
         "{film:?} {other:?}"
+    );
+    let denser = metal_in(1.0, 400.0, 1.8);
+    assert!(
+        (0..3).any(|i| (film[i] - denser[i]).abs() > 0.05),
+        "{film:?} {denser:?}"
     );
     // The factor mixes linearly.
     let half = metal(0.5, 400.0);
@@ -540,5 +553,30 @@ fn every_parameter_of_the_extension_is_introspectable_with_its_default() {
         assert!(!kind.is_null(), "{name}");
     }
     assert!(device_extensions(dev).contains(&"ANARI_KHR_MATERIAL_PHYSICALLY_BASED".to_string()));
+    release_device(lib, dev);
+}
+
+#[test]
+fn alpha_mode_mask_cuts_out_below_the_cutoff() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let masked = |cutoff: Option<f32>| {
+        let geometry = square(dev, None);
+        let material = material(dev, &[("opacity", Value::Float(0.3))]);
+        set_string(dev, material, "alphaMode", "mask");
+        if let Some(cutoff) = cutoff {
+            set(dev, material, "alphaCutoff", ANARI_FLOAT32, &cutoff);
+        }
+        commit(dev, material);
+        let surface = surface_of(dev, geometry, material);
+        let pixel = centre(dev, surface, 1.0, SKY, &[]);
+        release_all(dev, &[geometry, material, surface]);
+        pixel
+    };
+    // Opacity 0.3 is below the default cutoff 0.5: the sky shows through.
+    assert_near(masked(None), [SKY[0], SKY[1], SKY[2]], "default cutoff");
+    // Above a cutoff of 0.2 the surface is whole (the grey base under ambient 1).
+    assert_near(masked(Some(0.2)), [0.5; 3], "cutoff 0.2");
+    assert!(log.errors().is_empty(), "{:?}", log.errors());
     release_device(lib, dev);
 }
