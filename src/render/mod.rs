@@ -1,11 +1,13 @@
 //! Rendering: renderers (shading), frames (tiles, threads, channels) and colour encoding.
 
+pub mod bsdf;
 pub mod color;
 pub mod diagnostics;
 pub mod frame;
 pub mod interleave;
 pub mod progressive;
 pub mod renderer;
+pub mod surface_model;
 
 use std::collections::HashMap;
 use std::sync::Arc;

@@ -12,14 +12,20 @@ use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
+use crate::render::bsdf::{
+    clearcoat_fresnel, dielectric_f0, fallback_tangent, schlick, sheen_albedo, sheen_brdf,
+    thin_film_fresnel,
+};
+use crate::render::surface_model::{HitInputs, SurfaceModel, evaluate_input};
 use crate::scene::attributes::{
     ATTRIBUTE_DEFAULT, Interpolation, VALUE_ELEMENT_TYPES, read_values,
 };
+use crate::scene::geometry::Geometry;
 use crate::scene::light::LightSampling;
-use crate::scene::material::{Input, MaterialKind};
+use crate::scene::material::{Input, Material, MaterialKind};
 use crate::scene::sampler::{Image, Wrap};
 use crate::scene::volume::{VolumeIntegral, integrate};
-use crate::scene::world::SceneSnapshot;
+use crate::scene::world::{InstanceData, SceneSnapshot};
 
 const BACKGROUND: ParamSpec = ParamSpec::new(
     "background",
@@ -232,15 +238,6 @@ impl RendererSettings {
     }
 }
 
-/// A material input at a hit: like `Input::evaluate`, but samplers also see the primitive index
-/// (the primitive sampler reads by it).
-fn evaluate_input(input: &Input, attributes: &[Option<Vec4>; 5], primitive: u32) -> Option<Vec4> {
-    match input {
-        Input::Sampler(sampler) => Some(sampler.evaluate_at(attributes, primitive)),
-        other => other.evaluate(attributes),
-    }
-}
-
 /// What one primary sample produced.
 #[derive(Clone, Copy, Debug)]
 pub struct Sample {
@@ -260,7 +257,7 @@ pub struct PrimaryHit {
     pub normal: Vec3,
 }
 
-struct ShadingPoint {
+struct ShadingPoint<'a> {
     point: Vec3,
     normal: Vec3,
     base_color: Vec3,
@@ -268,29 +265,28 @@ struct ShadingPoint {
     metallic: f32,
     roughness: f32,
     emissive: Vec3,
-    /// The clear dielectric share of the non-metallic part (0: none), its index of refraction,
-    /// whether it bounds a volume (else a thin wall), and the volume's absorption per unit
-    /// distance (ln of the colour kept).
-    transmission: f32,
-    ior: f32,
-    volume: bool,
-    log_attenuation: Vec3,
     /// Whether the ray arrived on the back of the surface (leaving a closed volume).
     back_face: bool,
     primitive_id: u32,
     object_id: u32,
     instance_id: u32,
+    /// What the default renderer evaluates the material's other inputs from.
+    material: &'a Material,
+    attributes: [Option<Vec4>; 5],
+    instance: &'a InstanceData,
+    geometry: &'a Geometry,
+    at: Option<Interpolation>,
 }
 
 #[inline(always)]
-fn shading_point(scene: &SceneSnapshot, ray: &Ray, hit: &SceneHit) -> ShadingPoint {
+fn shading_point<'a>(scene: &'a SceneSnapshot, ray: &Ray, hit: &SceneHit) -> ShadingPoint<'a> {
     let instance = &scene.instances[hit.instance as usize];
     let surface = &instance.surfaces[hit.geometry as usize];
     let geometry = &surface.geometry;
     let material = &surface.material;
     let point = ray.origin + ray.direction * hit.t;
 
-    let uses_attributes = material.uses_attributes();
+    let uses_attributes = material.uses_attributes;
     // Vertex weights only when something is interpolated (their index lookup is a likely
     // cache miss on large meshes).
     let at: Option<Interpolation> = (uses_attributes || geometry.has_shading_normals())
@@ -343,23 +339,34 @@ fn shading_point(scene: &SceneSnapshot, ray: &Ray, hit: &SceneHit) -> ShadingPoi
         },
         emissive: evaluate_input(&material.emissive, &attributes, primitive_id)
             .map_or(Vec3::ZERO, |v| v.truncate()),
-        transmission: material
-            .transmission
-            .as_ref()
-            .map_or(0.0, |t| scalar(&t.weight, 0.0).clamp(0.0, 1.0)),
-        ior: material.transmission.as_ref().map_or(1.0, |t| t.ior),
-        volume: material
-            .transmission
-            .as_ref()
-            .is_some_and(|t| scalar(&t.thickness, 0.0) > 0.0),
-        log_attenuation: material
-            .transmission
-            .as_ref()
-            .map_or(Vec3::ZERO, |t| t.log_attenuation),
         back_face,
         primitive_id,
         object_id: surface.id,
         instance_id: instance.id,
+        material,
+        attributes,
+        instance,
+        geometry,
+        at,
+    }
+}
+
+impl ShadingPoint<'_> {
+    /// The material's layers at this point (the default renderer's; see [`SurfaceModel`]).
+    fn surface_model(&self) -> SurfaceModel {
+        let inputs = HitInputs {
+            attributes: &self.attributes,
+            primitive: self.primitive_id,
+            normal: self.normal,
+        };
+        SurfaceModel::evaluate(self.material, &inputs, || {
+            let linear = self.instance.transform.matrix3;
+            let given = self.at.as_ref().and_then(|at| self.geometry.tangent(at));
+            match given {
+                Some(t) => (linear * t.truncate()).extend(t.w),
+                None => fallback_tangent(self.normal, linear.x_axis.into(), linear.y_axis.into()),
+            }
+        })
     }
 }
 
@@ -372,38 +379,43 @@ fn offset_ray(origin: Vec3, direction: Vec3, t_max: f32) -> Ray {
     }
 }
 
-/// Direct light from the scene's lights at a point; lights with extent are sampled at
-/// `sampling`'s point (one shadow ray each), so their soft shadows converge over samples.
+/// Direct irradiance from the scene's lights at `point` on a surface of unit `normal`; lights
+/// with extent are sampled at `sampling`'s point (one shadow ray each), so their soft shadows
+/// converge over samples. `each` sees every unshadowed light's direction and irradiance.
 fn direct_light(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
-    sp: &ShadingPoint,
+    point: Vec3,
+    normal: Vec3,
     sampling: &LightSampling,
+    mut each: impl FnMut(Vec3, Vec3),
 ) -> Vec3 {
     let mut sum = Vec3::ZERO;
     for light in &scene.lights {
-        let Some(incoming) = light.incoming_sampled(sp.point, sampling) else {
+        let Some(incoming) = light.incoming_sampled(point, sampling) else {
             continue;
         };
-        let cos = sp.normal.dot(incoming.to_light);
+        let cos = normal.dot(incoming.to_light);
         if cos <= 0.0 {
             continue;
         }
         if settings.shadows {
             let t_max = if incoming.distance.is_finite() {
-                let light_point = sp.point + incoming.to_light * incoming.distance;
+                let light_point = point + incoming.to_light * incoming.distance;
                 incoming.distance - surface_epsilon(light_point)
             } else {
                 f32::INFINITY
             };
             if scene
                 .bvh
-                .occluded(&offset_ray(sp.point, incoming.to_light, t_max))
+                .occluded(&offset_ray(point, incoming.to_light, t_max))
             {
                 continue;
             }
         }
-        sum += incoming.radiance * cos;
+        let irradiance = incoming.radiance * cos;
+        each(incoming.to_light, irradiance);
+        sum += irradiance;
     }
     sum
 }
@@ -453,8 +465,14 @@ fn volumes_in_front(
     integrate(&scene.volumes, ray.origin, ray.direction, ray.t_min, t_end)
 }
 
-/// `view`: the unit direction view-dependent terms look along (see
-/// [`RendererSettings::view_direction`]).
+/// The default renderer's shading, glTF's layering (glTF 2.0 Appendix B and the
+/// KHR_materials_* extensions): a metal and a dielectric mixed by metallic, the dielectric a
+/// diffuse base under a Fresnel-weighted reflection (specular, specularColor, ior) or, by
+/// transmission, glass; sheen over that, emission, and a clearcoat over everything. Each
+/// layer passes on to those below what it does not reflect, so no surface returns more light
+/// than arrives. Reflection lobes of roughness r are a mirror image (weight 1 − r) plus a
+/// diffuse-like share (weight r). `view`: the unit direction view-dependent terms look along
+/// (see [`RendererSettings::view_direction`]).
 #[allow(clippy::too_many_arguments)]
 fn shade(
     scene: &SceneSnapshot,
@@ -466,37 +484,115 @@ fn shade(
     screen: Option<Vec2>,
     sampling: &LightSampling,
 ) -> Vec3 {
-    // Non-metallic: diffuse, or by `transmission` a clear dielectric.
-    let clear = (1.0 - sp.metallic) * sp.transmission;
-    let diffuse_weight = (1.0 - sp.metallic) * (1.0 - sp.transmission);
-    // Ambient light is radiance from every direction: it arrives as irradiance π·L.
-    let light =
-        direct_light(scene, settings, sp, sampling) + settings.ambient * std::f32::consts::PI;
-    // Lambertian: albedo/π × irradiance.
-    let mut color = sp.base_color * std::f32::consts::FRAC_1_PI * light * diffuse_weight;
-    color += sp.emissive;
-    if sp.metallic > 0.0 && depth < settings.max_ray_depth {
-        // Smooth metals reflect the scene; rough ones fall back to their diffuse look.
-        let reflectivity = sp.metallic * (1.0 - sp.roughness);
-        if reflectivity > 0.0 {
-            let reflected = view - 2.0 * view.dot(sp.normal) * sp.normal;
-            let incoming = traced_from(
-                scene, settings, sp.point, reflected, depth, screen, sampling,
-            );
-            color += sp.base_color * incoming * reflectivity;
+    let model = sp.surface_model();
+    let normal = model.normal;
+    let cos_view = (-view).dot(normal).clamp(0.0, 1.0);
+    let can_trace = depth < settings.max_ray_depth;
+    let mirror_from = |normal: Vec3| {
+        let reflected = view - 2.0 * view.dot(normal) * normal;
+        traced_from(
+            scene, settings, sp.point, reflected, depth, screen, sampling,
+        )
+    };
+    // Ambient light is radiance from every direction: it arrives as irradiance π·L, where the
+    // occlusion map lets it.
+    let ambient = settings.ambient * model.occlusion;
+    let sheen_on = model.sheen_color != Vec3::ZERO;
+    let mut sheen = Vec3::ZERO;
+    let direct = direct_light(
+        scene,
+        settings,
+        sp.point,
+        normal,
+        sampling,
+        |to_light, irradiance| {
+            if sheen_on {
+                let cos_light = to_light.dot(normal);
+                let half = (to_light - view).normalize_or(normal);
+                sheen += irradiance
+                    * sheen_brdf(model.sheen_roughness, cos_view, cos_light, half.dot(normal));
+            }
+        },
+    );
+    let light = direct + ambient * std::f32::consts::PI;
+    // One mirror image serves every lobe along the shading normal.
+    let mut mirror_image: Option<Vec3> = None;
+    let mut lobe = |roughness: f32| {
+        let mut radiance = light * std::f32::consts::FRAC_1_PI * roughness;
+        if roughness < 1.0 && can_trace {
+            radiance +=
+                *mirror_image.get_or_insert_with(|| mirror_from(normal)) * (1.0 - roughness);
         }
-        let rough_metal = sp.metallic * sp.roughness;
-        color += sp.base_color * std::f32::consts::FRAC_1_PI * light * rough_metal;
+        radiance
+    };
+
+    let mut color = Vec3::ZERO;
+    // Non-metallic: a diffuse base under a reflection, or by `transmission` a clear dielectric.
+    let dielectric_share = 1.0 - sp.metallic;
+    let opaque = dielectric_share * (1.0 - model.transmission);
+    if opaque > 0.0 {
+        // Lambertian: albedo/π × irradiance.
+        let diffuse = sp.base_color * std::f32::consts::FRAC_1_PI * light;
+        if model.specular > 0.0 {
+            let f0 = dielectric_f0(model.ior, model.specular_color);
+            let fresnel = iridescent(&model, schlick(f0, 1.0, cos_view), f0, cos_view);
+            let reflected = model.specular * fresnel;
+            color += opaque
+                * ((1.0 - reflected.max_element()) * diffuse + reflected * lobe(sp.roughness));
+        } else {
+            color += opaque * diffuse;
+        }
     }
-    if clear > 0.0 && depth < settings.max_ray_depth {
-        color += clear * dielectric(scene, settings, ray, view, sp, depth, screen, sampling);
+    if sp.metallic > 0.0 {
+        // Metals reflect their base colour (KHR_materials_iridescence: or a thin film's).
+        let tint = iridescent(&model, sp.base_color, sp.base_color, cos_view);
+        color += sp.metallic * tint * lobe(sp.roughness);
     }
-    if sp.volume && sp.back_face && sp.log_attenuation != Vec3::ZERO {
+    let clear = dielectric_share * model.transmission;
+    if clear > 0.0 && can_trace {
+        color += clear
+            * dielectric(
+                scene, settings, ray, view, sp, &model, depth, screen, sampling,
+            );
+    }
+    if sheen_on {
+        // KHR_materials_sheen: the sheen reflects E of uniform light; what lies below loses
+        // max(sheenColor)·E.
+        let albedo = sheen_albedo(cos_view, model.sheen_roughness);
+        color = color * (1.0 - model.sheen_color.max_element() * albedo)
+            + model.sheen_color * (sheen + albedo * ambient);
+    }
+    color += sp.emissive;
+    if model.clearcoat > 0.0 {
+        // KHR_materials_clearcoat: a smooth-to-rough dielectric of index 1.5 over everything
+        // (emission included), along its own normal.
+        let coat_normal = model.coat_normal;
+        let cos_coat = (-view).dot(coat_normal).clamp(0.0, 1.0);
+        let reflected = model.clearcoat * clearcoat_fresnel(cos_coat);
+        let roughness = model.clearcoat_roughness;
+        let coat_light = if coat_normal == normal {
+            light
+        } else {
+            direct_light(scene, settings, sp.point, coat_normal, sampling, |_, _| {})
+                + ambient * std::f32::consts::PI
+        };
+        let mut coat = coat_light * std::f32::consts::FRAC_1_PI * roughness;
+        if roughness < 1.0 && can_trace {
+            let image = if coat_normal == normal {
+                *mirror_image.get_or_insert_with(|| mirror_from(normal))
+            } else {
+                mirror_from(coat_normal)
+            };
+            coat += image * (1.0 - roughness);
+        }
+        color = color * (1.0 - reflected) + coat * reflected;
+    }
+    if model.volume && sp.back_face && model.log_attenuation != Vec3::ZERO {
         // What comes back along this ray crossed the volume from `ray`'s start to here.
         let travelled = (sp.point - ray.origin).length();
-        color *= (sp.log_attenuation * travelled).exp();
+        color *= (model.log_attenuation * travelled).exp();
     }
-    if sp.opacity < 1.0 && depth < settings.max_ray_depth {
+    if sp.opacity < 1.0 && can_trace {
         let behind = traced_from(
             scene,
             settings,
@@ -509,6 +605,21 @@ fn shade(
         color = color * sp.opacity + behind * (1.0 - sp.opacity);
     }
     color
+}
+
+/// KHR_materials_iridescence: the Fresnel term `fresnel` of a base of normal-incidence
+/// reflectance `f0`, mixed by the iridescence factor with that of the base under the thin film.
+fn iridescent(model: &SurfaceModel, fresnel: Vec3, f0: Vec3, cos_view: f32) -> Vec3 {
+    if model.iridescence <= 0.0 {
+        return fresnel;
+    }
+    let film = thin_film_fresnel(
+        model.iridescence_ior,
+        model.iridescence_thickness,
+        cos_view,
+        f0,
+    );
+    fresnel.lerp(film, model.iridescence)
 }
 
 /// Radiance arriving at `point` from `direction` (a secondary ray one bounce deeper).
@@ -536,19 +647,21 @@ fn dielectric(
     ray: &Ray,
     view: Vec3,
     sp: &ShadingPoint,
+    model: &SurfaceModel,
     depth: u32,
     screen: Option<Vec2>,
     sampling: &LightSampling,
 ) -> Vec3 {
     // Relative index across the surface, in the direction the ray travels.
-    let eta = if sp.volume && sp.back_face {
-        sp.ior
+    let eta = if model.volume && sp.back_face {
+        model.ior
     } else {
-        1.0 / sp.ior
+        1.0 / model.ior
     };
-    let cos_in = (-ray.direction.dot(sp.normal)).clamp(0.0, 1.0);
-    let (reflectance, refracted) = fresnel_refraction(ray.direction, sp.normal, cos_in, eta);
-    let reflected = view - 2.0 * view.dot(sp.normal) * sp.normal;
+    let normal = model.normal;
+    let cos_in = (-ray.direction.dot(normal)).clamp(0.0, 1.0);
+    let (reflectance, refracted) = fresnel_refraction(ray.direction, normal, cos_in, eta);
+    let reflected = view - 2.0 * view.dot(normal) * normal;
     let mut color = Vec3::ZERO;
     let incoming = |direction| {
         traced_from(
@@ -559,7 +672,11 @@ fn dielectric(
         color += reflectance * incoming(reflected);
     }
     if reflectance < 1.0 {
-        let through = if sp.volume { refracted } else { ray.direction };
+        let through = if model.volume {
+            refracted
+        } else {
+            ray.direction
+        };
         color += (1.0 - reflectance) * sp.base_color * incoming(through);
     }
     color

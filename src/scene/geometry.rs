@@ -58,19 +58,19 @@ const VERTEX_NORMAL: ParamSpec =
         .elements(VEC3_ELEMENTS);
 const CORNER_NORMAL: ParamSpec =
     ParamSpec::new("faceVarying.normal", ARRAY, "per-corner normals").elements(VEC3_ELEMENTS);
-// Tangents are accepted for API completeness; they matter only with normal maps, which no
-// material of this device samples.
+// Tangents orient the normal maps of physicallyBased materials; xyz along the map's first
+// axis, w the handedness of the second (glTF).
 const TANGENT_ELEMENTS: &[ANARIDataType] = &[ANARI_FLOAT32_VEC3, ANARI_FLOAT32_VEC4];
 const VERTEX_TANGENT: ParamSpec = ParamSpec::new(
     "vertex.tangent",
     ARRAY,
-    "vertex tangents (unused: no normal maps)",
+    "vertex tangents for normal maps (xyz; w: handedness, default +1)",
 )
 .elements(TANGENT_ELEMENTS);
 const CORNER_TANGENT: ParamSpec = ParamSpec::new(
     "faceVarying.tangent",
     ARRAY,
-    "per-corner tangents (unused: no normal maps)",
+    "per-corner tangents for normal maps",
 )
 .elements(TANGENT_ELEMENTS);
 
@@ -268,6 +268,9 @@ pub struct Geometry {
     pub vertex_indices: Vec<UVec4>,
     pub vertex_normals: Option<Vec<Vec3>>,
     pub corner_normals: Option<Vec<Vec3>>,
+    /// Tangents (w: handedness) for normal maps.
+    pub vertex_tangents: Option<Vec<Vec4>>,
+    pub corner_tangents: Option<Vec<Vec4>>,
     pub attributes: [Attribute; 5],
 }
 
@@ -358,12 +361,36 @@ impl Geometry {
         geometric
     }
 
+    /// The tangent in object space at a hit (w: handedness), where the geometry gives tangents.
+    pub fn tangent(&self, at: &Interpolation) -> Option<Vec4> {
+        let blend = |values: &[Vec4], indices: &[u32; 4]| -> Option<Vec4> {
+            let mut sum = Vec3::ZERO;
+            let mut handedness = 1.0;
+            for (index, weight) in indices.iter().zip(at.weights).take(at.count) {
+                let value = *values.get(*index as usize)?;
+                sum += value.truncate() * weight;
+                handedness = value.w;
+            }
+            Some(sum.extend(handedness)).filter(|t| t.truncate().length_squared() > 1e-20)
+        };
+        self.corner_tangents
+            .as_deref()
+            .and_then(|c| blend(c, &at.corners))
+            .or_else(|| {
+                self.vertex_tangents
+                    .as_deref()
+                    .and_then(|v| blend(v, &at.vertices))
+            })
+    }
+
     pub fn memory_bytes(&self) -> usize {
         self.bvh.memory_bytes()
             + self.primitive_ids.as_ref().map_or(0, |p| p.len() * 4)
             + self.vertex_indices.len() * 16
             + self.vertex_normals.as_ref().map_or(0, |n| n.len() * 12)
             + self.corner_normals.as_ref().map_or(0, |n| n.len() * 12)
+            + self.vertex_tangents.as_ref().map_or(0, |t| t.len() * 16)
+            + self.corner_tangents.as_ref().map_or(0, |t| t.len() * 16)
             + self
                 .attributes
                 .iter()
@@ -752,9 +779,17 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
     } else {
         None
     };
+    let tangents = |name: &str| {
+        mesh.then(|| array(&params, name).and_then(|a| a.read_attribute()))
+            .flatten()
+    };
+    let vertex_tangents = tangents("vertex.tangent");
+    let corner_tangents = tangents("faceVarying.tangent");
     let attributes = read_attributes(&params, mesh);
     let needs_vertices = vertex_normals.is_some()
         || corner_normals.is_some()
+        || vertex_tangents.is_some()
+        || corner_tangents.is_some()
         || attributes
             .iter()
             .any(|a| a.per_vertex.is_some() || a.per_corner.is_some());
@@ -782,6 +817,8 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
         },
         vertex_normals,
         corner_normals,
+        vertex_tangents,
+        corner_tangents,
         attributes,
     })
 }

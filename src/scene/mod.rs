@@ -74,6 +74,7 @@ pub fn commit(device: &Device, object: &Object) {
             object.set_derived(volume.map(|v| Arc::new(v) as _));
         }
         ANARI_LIGHT => light::commit(device, object),
+        ANARI_MATERIAL => material::commit(device, object),
         ANARI_CAMERA => crate::camera::commit(device, object),
         ANARI_RENDERER | ANARI_FRAME => crate::render::commit(device, object),
         _ => {}

@@ -1,0 +1,295 @@
+//! The formulas of the physically based material, after the glTF 2.0 specification (Appendix
+//! B, "BRDF Implementation") and its extensions KHR_materials_specular, _clearcoat, _sheen and
+//! _iridescence: Fresnel terms, thin-film interference, the sheen lobe and its directional
+//! albedo, and tangent-space normal maps. The renderer gathers the light and layers these.
+
+use std::f32::consts::{FRAC_1_PI, PI, TAU};
+use std::sync::OnceLock;
+
+use glam::{Mat3, Vec3, Vec4};
+
+/// Schlick's Fresnel approximation between `f0` at normal incidence and `f90` at grazing.
+pub fn schlick(f0: Vec3, f90: f32, cos: f32) -> Vec3 {
+    let m = (1.0 - cos.clamp(0.0, 1.0)).powi(5);
+    f0 + (Vec3::splat(f90) - f0) * m
+}
+
+/// Reflectance at normal incidence of an interface between indices `a` and `b`.
+fn ior_to_f0(a: f32, b: f32) -> f32 {
+    ((a - b) / (a + b)).powi(2)
+}
+
+/// KHR_materials_specular: the dielectric's reflectance at normal incidence,
+/// min(((ior − 1)/(ior + 1))² · specularColor, 1).
+pub fn dielectric_f0(ior: f32, specular_color: Vec3) -> Vec3 {
+    (ior_to_f0(ior, 1.0) * specular_color).min(Vec3::ONE)
+}
+
+/// KHR_materials_clearcoat: the coat is a dielectric of index 1.5 (F0 = 0.04).
+pub fn clearcoat_fresnel(cos: f32) -> f32 {
+    schlick(Vec3::splat(0.04), 1.0, cos).x
+}
+
+/// KHR_materials_iridescence: the Fresnel reflectance of a base of normal-incidence
+/// reflectance `base_f0` under a thin film of index `film_ior` and `thickness_nm`, seen at
+/// `cos` from outside (index 1). Airy summation of the film's first reflections with the
+/// phase shifts turned into colour by Gaussian fits of the CIE matching functions (Belcour and
+/// Barla 2017, as the extension specifies). The film fades in over its first 30 nm from the
+/// base's own Schlick reflectance, so a film of thickness 0 leaves the base as it is. Clamped
+/// to [0, 1].
+pub fn thin_film_fresnel(film_ior: f32, thickness_nm: f32, cos: f32, base_f0: Vec3) -> Vec3 {
+    let fade = smoothstep(0.0, 30.0, thickness_nm);
+    let base = schlick(base_f0, 1.0, cos);
+    if fade <= 0.0 {
+        return base;
+    }
+    base.lerp(film_fresnel(film_ior, thickness_nm, cos, base_f0), fade)
+}
+
+fn film_fresnel(film: f32, thickness_nm: f32, cos: f32, base_f0: Vec3) -> Vec3 {
+    let outside = 1.0;
+    let cos1 = cos.clamp(0.0, 1.0);
+    let cos2_squared = 1.0 - (outside / film).powi(2) * (1.0 - cos1 * cos1);
+    if cos2_squared <= 0.0 {
+        return Vec3::ONE;
+    }
+    let cos2 = cos2_squared.sqrt();
+    // Outside → film.
+    let r12 = schlick(Vec3::splat(ior_to_f0(film, outside)), 1.0, cos1).x;
+    let t121 = 1.0 - r12;
+    let phi21 = if film < outside { 0.0 } else { PI };
+    // Film → base, the base's index recovered from its F0.
+    let root = base_f0.clamp(Vec3::ZERO, Vec3::splat(0.9999)).powf(0.5);
+    let base_ior = (Vec3::ONE + root) / (Vec3::ONE - root);
+    let r23 = schlick(
+        Vec3::from_array(base_ior.to_array().map(|n| ior_to_f0(n, film))),
+        1.0,
+        cos2,
+    );
+    let phi23 = Vec3::from_array(base_ior.to_array().map(|n| if n < film { PI } else { 0.0 }));
+    let path_difference = 2.0 * film * thickness_nm * cos2;
+    let phase = Vec3::splat(phi21) + phi23;
+    let r123 = (r12 * r23).clamp(Vec3::splat(1e-5), Vec3::splat(0.9999));
+    let amplitude = r123.powf(0.5);
+    let rs = t121 * t121 * r23 / (Vec3::ONE - r123);
+    let mut reflectance = Vec3::splat(r12) + rs;
+    let mut coefficient = rs - Vec3::splat(t121);
+    for m in 1..=2 {
+        coefficient *= amplitude;
+        let m = m as f32;
+        reflectance += coefficient * 2.0 * spectral_sensitivity(m * path_difference, m * phase);
+    }
+    reflectance.clamp(Vec3::ZERO, Vec3::ONE)
+}
+
+fn smoothstep(edge0: f32, edge1: f32, x: f32) -> f32 {
+    let t = ((x - edge0) / (edge1 - edge0)).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// Linear Rec. 709 response to a phase shift of `path_nm` of optical path plus `shift`, from
+/// Gaussian fits of the CIE 1931 matching functions (constants of the iridescence extension).
+fn spectral_sensitivity(path_nm: f32, shift: Vec3) -> Vec3 {
+    let phase = TAU * path_nm * 1e-9;
+    let gaussian = |value: f32, position: f32, variance: f32, shift: f32| {
+        value
+            * (TAU * variance).sqrt()
+            * (position * phase + shift).cos()
+            * (-phase * phase * variance).exp()
+    };
+    let x = gaussian(5.4856e-13, 1.6810e6, 4.3278e9, shift.x)
+        + gaussian(9.7470e-14, 2.2399e6, 4.5282e9, shift.x);
+    let y = gaussian(4.4201e-13, 1.7953e6, 9.3046e9, shift.y);
+    let z = gaussian(5.2481e-13, 2.2084e6, 6.6121e9, shift.z);
+    let xyz = Vec3::new(x, y, z) / 1.0685e-7;
+    // CIE XYZ to linear Rec. 709, columns.
+    let to_rec709 = Mat3::from_cols(
+        Vec3::new(3.240_454_2, -0.969_266, 0.055_643_4),
+        Vec3::new(-1.537_138_5, 1.876_010_8, -0.204_025_9),
+        Vec3::new(-0.498_531_4, 0.041_556, 1.057_225_2),
+    );
+    to_rec709 * xyz
+}
+
+/// The sheen roughness below which the Charlie lobe is too sharp to integrate on the albedo
+/// table's grid; rougher values are used as they are.
+const MIN_SHEEN_ROUGHNESS: f32 = 0.07;
+
+/// KHR_materials_sheen's BRDF (without the sheen colour): the Charlie distribution
+/// D = (2 + 1/α) sin^(1/α)θh / 2π with α = roughness², and Ashikhmin's visibility
+/// 1 / (4 (cos_l + cos_v − cos_l cos_v)) as the extension allows.
+pub fn sheen_brdf(roughness: f32, cos_v: f32, cos_l: f32, cos_h: f32) -> f32 {
+    if cos_v <= 0.0 || cos_l <= 0.0 {
+        return 0.0;
+    }
+    let alpha = roughness.clamp(MIN_SHEEN_ROUGHNESS, 1.0).powi(2);
+    let inverse = 1.0 / alpha;
+    let sin_h = (1.0 - cos_h * cos_h).max(0.0).sqrt();
+    let distribution = (2.0 + inverse) * sin_h.powf(inverse) * 0.5 * FRAC_1_PI;
+    let visibility = 0.25 / (cos_l + cos_v - cos_l * cos_v);
+    distribution * visibility
+}
+
+/// Table size of the sheen albedo along cos_v and roughness.
+const ALBEDO_STEPS: usize = 16;
+
+/// The sheen lobe's directional albedo ∫ sheen_brdf cos_l dω at `cos_v` and `roughness`, at most
+/// 1: what the sheen reflects of uniform light and so what the layers below it lose
+/// (KHR_materials_sheen's albedo scaling). Bilinear in a table integrated on first use.
+pub fn sheen_albedo(cos_v: f32, roughness: f32) -> f32 {
+    static TABLE: OnceLock<Vec<f32>> = OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        let mut table = Vec::with_capacity(ALBEDO_STEPS * ALBEDO_STEPS);
+        for r in 0..ALBEDO_STEPS {
+            for c in 0..ALBEDO_STEPS {
+                let (cos_v, roughness) = albedo_grid_point(c, r);
+                table.push(integrate_sheen(cos_v, roughness).min(1.0));
+            }
+        }
+        table
+    });
+    let position = |value: f32, low: f32| {
+        let x = ((value - low) / (1.0 - low)).clamp(0.0, 1.0) * (ALBEDO_STEPS - 1) as f32;
+        let i = (x.floor() as usize).min(ALBEDO_STEPS - 2);
+        (i, x - i as f32)
+    };
+    let (c, fc) = position(cos_v, 0.0);
+    let (r, fr) = position(roughness, MIN_SHEEN_ROUGHNESS);
+    let at = |c: usize, r: usize| table[r * ALBEDO_STEPS + c];
+    let low = at(c, r) * (1.0 - fc) + at(c + 1, r) * fc;
+    let high = at(c, r + 1) * (1.0 - fc) + at(c + 1, r + 1) * fc;
+    low * (1.0 - fr) + high * fr
+}
+
+fn albedo_grid_point(c: usize, r: usize) -> (f32, f32) {
+    let step = 1.0 / (ALBEDO_STEPS - 1) as f32;
+    (
+        (c as f32 * step).max(1e-3),
+        MIN_SHEEN_ROUGHNESS + (1.0 - MIN_SHEEN_ROUGHNESS) * r as f32 * step,
+    )
+}
+
+/// ∫ sheen_brdf cos_l dω over the hemisphere, midpoint rule in (cos θ_l, φ).
+fn integrate_sheen(cos_v: f32, roughness: f32) -> f32 {
+    let view = Vec3::new((1.0 - cos_v * cos_v).sqrt(), 0.0, cos_v);
+    let (rings, sectors) = (64, 64);
+    let mut sum = 0.0;
+    for i in 0..rings {
+        let cos_l = (i as f32 + 0.5) / rings as f32;
+        let sin_l = (1.0 - cos_l * cos_l).sqrt();
+        for j in 0..sectors {
+            let phi = TAU * (j as f32 + 0.5) / sectors as f32;
+            let light = Vec3::new(sin_l * phi.cos(), sin_l * phi.sin(), cos_l);
+            let half = (view + light).normalize();
+            sum += sheen_brdf(roughness, cos_v, cos_l, half.z) * cos_l;
+        }
+    }
+    // dω = d(cos θ) dφ.
+    sum * (1.0 / rings as f32) * (TAU / sectors as f32)
+}
+
+/// glTF normal maps: the texel's components map to a tangent-space normal as 2·value − 1, in
+/// the frame of the unit `normal`, the `tangent` (xyz, made perpendicular to the normal) and
+/// the bitangent normal × tangent times the handedness in `tangent.w`. Falls back to `normal`
+/// where the map or the frame is degenerate.
+pub fn mapped_normal(normal: Vec3, tangent: Vec4, texel: Vec4) -> Vec3 {
+    let local = texel.truncate() * 2.0 - Vec3::ONE;
+    let Some(t) = (tangent.truncate() - normal * normal.dot(tangent.truncate())).try_normalize()
+    else {
+        return normal;
+    };
+    let handedness = if tangent.w < 0.0 { -1.0 } else { 1.0 };
+    let b = normal.cross(t) * handedness;
+    (t * local.x + b * local.y + normal * local.z)
+        .try_normalize()
+        .unwrap_or(normal)
+}
+
+/// A tangent where the geometry gives none: the object's x axis, made perpendicular to the
+/// normal (its y axis where x is along the normal), so a plane facing +z maps x right, y up.
+pub fn fallback_tangent(normal: Vec3, x_axis: Vec3, y_axis: Vec3) -> Vec4 {
+    let along = |axis: Vec3| (axis - normal * normal.dot(axis)).try_normalize();
+    along(x_axis)
+        .or_else(|| along(y_axis))
+        .unwrap_or(Vec3::X)
+        .extend(1.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn schlick_runs_from_f0_at_normal_incidence_to_f90_at_grazing() {
+        let f0 = Vec3::new(0.04, 0.5, 1.0);
+        assert_eq!(schlick(f0, 1.0, 1.0), f0);
+        assert_eq!(schlick(f0, 1.0, 0.0), Vec3::ONE);
+        let half = schlick(f0, 1.0, 0.5);
+        assert!((half.x - (0.04 + 0.96 / 32.0)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_dielectric_f0_follows_the_index_and_the_specular_colour() {
+        let f0 = dielectric_f0(1.5, Vec3::new(1.0, 0.5, 100.0));
+        assert!((f0.x - 0.04).abs() < 1e-6 && (f0.y - 0.02).abs() < 1e-6);
+        // Capped at 1.
+        assert_eq!(f0.z, 1.0);
+    }
+
+    #[test]
+    fn a_film_of_no_thickness_or_the_base_index_leaves_the_base_reflectance() {
+        let base = Vec3::splat(0.04);
+        for cos in [1.0, 0.7, 0.3] {
+            let plain = schlick(base, 1.0, cos);
+            let thin = thin_film_fresnel(1.3, 0.0, cos, base);
+            assert!((thin - plain).abs().max_element() < 0.01, "{thin} {plain}");
+        }
+    }
+
+    #[test]
+    fn a_thin_film_colours_the_reflection_by_its_thickness() {
+        // A soap-like film (n 1.33) over glass: reflectance coloured, different per thickness.
+        let base = Vec3::splat(0.04);
+        let a = thin_film_fresnel(1.33, 300.0, 1.0, base);
+        let b = thin_film_fresnel(1.33, 500.0, 1.0, base);
+        let coloured = |v: Vec3| v.max_element() > 2.0 * v.min_element();
+        assert!(coloured(a) && coloured(b), "{a} {b}");
+        assert!((a - b).abs().max_element() > 0.01, "{a} {b}");
+        assert!(a.min_element() >= 0.0 && a.max_element() <= 1.0);
+    }
+
+    #[test]
+    fn the_sheen_albedo_stays_within_one_and_grows_with_roughness() {
+        for r in [0.1, 0.3, 0.6, 1.0] {
+            for c in [0.05, 0.3, 0.7, 1.0] {
+                let e = sheen_albedo(c, r);
+                assert!((0.0..=1.0).contains(&e), "{c} {r}: {e}");
+            }
+        }
+        // Facing the viewer a rougher sheen reflects more.
+        assert!(sheen_albedo(1.0, 1.0) > sheen_albedo(1.0, 0.2));
+        // The table matches direct integration between its grid points.
+        let direct = integrate_sheen(0.55, 0.5).min(1.0);
+        assert!((sheen_albedo(0.55, 0.5) - direct).abs() < 0.02);
+    }
+
+    #[test]
+    fn a_normal_map_tilts_the_normal_in_the_tangent_frame() {
+        let n = Vec3::Z;
+        let tangent = Vec4::new(1.0, 0.0, 0.0, 1.0);
+        // (0.5, 0.5, 1): straight up.
+        let flat = mapped_normal(n, tangent, Vec4::new(0.5, 0.5, 1.0, 1.0));
+        assert!((flat - n).length() < 1e-6);
+        // Towards the tangent by 45 degrees.
+        let s = 0.5 + 0.5 * std::f32::consts::FRAC_1_SQRT_2;
+        let tilted = mapped_normal(n, tangent, Vec4::new(s, 0.5, s, 1.0));
+        assert!((tilted - Vec3::new(1.0, 0.0, 1.0).normalize()).length() < 1e-5);
+        // Negative handedness flips the bitangent.
+        let up = mapped_normal(
+            n,
+            Vec4::new(1.0, 0.0, 0.0, -1.0),
+            Vec4::new(0.5, 1.0, 0.5, 1.0),
+        );
+        assert!((up - Vec3::NEG_Y).length() < 1e-5);
+    }
+}
