@@ -748,21 +748,30 @@ fn stereo_section(dev: ANARIDevice, scenes: &[(&str, ANARIGeometry)], size: u32,
 /// Light-field frames against a mono frame of the same size
 /// (`cargo bench --bench render -- lightfield`): the height field through the benchmark's
 /// screen, seen by one offAxis eye 1 m in front, and by the lightField camera (sample
-/// calibration, views 1 m in front) with 45 snapped views and with continuous ones. Cases
-/// alternate frame by frame.
+/// calibration, views 1 m in front) with 45 snapped views and with continuous ones, and its
+/// quilt of 45 views with as many rays. Cases alternate frame by frame.
 fn light_field_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: u32) {
     let screen = bench_screen();
     let eye = head_at(0).to_array();
-    let cases: [(&str, &str, Option<u32>); 3] = [
+    // The quilt has as many rays as a light-field frame: 9 × 5 views on a frame three times as
+    // wide.
+    let cases: [(&str, &str, Option<u32>); 4] = [
         ("offAxis, one eye", "offAxis", None),
         ("lightField, 45 views", "lightField", Some(45)),
         ("lightField, continuous views", "lightField", Some(0)),
+        ("quilt of 9x5 views, 3x the pixels", "quilt", Some(45)),
     ];
     let setups: Vec<Setup> = cases
         .iter()
         .map(|(_, subtype, views)| {
             let s = setup(dev, geometry, "fast", size);
+            let quilt = *subtype == "quilt";
+            let subtype = if quilt { "lightField" } else { subtype };
             let camera = anariNewCamera(dev, c(subtype).as_ptr());
+            if quilt {
+                set(dev, camera, "quilt", ANARI_UINT32_VEC2, &[9u32, 5]);
+                set(dev, s.frame, "size", ANARI_UINT32_VEC2, &[3 * size, size]);
+            }
             let [ll, lr, ur] = screen.corners;
             set(dev, camera, "screen.lowerLeft", ANARI_FLOAT32_VEC3, &ll);
             set(dev, camera, "screen.lowerRight", ANARI_FLOAT32_VEC3, &lr);
