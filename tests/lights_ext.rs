@@ -463,6 +463,31 @@ fn bad_values_are_reported_through_the_status_callback() {
 }
 
 #[test]
+fn unsupported_parameters_of_the_light_extensions_are_reported_as_such() {
+    let log = Log::new();
+    let scene = Scene::new(&log, false);
+    let ring = anariNewLight(scene.dev, c("ring").as_ptr());
+    set(scene.dev, ring, "c0", ANARI_FLOAT32, &0.5f32);
+    set(scene.dev, ring, "colour", ANARI_FLOAT32, &0.5f32);
+    let messages = log.take();
+    let text_for = |name: &str| {
+        messages
+            .iter()
+            .find(|(_, _, text)| text.contains(&format!("'{name}'")))
+            .map(|(_, _, text)| text.clone())
+            .unwrap_or_default()
+    };
+    let c0 = text_for("c0");
+    assert!(
+        c0.contains("ANARI_KHR_LIGHT_RING") && c0.contains("does not support"),
+        "{c0}"
+    );
+    assert!(text_for("colour").contains("not a parameter of this object"));
+    anariRelease(scene.dev, ring);
+    scene.finish(&log);
+}
+
+#[test]
 fn the_light_extensions_are_advertised() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);

@@ -391,6 +391,14 @@ impl Device {
                     return None;
                 }
                 Some(_) => {}
+                None if spec.unsupported.contains(&name) => self.warning(
+                    Some(object),
+                    format!(
+                        "{what}: a parameter of {} that cavetrace does not support; it has no \
+                         effect",
+                        spec.extensions.join(", ")
+                    ),
+                ),
                 None => self.warning(
                     Some(object),
                     format!(

@@ -95,6 +95,9 @@ pub struct ObjectSpec {
     pub extensions: &'static [&'static str],
     /// Frame channels (frame spec only).
     pub channels: &'static [&'static str],
+    /// Parameters of its extensions that cavetrace does not implement: setting one is reported
+    /// as such, not as an unknown name.
+    pub unsupported: &'static [&'static str],
 }
 
 impl ObjectSpec {
@@ -112,6 +115,7 @@ impl ObjectSpec {
             shared_params: &[],
             extensions: &[],
             channels: &[],
+            unsupported: &[],
         }
     }
     pub const fn shared(mut self, shared_params: &'static [ParamSpec]) -> ObjectSpec {
@@ -124,6 +128,10 @@ impl ObjectSpec {
     }
     pub const fn channels(mut self, channels: &'static [&'static str]) -> ObjectSpec {
         self.channels = channels;
+        self
+    }
+    pub const fn unsupported(mut self, names: &'static [&'static str]) -> ObjectSpec {
+        self.unsupported = names;
         self
     }
 

@@ -160,7 +160,8 @@ pub const QUAD: ObjectSpec = ObjectSpec::new(
         .values(&["front", "back", "both"]),
     ],
 )
-.extensions(&["ANARI_KHR_LIGHT_QUAD"]);
+.extensions(&["ANARI_KHR_LIGHT_QUAD"])
+.unsupported(&["intensityDistribution"]);
 
 pub const RING: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
@@ -202,7 +203,8 @@ pub const RING: ObjectSpec = ObjectSpec::new(
         .range(SpecValue::Float(0.0), SpecValue::None),
     ],
 )
-.extensions(&["ANARI_KHR_LIGHT_RING"]);
+.extensions(&["ANARI_KHR_LIGHT_RING"])
+.unsupported(&["intensityDistribution", "c0"]);
 
 pub const HDRI: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
