@@ -9,6 +9,9 @@
 //! primitive index + 1 over hits) is the probe's, so equal checksums mean the same hits up to
 //! rays that graze an edge.
 //!
+//! Beside the packets of primary rays it times the same rays traced one by one (the path of
+//! light-field, shadow and secondary rays), and every instruction-set path this CPU has
+//! (baseline SSE2; AVX2), alternating frame by frame.
 //! `CAVETRACE_BENCH_QUICK=1`: two sizes at 256×256, 3 frames. `CAVETRACE_BENCH_GRIDS=22,708`:
 //! only those sizes (for profiling one).
 
@@ -18,6 +21,7 @@ use common::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
+use cavetrace::accel::isa::{self, Isa};
 use cavetrace::accel::{InstanceDesc, PacketScratch, Ray, SceneBvh};
 use cavetrace::camera::CameraModel;
 use cavetrace::scene::geometry::Geometry;
@@ -122,9 +126,9 @@ fn camera_rays(dev: ANARIDevice, camera: ANARICamera, size: u32) -> Vec<Ray> {
     rays
 }
 
-/// Traces `rays` in 64-ray packets on `threads` threads, 16 packets at a time; (wall ms, CPU
-/// ms, hit checksum).
-fn trace(scene: &SceneBvh, rays: &[Ray], threads: usize) -> (f64, f64, u64) {
+/// Traces `rays` in 64-ray packets (or ray by ray) on `threads` threads, 16 packets at a time;
+/// (wall ms, CPU ms, hit checksum).
+fn trace(scene: &SceneBvh, rays: &[Ray], threads: usize, one_by_one: bool) -> (f64, f64, u64) {
     let next = AtomicUsize::new(0);
     let packets = rays.len().div_ceil(64);
     let (start, cpu_start) = (Instant::now(), cpu_ms());
@@ -142,7 +146,13 @@ fn trace(scene: &SceneBvh, rays: &[Ray], threads: usize) -> (f64, f64, u64) {
                         }
                         for packet in first..(first + 16).min(packets) {
                             let chunk = &rays[packet * 64..((packet + 1) * 64).min(rays.len())];
-                            scene.intersect_packet_with(&mut scratch, chunk, &mut hits);
+                            if one_by_one {
+                                for (hit, ray) in hits.iter_mut().zip(chunk) {
+                                    *hit = scene.intersect(ray);
+                                }
+                            } else {
+                                scene.intersect_packet_with(&mut scratch, chunk, &mut hits);
+                            }
                             checksum += hits[..chunk.len()]
                                 .iter()
                                 .flatten()
@@ -181,6 +191,10 @@ fn main() {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
+    let isas: Vec<Isa> = [Isa::Baseline, Isa::Avx2]
+        .into_iter()
+        .filter(|isa| isa.supported())
+        .collect();
     println!(
         "kernel: the embree_rays scene, {size}x{size}, {threads} threads, medians of frames \
          1..{frames}"
@@ -214,38 +228,50 @@ fn main() {
         set_object(dev, frame, "camera", ANARI_CAMERA, camera);
         set_object(dev, frame, "renderer", ANARI_RENDERER, renderer);
         commit(dev, frame);
-        let (mut kernel, mut whole) = (Vec::new(), Vec::new());
-        let (mut kernel_cpu, mut whole_cpu) = (Vec::new(), Vec::new());
-        let mut checksum = 0;
+        // Per path: packets, single rays, whole frame (wall and CPU each); paths alternate
+        // frame by frame.
+        let mut figures = vec![[(); 6].map(|_| Vec::new()); isas.len()];
+        let mut checksums = vec![[0; 2]; isas.len()];
         for f in 0..=frames {
             place_camera(dev, camera, f);
             let rays = camera_rays(dev, camera, size);
-            let (ms, cpu, sum) = trace(&scene, &rays, threads);
-            let (start, cpu_start) = (Instant::now(), cpu_ms());
-            anariRenderFrame(dev, frame);
-            anariFrameReady(dev, frame, ANARI_WAIT);
-            let frame_ms = start.elapsed().as_secs_f64() * 1e3;
-            let frame_cpu = cpu_ms() - cpu_start;
-            if f == 1 {
-                checksum = sum;
-            }
-            if f > 0 {
-                kernel.push(ms);
-                whole.push(frame_ms);
-                kernel_cpu.push(cpu);
-                whole_cpu.push(frame_cpu);
+            for (k, isa) in isas.iter().enumerate() {
+                set_string(dev, dev, "isa", isa.name());
+                commit(dev, dev);
+                assert_eq!(isa::selected(), *isa);
+                let (packet_ms, packet_cpu, packet_sum) = trace(&scene, &rays, threads, false);
+                let (single_ms, single_cpu, single_sum) = trace(&scene, &rays, threads, true);
+                let (start, cpu_start) = (Instant::now(), cpu_ms());
+                anariRenderFrame(dev, frame);
+                anariFrameReady(dev, frame, ANARI_WAIT);
+                let frame_ms = start.elapsed().as_secs_f64() * 1e3;
+                let frame_cpu = cpu_ms() - cpu_start;
+                if f == 1 {
+                    checksums[k] = [packet_sum, single_sum];
+                }
+                if f > 0 {
+                    let values = [
+                        packet_ms, packet_cpu, single_ms, single_cpu, frame_ms, frame_cpu,
+                    ];
+                    for (list, value) in figures[k].iter_mut().zip(values) {
+                        list.push(value);
+                    }
+                }
             }
         }
-        let (kernel, whole) = (median(kernel), median(whole));
-        let (kernel_cpu, whole_cpu) = (median(kernel_cpu), median(whole_cpu));
-        println!(
-            "  {:>9} triangles: kernel {kernel:6.1} ms ({kernel_cpu:4.0} ms CPU), whole fast \
-             frame {whole:6.1} ms ({whole_cpu:4.0} ms CPU), frame/kernel {:.2} (CPU {:.2}), \
-             checksum {checksum}",
-            2 * grid * grid,
-            whole / kernel,
-            whole_cpu / kernel_cpu
-        );
+        for (k, isa) in isas.iter().enumerate() {
+            let [packets, packets_cpu, single, single_cpu, whole, whole_cpu] =
+                figures[k].clone().map(median);
+            println!(
+                "  {:>9} triangles, {:<8}: packets {packets:6.1} ms ({packets_cpu:4.0} ms CPU), \
+                 one by one {single:6.1} ms ({single_cpu:4.0} ms CPU), whole fast frame \
+                 {whole:6.1} ms ({whole_cpu:4.0} ms CPU); checksums {} {}",
+                2 * grid * grid,
+                isa.name(),
+                checksums[k][0],
+                checksums[k][1]
+            );
+        }
         release_all(dev, &[frame, renderer, camera, world, surface, geometry]);
     }
     assert!(log.errors().is_empty(), "{:?}", log.errors());

@@ -2733,3 +2733,61 @@ fn tiny_meshes_form_a_single_leaf_and_match_brute_force() {
         assert_eq!(clusters.len(), 1, "{count} triangles");
     }
 }
+
+#[test]
+fn the_avx2_box_test_finds_the_hits_of_the_baseline() {
+    use crate::accel::isa::{self, Isa};
+    if !Isa::Avx2.supported() {
+        eprintln!("this CPU has no AVX2 and FMA: only the baseline path exists here");
+        return;
+    }
+    // Triangles, quads, spheres and tubes, one of them placed by a rotating, scaling instance;
+    // rays from outside and inside, with and without windows, and grazing ones along the
+    // grid's plane.
+    let mut rng = Rng::new(19);
+    let geometries: Vec<Arc<GeometryBvh>> = vec![
+        Arc::new(GeometryBvh::build(random_triangles(
+            &mut rng, 400, 4.0, 0.8,
+        ))),
+        Arc::new(GeometryBvh::build(random_quads(&mut rng, 200, 4.0, 0.8))),
+        Arc::new(GeometryBvh::build(random_spheres(&mut rng, 200, 4.0, 0.4))),
+        Arc::new(random_tubes(&mut rng, 100, 4.0, 0.8).build()),
+        Arc::new(GeometryBvh::build(bumpy_grid(40).1)),
+    ];
+    let scene = SceneBvh::build(vec![
+        identity_instance(geometries[..4].to_vec()),
+        InstanceDesc {
+            transform: Affine3A::from_scale_rotation_translation(
+                vec3(1.5, 0.7, 1.1),
+                Quat::from_rotation_y(0.6),
+                vec3(0.3, -1.0, 0.2),
+            ),
+            geometries: vec![geometries[4].clone()],
+        },
+    ]);
+    let mut rays = random_rays(&mut rng, 20_000, 4.0);
+    rays.extend((0..2_000).map(|_| {
+        let origin = vec3(rng.range(-6.0, 6.0), -1.0, rng.range(-6.0, 6.0));
+        Ray::new(
+            origin,
+            vec3(rng.range(-1.0, 1.0), 1e-4, 1.0).normalize(),
+            0.0,
+            f32::INFINITY,
+        )
+    }));
+    let trace = |isa: Isa| -> Vec<(Option<SceneHit>, bool)> {
+        assert_eq!(isa::select(isa), isa);
+        rays.iter()
+            .map(|ray| (scene.intersect(ray), scene.occluded(ray)))
+            .collect()
+    };
+    let baseline = trace(Isa::Baseline);
+    let avx2 = trace(Isa::Avx2);
+    isa::select(Isa::from_environment());
+    let hits = baseline.iter().filter(|(hit, _)| hit.is_some()).count();
+    assert!(hits > rays.len() / 4, "only {hits} hits");
+    for (i, (a, b)) in baseline.iter().zip(&avx2).enumerate() {
+        // Bit for bit: t, ids, barycentrics and normals.
+        assert_eq!(format!("{a:?}"), format!("{b:?}"), "ray {i}: {:?}", rays[i]);
+    }
+}

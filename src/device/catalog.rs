@@ -21,6 +21,15 @@ pub const DEVICE_PARAMS: &[ParamSpec] = &[
         "number of render threads (default: one per core); takes effect at the device's commit",
     )
     .range(SpecValue::UInt(1), SpecValue::UInt(1024)),
+    ParamSpec::new(
+        "isa",
+        &[ANARI_STRING],
+        "instruction set of the ray kernels, for the whole process: auto (the best this CPU \
+         has), baseline (SSE2) or avx2 (AVX2 and FMA); default: the environment variable \
+         CAVETRACE_ISA, else auto",
+    )
+    .default(SpecValue::Str("auto"))
+    .values(&crate::accel::isa::Isa::VALUES),
 ];
 
 pub const DEVICE: ObjectSpec = ObjectSpec::new(

@@ -63,6 +63,7 @@ pub fn source_of(object: Option<&Object>) -> Source {
 
 impl Device {
     pub fn new(callback: ANARIStatusCallback, user_data: usize) -> Arc<Device> {
+        crate::accel::isa::select(crate::accel::isa::Isa::from_environment());
         let handle = registry::next_handle();
         let device = Arc::new(Device {
             handle,
@@ -695,6 +696,38 @@ impl Device {
             let callback: ANARIStatusCallback = unsafe { std::mem::transmute(function) };
             self.status.set_callback(callback, user);
         }
+        if let Some(name) = params.get_string("isa") {
+            use crate::accel::isa::{self, Isa};
+            let Some(requested) = Isa::parse(name) else {
+                self.error(
+                    ANARI_STATUS_INVALID_ARGUMENT,
+                    None,
+                    format!(
+                        "anariCommitParameters: device parameter 'isa': '{name}' is not one of \
+                         {}; the ray kernels keep {}",
+                        Isa::VALUES.join(", "),
+                        isa::selected().name()
+                    ),
+                );
+                return self.apply_thread_count();
+            };
+            if isa::select(requested) != requested {
+                self.warning(
+                    None,
+                    format!(
+                        "anariCommitParameters: device parameter 'isa': this CPU has no {}; the \
+                         ray kernels use {}",
+                        requested.name(),
+                        isa::selected().name()
+                    ),
+                );
+            }
+        }
+        self.apply_thread_count();
+    }
+
+    /// Drops the render threads when `numThreads` asks for another count.
+    fn apply_thread_count(&self) {
         let wanted = self.requested_thread_count();
         let mut pool = self.pool.lock().unwrap_or_else(|e| e.into_inner());
         if pool.as_ref().is_some_and(|p| p.thread_count() != wanted) {
