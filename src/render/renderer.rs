@@ -1,6 +1,7 @@
 //! Renderers. "default": direct lighting from directional, point and spot lights with shadows
-//! (soft from lights with extent), ambient light, mirror reflections and transparency. "fast":
-//! primary rays only with eye-light shading, for head-tracked interactivity.
+//! (soft from lights with extent), ambient light, mirror and glossy reflections and
+//! transparency. "fast": primary rays only with eye-light shading, for head-tracked
+//! interactivity.
 
 use std::sync::Arc;
 
@@ -13,8 +14,9 @@ use crate::device::object::Object;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
 use crate::render::bsdf::{
-    clearcoat_fresnel, dielectric_f0, fallback_tangent, schlick, sheen_albedo, sheen_brdf,
-    thin_film_fresnel,
+    clearcoat_fresnel, dielectric_f0, fallback_tangent, ggx_distribution, microfacet_albedo,
+    microfacet_alpha, multiple_scattering, sample_glossy, schlick, sheen_albedo, sheen_brdf,
+    smith_visibility, thin_film_fresnel,
 };
 use crate::render::surface_model::{HitInputs, SurfaceModel, evaluate_input};
 use crate::scene::attributes::{
@@ -430,13 +432,34 @@ pub fn trace(
     screen: Option<Vec2>,
     sampling: &LightSampling,
 ) -> Vec4 {
+    trace_seeing(
+        scene,
+        settings,
+        ray,
+        depth,
+        screen,
+        sampling,
+        |background| background,
+    )
+}
+
+/// [`trace`], where a ray that leaves the scene sees `beyond` of the background.
+fn trace_seeing(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    ray: &Ray,
+    depth: u32,
+    screen: Option<Vec2>,
+    sampling: &LightSampling,
+    beyond: impl FnOnce(Vec4) -> Vec4,
+) -> Vec4 {
     let hit = scene.bvh.intersect(ray);
     let volume = volumes_in_front(scene, ray, hit.as_ref());
     if let Some(volume) = volume.filter(|v| v.transmittance == 0.0) {
         return volume.over(Vec4::ZERO);
     }
     let behind = match hit {
-        None => settings.background_for(screen),
+        None => beyond(settings.background_for(screen)),
         Some(hit) => {
             let sp = shading_point(scene, ray, &hit);
             shade(
@@ -470,9 +493,10 @@ fn volumes_in_front(
 /// diffuse base under a Fresnel-weighted reflection (specular, specularColor, ior) or, by
 /// transmission, glass; sheen over that, emission, and a clearcoat over everything. Each
 /// layer passes on to those below what it does not reflect, so no surface returns more light
-/// than arrives. Reflection lobes of roughness r are a mirror image (weight 1 − r) plus a
-/// diffuse-like share (weight r). `view`: the unit direction view-dependent terms look along
-/// (see [`RendererSettings::view_direction`]).
+/// than arrives. Reflection lobes are GGX microfacet lobes (α = roughness²): F·D·V per light,
+/// and one reflection drawn from the visible normals per sample (a mirror at roughness 0).
+/// `view`: the unit direction view-dependent terms look along (see
+/// [`RendererSettings::view_direction`]).
 #[allow(clippy::too_many_arguments)]
 fn shade(
     scene: &SceneSnapshot,
@@ -486,19 +510,61 @@ fn shade(
 ) -> Vec3 {
     let model = sp.surface_model();
     let normal = model.normal;
-    let cos_view = (-view).dot(normal).clamp(0.0, 1.0);
+    let to_viewer = -view;
+    let cos_view = to_viewer.dot(normal).clamp(0.0, 1.0);
     let can_trace = depth < settings.max_ray_depth;
-    let mirror_from = |normal: Vec3| {
-        let reflected = view - 2.0 * view.dot(normal) * normal;
-        traced_from(
-            scene, settings, sp.point, reflected, depth, screen, sampling,
-        )
-    };
     // Ambient light is radiance from every direction: it arrives as irradiance π·L, where the
     // occlusion map lets it.
     let ambient = settings.ambient * model.occlusion;
     let sheen_on = model.sheen_color != Vec3::ZERO;
+    // Non-metallic: a diffuse base under a reflection, or by `transmission` a clear dielectric.
+    let dielectric_share = 1.0 - sp.metallic;
+    let opaque = dielectric_share * (1.0 - model.transmission);
+    let specular_on = opaque > 0.0 && model.specular > 0.0;
+    let metal_on = sp.metallic > 0.0;
+    let f0 = dielectric_f0(model.ior, model.specular_color);
+    // KHR_materials_specular's fresnel_mix: the reflection's share at v·h = `cos`.
+    let dielectric_fresnel =
+        |cos: f32| model.specular * iridescent(&model, schlick(f0, 1.0, cos), f0, cos);
+    // glTF's conductor_fresnel: Schlick towards white from the base colour.
+    let metal_fresnel =
+        |cos: f32| iridescent(&model, schlick(sp.base_color, 1.0, cos), sp.base_color, cos);
+    let alpha = microfacet_alpha(sp.roughness);
+    let glossy = sp.roughness > 0.0;
+    let coat_on = model.clearcoat > 0.0;
+    let coat_alpha = microfacet_alpha(model.clearcoat_roughness);
+    let coat_glossy = coat_on && model.clearcoat_roughness > 0.0;
+    let coat_shares_normal = model.coat_normal == normal;
+    // Single scattering's albedo E of each lobe seen from here, and the compensation that
+    // restores what it drops (see `multiple_scattering`): the reflection's and the coat's
+    // lobes are scaled to albedo 1 (their Fresnel term is their mixing weight), the metal's by
+    // its colour.
+    let albedo = if glossy {
+        microfacet_albedo(cos_view, sp.roughness)
+    } else {
+        1.0
+    };
+    let metal_compensation = if glossy {
+        multiple_scattering(albedo, sp.base_color)
+    } else {
+        Vec3::ONE
+    };
+    let coat_albedo = if coat_glossy {
+        microfacet_albedo(
+            to_viewer.dot(model.coat_normal).clamp(0.0, 1.0),
+            model.clearcoat_roughness,
+        )
+    } else {
+        1.0
+    };
+
+    // Direct light, per light: the diffuse base keeps what the dielectric's reflection at that
+    // light's half vector leaves, the microfacet lobes add F·D·V·(n·l)·E (glTF Appendix B).
     let mut sheen = Vec3::ZERO;
+    let mut diffuse_irradiance = Vec3::ZERO;
+    let mut specular_direct = Vec3::ZERO;
+    let mut metal_direct = Vec3::ZERO;
+    let mut coat_direct = Vec3::ZERO;
     let direct = direct_light(
         scene,
         settings,
@@ -506,47 +572,78 @@ fn shade(
         normal,
         sampling,
         |to_light, irradiance| {
+            let cos_light = to_light.dot(normal);
+            let half = (to_light + to_viewer).normalize_or(normal);
+            let cos_half = half.dot(normal);
+            let cos_view_half = to_viewer.dot(half).clamp(0.0, 1.0);
             if sheen_on {
-                let cos_light = to_light.dot(normal);
-                let half = (to_light - view).normalize_or(normal);
-                sheen += irradiance
-                    * sheen_brdf(model.sheen_roughness, cos_view, cos_light, half.dot(normal));
+                sheen +=
+                    irradiance * sheen_brdf(model.sheen_roughness, cos_view, cos_light, cos_half);
+            }
+            let microfacet = if glossy {
+                ggx_distribution(alpha, cos_half) * smith_visibility(alpha, cos_light, cos_view)
+                    / albedo
+            } else {
+                0.0
+            };
+            if specular_on {
+                let fresnel = dielectric_fresnel(cos_view_half);
+                diffuse_irradiance += irradiance * (1.0 - fresnel.max_element());
+                specular_direct += irradiance * fresnel * microfacet;
+            }
+            if metal_on && glossy {
+                metal_direct += irradiance
+                    * metal_fresnel(cos_view_half)
+                    * (microfacet * albedo)
+                    * metal_compensation;
+            }
+            if coat_glossy && coat_shares_normal {
+                coat_direct += irradiance
+                    * ggx_distribution(coat_alpha, cos_half)
+                    * smith_visibility(coat_alpha, cos_light, cos_view)
+                    / coat_albedo;
             }
         },
     );
-    let light = direct + ambient * std::f32::consts::PI;
-    // One mirror image serves every lobe along the shading normal.
-    let mut mirror_image: Option<Vec3> = None;
-    let mut lobe = |roughness: f32| {
-        let mut radiance = light * std::f32::consts::FRAC_1_PI * roughness;
-        if roughness < 1.0 && can_trace {
-            radiance +=
-                *mirror_image.get_or_insert_with(|| mirror_from(normal)) * (1.0 - roughness);
-        }
-        radiance
+
+    // Indirect light: one reflection, drawn from the lobe (a mirror at roughness 0), serves
+    // the metal and the dielectric's reflection alike.
+    let u = sampling.reflection_point(depth);
+    let reflect = |normal: Vec3, roughness: f32, alpha: f32| {
+        reflection(
+            scene, settings, sp, view, normal, roughness, alpha, ambient, depth, screen, sampling,
+            u,
+        )
     };
+    let base_reflection = if can_trace && (specular_on || metal_on) {
+        reflect(normal, sp.roughness, alpha)
+    } else {
+        None
+    };
+    // Uniform light (ambient, and what the reflection sees) meets the microfacet the
+    // reflection sampled: the normal itself at roughness 0.
+    let cos_sampled = base_reflection.map_or(cos_view, |r| to_viewer.dot(r.half).clamp(0.0, 1.0));
 
     let mut color = Vec3::ZERO;
-    // Non-metallic: a diffuse base under a reflection, or by `transmission` a clear dielectric.
-    let dielectric_share = 1.0 - sp.metallic;
-    let opaque = dielectric_share * (1.0 - model.transmission);
     if opaque > 0.0 {
         // Lambertian: albedo/π × irradiance.
-        let diffuse = sp.base_color * std::f32::consts::FRAC_1_PI * light;
-        if model.specular > 0.0 {
-            let f0 = dielectric_f0(model.ior, model.specular_color);
-            let fresnel = iridescent(&model, schlick(f0, 1.0, cos_view), f0, cos_view);
-            let reflected = model.specular * fresnel;
-            color += opaque
-                * ((1.0 - reflected.max_element()) * diffuse + reflected * lobe(sp.roughness));
+        let lambert = sp.base_color * std::f32::consts::FRAC_1_PI;
+        if specular_on {
+            let fresnel = dielectric_fresnel(cos_sampled);
+            let keep = 1.0 - fresnel.max_element();
+            let diffuse =
+                keep * (lambert * (ambient * std::f32::consts::PI)) + lambert * diffuse_irradiance;
+            let reflected = base_reflection.map_or(Vec3::ZERO, |r| fresnel * r.radiance);
+            color += opaque * (diffuse + specular_direct + reflected);
         } else {
-            color += opaque * diffuse;
+            color += opaque * (lambert * (direct + ambient * std::f32::consts::PI));
         }
     }
-    if sp.metallic > 0.0 {
-        // Metals reflect their base colour (KHR_materials_iridescence: or a thin film's).
-        let tint = iridescent(&model, sp.base_color, sp.base_color, cos_view);
-        color += sp.metallic * tint * lobe(sp.roughness);
+    if metal_on {
+        let reflected = base_reflection.map_or(Vec3::ZERO, |r| {
+            metal_fresnel(cos_sampled) * (albedo * metal_compensation) * r.radiance
+        });
+        color += sp.metallic * (metal_direct + reflected);
     }
     let clear = dielectric_share * model.transmission;
     if clear > 0.0 && can_trace {
@@ -563,27 +660,43 @@ fn shade(
             + model.sheen_color * (sheen + albedo * ambient);
     }
     color += sp.emissive;
-    if model.clearcoat > 0.0 {
-        // KHR_materials_clearcoat: a smooth-to-rough dielectric of index 1.5 over everything
-        // (emission included), along its own normal.
+    if coat_on {
+        // KHR_materials_clearcoat: a dielectric of index 1.5 over everything (emission
+        // included), along its own normal; its Fresnel term at n_c·v weighs the layering
+        // (the extension's fresnel_coat), its lobe is D·V.
         let coat_normal = model.coat_normal;
-        let cos_coat = (-view).dot(coat_normal).clamp(0.0, 1.0);
+        let cos_coat = to_viewer.dot(coat_normal).clamp(0.0, 1.0);
         let reflected = model.clearcoat * clearcoat_fresnel(cos_coat);
-        let roughness = model.clearcoat_roughness;
-        let coat_light = if coat_normal == normal {
-            light
-        } else {
-            direct_light(scene, settings, sp.point, coat_normal, sampling, |_, _| {})
-                + ambient * std::f32::consts::PI
-        };
-        let mut coat = coat_light * std::f32::consts::FRAC_1_PI * roughness;
-        if roughness < 1.0 && can_trace {
-            let image = if coat_normal == normal {
-                *mirror_image.get_or_insert_with(|| mirror_from(normal))
+        if coat_glossy && !coat_shares_normal {
+            let cos_coat_view = to_viewer.dot(coat_normal);
+            direct_light(
+                scene,
+                settings,
+                sp.point,
+                coat_normal,
+                sampling,
+                |to_light, irradiance| {
+                    let half = (to_light + to_viewer).normalize_or(coat_normal);
+                    coat_direct += irradiance
+                        * ggx_distribution(coat_alpha, half.dot(coat_normal))
+                        * smith_visibility(coat_alpha, to_light.dot(coat_normal), cos_coat_view)
+                        / coat_albedo;
+                },
+            );
+        }
+        let mut coat = coat_direct;
+        if can_trace {
+            let same_lobe = coat_shares_normal
+                && model.clearcoat_roughness == sp.roughness
+                && base_reflection.is_some();
+            let image = if same_lobe {
+                base_reflection
             } else {
-                mirror_from(coat_normal)
+                reflect(coat_normal, model.clearcoat_roughness, coat_alpha)
             };
-            coat += image * (1.0 - roughness);
+            if let Some(image) = image {
+                coat += image.radiance;
+            }
         }
         color = color * (1.0 - reflected) + coat * reflected;
     }
@@ -620,6 +733,58 @@ fn iridescent(model: &SurfaceModel, fresnel: Vec3, f0: Vec3, cos_view: f32) -> V
         f0,
     );
     fresnel.lerp(film, model.iridescence)
+}
+
+/// A reflection traced from a lobe: the microfacet normal it reflects off and the radiance
+/// arriving along it. Drawn in proportion to the lobe (see
+/// [`crate::render::bsdf::sample_glossy`]), it stands for the lobe's whole albedo.
+#[derive(Clone, Copy)]
+struct Reflection {
+    half: Vec3,
+    radiance: Vec3,
+}
+
+/// The reflection of the lobe of `roughness` (α = `alpha`) around `normal` at `sp`, seen along
+/// `view`, drawn at `u` (then from `sampling`'s further numbers) and traced one bounce
+/// deeper. Roughness 0 is the exact mirror. A rough reflection that leaves the scene sees the
+/// background and, by the roughness, the ambient light (where the mirror sees only the
+/// background and the diffuse base only the ambient light), so a white background and
+/// ambient light of the same radiance are one uniform surrounding. None where no reflection
+/// was drawn.
+#[allow(clippy::too_many_arguments)]
+fn reflection(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    sp: &ShadingPoint,
+    view: Vec3,
+    normal: Vec3,
+    roughness: f32,
+    alpha: f32,
+    ambient: Vec3,
+    depth: u32,
+    screen: Option<Vec2>,
+    sampling: &LightSampling,
+    u: Vec2,
+) -> Option<Reflection> {
+    if roughness <= 0.0 {
+        let reflected = view - 2.0 * view.dot(normal) * normal;
+        return Some(Reflection {
+            half: normal,
+            radiance: traced_from(
+                scene, settings, sp.point, reflected, depth, screen, sampling,
+            ),
+        });
+    }
+    let sample = sample_glossy(normal, -view, alpha, u, sampling.reflection_numbers(depth))?;
+    let ray = offset_ray(sp.point, sample.direction, f32::INFINITY);
+    let beyond = |background: Vec4| {
+        (background.truncate() * (1.0 - roughness) + ambient * roughness).extend(background.w)
+    };
+    let radiance = trace_seeing(scene, settings, &ray, depth + 1, screen, sampling, beyond);
+    Some(Reflection {
+        half: sample.half,
+        radiance: radiance.truncate(),
+    })
 }
 
 /// Radiance arriving at `point` from `direction` (a secondary ray one bounce deeper).

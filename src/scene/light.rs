@@ -345,6 +345,45 @@ impl LightSampling {
     }
 }
 
+impl LightSampling {
+    /// The point in [0,1)² that picks a glossy reflection at bounce `depth` (0: the camera
+    /// ray's hit). The first bounce follows Roberts' R2 sequence (an additive recurrence by
+    /// the plastic number, low-discrepancy and independent of the Halton bases above) by
+    /// sample index alone, the same in every pixel: pixelSamples and accumulated frames cover
+    /// the lobe evenly, and the two eyes of a stereo pair reflect a surface point alike
+    /// (cyclopean lighting). Deeper bounces hash the index, the pixel and the depth, so each
+    /// bounce's choice is independent of those above it (a product of bounces needs that).
+    pub fn reflection_point(&self, depth: u32) -> Vec2 {
+        if depth == 0 {
+            let unit = |bits: u32| (bits >> 8) as f32 * (1.0 / (1u32 << 24) as f32);
+            // 2³² / ρ and 2³² / ρ², ρ the plastic number: the recurrence in fixed point, exact
+            // modulo 1 for any index.
+            return Vec2::new(
+                unit(self.index.wrapping_mul(3_242_174_889)),
+                unit(self.index.wrapping_mul(2_447_445_414)),
+            );
+        }
+        let mut more = self.reflection_numbers(depth);
+        Vec2::new(more(), more())
+    }
+
+    /// Further numbers in [0,1) for the glossy reflection at bounce `depth` (its acceptance and
+    /// redraws): hashed from the sample index and the depth, and below the first bounce the
+    /// pixel (see [`LightSampling::reflection_point`]).
+    pub fn reflection_numbers(&self, depth: u32) -> impl FnMut() -> f32 {
+        let pixel = if depth == 0 {
+            0
+        } else {
+            mix(self.scramble.x.to_bits() ^ mix(self.scramble.y.to_bits()))
+        };
+        let mut state = mix(self.index ^ mix(pixel ^ mix(depth.wrapping_add(0x3C6E_F372))));
+        move || {
+            state = mix(state.wrapping_add(0x9E37_79B9));
+            (state >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+        }
+    }
+}
+
 impl Default for LightSampling {
     /// Sample 0 with no scramble: the centre-weighted first Halton point.
     fn default() -> LightSampling {
