@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A CAVE's front wall in stereo, driven from Python through cavetrace's ANARI C API (ctypes).
+"""A CAVE's front wall in stereo, driven from Python through the ANARI C API (ctypes).
 
 The scene: a cloud of spheres in front of the wall, a floor, one light. The tracked head stands
 half a metre left of the wall's centre; the offAxis camera renders both eyes side by side,
@@ -8,16 +8,25 @@ the comfort limit (0.03 x the head's distance to the wall).
 
     python3 examples-python/cave_wall.py [output.png] [wall resolution]
 
-The library is found through CAVETRACE_LIBRARY (a path to libcavetrace.so), else
-target/release/libcavetrace.so of this checkout (`cargo build --release`), else the loader's
-search path. Only the standard library is used.
+The ANARI calls go to one of two libraries:
+- the Khronos front end, as an application written for any ANARI device does it: set
+  ANARI_FRONT_END to the SDK's libanari.so; the front end then loads cavetrace's SDK library
+  (libanari_library_cavetrace.so, from `cargo build --release`) from the loader's search path,
+  so put target/release on LD_LIBRARY_PATH;
+- otherwise cavetrace itself, which exports the same C API: CAVETRACE_LIBRARY (a path to
+  libcavetrace.so), else target/release/libcavetrace.so of this checkout, else the loader's
+  search path.
+The image is read back with anariMapFrame and written by this script. Only the standard
+library is used.
 """
 
 import ctypes
 import math
 import os
 import random
+import struct
 import sys
+import zlib
 
 # Values of the ANARI enums used here (include/cavetrace.h has them all).
 ANARI_DATA_TYPE = 100
@@ -47,6 +56,9 @@ StatusCallback = ctypes.CFUNCTYPE(
 
 
 def load_library():
+    front_end = os.environ.get("ANARI_FRONT_END")
+    if front_end:
+        return ctypes.CDLL(front_end)
     here = os.path.dirname(os.path.abspath(__file__))
     candidates = [
         os.environ.get("CAVETRACE_LIBRARY"),
@@ -84,7 +96,8 @@ for name, restype, argtypes in [
     ("anariRenderFrame", None, [Handle, Handle]),
     ("anariFrameReady", ctypes.c_int, [Handle, Handle, ctypes.c_int]),
     ("anariGetProperty", ctypes.c_int, [Handle, Handle, ctypes.c_char_p, ctypes.c_int, ctypes.c_void_p, ctypes.c_uint64, ctypes.c_int]),
-    ("cavetraceWriteFramePNG", ctypes.c_int, [Handle, Handle, ctypes.c_char_p, ctypes.c_char_p]),
+    ("anariMapFrame", ctypes.c_void_p, [Handle, Handle, ctypes.c_char_p, ctypes.POINTER(ctypes.c_uint32), ctypes.POINTER(ctypes.c_uint32), ctypes.POINTER(ctypes.c_int)]),
+    ("anariUnmapFrame", None, [Handle, Handle, ctypes.c_char_p]),
 ]:
     function = getattr(lib, name)
     function.restype = restype
@@ -143,6 +156,27 @@ class Device:
         ctypes.memmove(lib.anariMapArray(self.handle, array), data, ctypes.sizeof(data))
         lib.anariUnmapArray(self.handle, array)
         return array
+
+
+def write_png(device, frame, path):
+    """Writes the frame's UFIXED8_RGBA_SRGB colour channel as an 8-bit RGBA PNG (frames store
+    rows bottom to top, PNG top to bottom). Returns whether it worked."""
+    width, height, data_type = ctypes.c_uint32(), ctypes.c_uint32(), ctypes.c_int()
+    pixels = lib.anariMapFrame(device.handle, frame, b"channel.color", ctypes.byref(width), ctypes.byref(height), ctypes.byref(data_type))
+    if not pixels or data_type.value != ANARI_UFIXED8_RGBA_SRGB:
+        return False
+    w, h = width.value, height.value
+    data = ctypes.string_at(pixels, 4 * w * h)
+    lib.anariUnmapFrame(device.handle, frame, b"channel.color")
+    rows = b"".join(b"\0" + data[4 * w * y:4 * w * (y + 1)] for y in reversed(range(h)))
+
+    def chunk(kind, body):
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+    header = struct.pack(">IIBBBBB", w, h, 8, 6, 0, 0, 0)
+    with open(path, "wb") as out:
+        out.write(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b""))
+    return True
 
 
 def sphere_cloud(device, count=2000):
@@ -231,16 +265,17 @@ def main():
     lib.anariGetProperty(device.handle, frame, b"duration", ANARI_FLOAT32, ctypes.byref(duration), 4, ANARI_WAIT)
     parallax = (ctypes.c_float * 2)()
     lib.anariGetProperty(device.handle, frame, b"parallaxRange", ANARI_FLOAT32_VEC2, parallax, 8, ANARI_WAIT)
-    status = lib.cavetraceWriteFramePNG(device.handle, frame, b"channel.color", output.encode())
+    written = write_png(device, frame, output)
     limit = 0.03 * (head[2] + 1.5)
-    print(f"wrote {output}: {2 * n}x{n} stereo pair in {1e3 * duration.value:.1f} ms; parallax "
+    through = "the Khronos front end" if os.environ.get("ANARI_FRONT_END") else "cavetrace's C API"
+    print(f"wrote {output} through {through}: {2 * n}x{n} stereo pair in {1e3 * duration.value:.1f} ms; parallax "
           f"{1e3 * parallax[0]:.1f} to {1e3 * parallax[1]:.1f} mm (comfortable within "
           f"±{1e3 * limit:.1f} mm)")
 
     device.release(frame, renderer, camera, world, surface_array, light_array, light, *surfaces, *parts)
     lib.anariRelease(device.handle, device.handle)
     lib.anariUnloadLibrary(device.library)
-    if status != 0 or errors or math.isnan(parallax[0]):
+    if not written or errors or math.isnan(parallax[0]):
         sys.exit(1)
 
 

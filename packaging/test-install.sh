@@ -71,6 +71,12 @@ if [ -n "${ANARI_SDK_BUILD:-}" ]; then
     ANARI_LIBRARY=cavetrace LD_LIBRARY_PATH='$lib:$ANARI_SDK_BUILD' \
       '$ANARI_SDK_BUILD/anariInfo' -l cavetrace >'$work/anariInfo' 2>&1 &&
     grep -q 'default' '$work/anariInfo' && grep -q 'ANARI_KHR_GEOMETRY_TRIANGLE' '$work/anariInfo'"
+  if command -v python3 >/dev/null; then
+    check "examples-python/cave_wall.py renders through the Khronos front end (libanari)" bash -c "
+      ANARI_FRONT_END='$ANARI_SDK_BUILD/libanari.so' LD_LIBRARY_PATH='$lib:$ANARI_SDK_BUILD' \
+        python3 '$root/examples-python/cave_wall.py' '$work/cave_wall.png' 32 >'$work/python' 2>&1 &&
+      grep -q 'through the Khronos front end' '$work/python'"
+  fi
 else
   skipped=$((skipped + 1))
   echo "skip anariInfo -l cavetrace: set ANARI_SDK_BUILD to a Khronos ANARI SDK build"
