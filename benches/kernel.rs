@@ -23,22 +23,11 @@ use std::time::Instant;
 
 use cavetrace::accel::isa::{self, Isa};
 use cavetrace::accel::{InstanceDesc, PacketScratch, Ray, SceneBvh};
-use cavetrace::camera::CameraModel;
 use cavetrace::scene::geometry::Geometry;
 
-/// CPU milliseconds used by this process so far (all threads): figures per CPU time stay
-/// comparable on a shared machine.
+/// CPU milliseconds used by this process so far (all threads).
 fn cpu_ms() -> f64 {
-    let mut now = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `now` is a valid, writable timespec for the duration of the call.
-    let status = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut now) };
-    if status != 0 {
-        return 0.0;
-    }
-    now.tv_sec as f64 * 1e3 + now.tv_nsec as f64 * 1e-6
+    cpu_seconds() * 1e3
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -96,34 +85,6 @@ fn place_camera(dev: ANARIDevice, camera: ANARICamera, frame: u32) {
     );
     set(dev, camera, "aspect", ANARI_FLOAT32, &1.0f32);
     commit(dev, camera);
-}
-
-/// The camera's rays through the pixel centres of a `size`×`size` frame, in the order the
-/// frame traces them (8×8 blocks of sixteen 2×2 quads), block rows of 16×16 tiles together.
-fn camera_rays(dev: ANARIDevice, camera: ANARICamera, size: u32) -> Vec<Ray> {
-    let model = cavetrace::device::registry::device(dev as usize)
-        .and_then(|d| d.lookup(camera as usize))
-        .and_then(|o| o.derived_as::<CameraModel>())
-        .expect("committed camera");
-    let viewport = model.0.viewports(size, size)[0];
-    let eye = model.0.prepare(viewport.eye, size, size);
-    let mut rays = Vec::with_capacity((size * size) as usize);
-    for by in (0..size).step_by(8) {
-        for bx in (0..size).step_by(8) {
-            for i in 0..64 {
-                let (quad, lane) = (i / 4, i % 4);
-                let x = bx + (quad % 4) * 2 + lane % 2;
-                let y = by + (quad / 4) * 2 + lane / 2;
-                let (u, v) = (
-                    (x as f32 + 0.5) / size as f32,
-                    (y as f32 + 0.5) / size as f32,
-                );
-                let r = eye.ray(u, v, glam::Vec2::ZERO);
-                rays.push(Ray::new(r.origin, r.direction, r.t_min, r.t_max));
-            }
-        }
-    }
-    rays
 }
 
 /// Traces `rays` in 64-ray packets (or ray by ray) on `threads` threads, 16 packets at a time;

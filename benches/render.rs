@@ -30,23 +30,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
 use cavetrace::accel::{InstanceDesc, PacketScratch, Ray, SceneBvh};
-use cavetrace::camera::CameraModel;
 use cavetrace::scene::geometry::Geometry;
-
-/// CPU seconds used by this process so far (all threads). The development machine is shared,
-/// so rates per CPU second are printed beside wall-clock rates: they stay meaningful under load.
-fn cpu_seconds() -> f64 {
-    let mut now = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `now` is a valid, writable timespec for the duration of the call.
-    let status = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut now) };
-    if status != 0 {
-        return 0.0;
-    }
-    now.tv_sec as f64 + now.tv_nsec as f64 * 1e-9
-}
 
 /// Runs `work` `runs` times; medians of (wall ms, CPU ms) and the last result.
 fn timed<T>(runs: u32, mut work: impl FnMut() -> T) -> (f64, f64, T) {
@@ -218,32 +202,6 @@ fn run(label: &str, s: &Setup, size: u32, frames: u32) {
     );
 }
 
-/// The camera's primary rays for a `size`×`size` frame through pixel centres, in the order the
-/// frame traces them (8×8 blocks of sixteen 2×2 quads).
-fn camera_rays(s: &Setup, size: u32) -> Vec<Ray> {
-    let camera = cavetrace::device::registry::device(s.dev as usize)
-        .and_then(|d| d.lookup(s.camera as usize))
-        .and_then(|o| o.derived_as::<CameraModel>())
-        .expect("committed camera");
-    let viewport = camera.0.viewports(size, size)[0];
-    let eye = camera.0.prepare(viewport.eye, size, size);
-    let mut rays = Vec::with_capacity((size * size) as usize);
-    for by in (0..size).step_by(8) {
-        for bx in (0..size).step_by(8) {
-            for i in 0..64 {
-                let (quad, lane) = (i / 4, i % 4);
-                let x = bx + (quad % 4) * 2 + lane % 2;
-                let y = by + (quad / 4) * 2 + lane / 2;
-                let u = (x as f32 + 0.5) / size as f32;
-                let v = (y as f32 + 0.5) / size as f32;
-                let r = eye.ray(u, v, glam::Vec2::ZERO);
-                rays.push(Ray::new(r.origin, r.direction, r.t_min, r.t_max));
-            }
-        }
-    }
-    rays
-}
-
 /// Traces `rays` in 64-ray chunks on `threads` threads; returns (wall ms, hits).
 fn trace_rays(
     rays: &[Ray],
@@ -281,7 +239,7 @@ fn trace_rays(
 fn same_rays(s: &Setup, geometry: ANARIGeometry, triangles: &Triangles, size: u32, frames: u32) {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     track_head(s, 1);
-    let rays = camera_rays(s, size);
+    let rays = camera_rays(s.dev, s.camera, size);
     let mrays = |ms: f64| rays.len() as f64 / (ms * 1e3);
 
     let obvhs_triangles: Vec<obvhs::triangle::Triangle> = triangles

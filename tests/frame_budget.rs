@@ -42,19 +42,8 @@ fn scene(dev: ANARIDevice) -> ANARIWorld {
     set(dev, b, "id", ANARI_UINT32, &7u32);
     commit(dev, b);
     let world = world_of(dev, &[a, b]);
-    let light = anariNewLight(dev, c("directional").as_ptr());
-    set(
-        dev,
-        light,
-        "direction",
-        ANARI_FLOAT32_VEC3,
-        &[-0.3f32, -1.0, -0.5],
-    );
-    commit(dev, light);
-    let lights = object_array(dev, ANARI_LIGHT, &[light]);
-    set_object(dev, world, "light", ANARI_ARRAY1D, lights);
-    commit(dev, world);
-    release_all(dev, &[triangles, spheres, a, b, light, lights]);
+    light_world(dev, world, [-0.3f32, -1.0, -0.5]);
+    release_all(dev, &[triangles, spheres, a, b]);
     world
 }
 

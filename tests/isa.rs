@@ -33,19 +33,8 @@ fn world(dev: ANARIDevice) -> ANARIWorld {
         mirror_surface,
     ];
     let world = world_of(dev, &surfaces);
-    let light = anariNewLight(dev, c("directional").as_ptr());
-    set(
-        dev,
-        light,
-        "direction",
-        ANARI_FLOAT32_VEC3,
-        &[-0.3f32, -0.4, -1.0],
-    );
-    commit(dev, light);
-    let lights = object_array(dev, ANARI_LIGHT, &[light]);
-    set_object(dev, world, "light", ANARI_ARRAY1D, lights);
-    commit(dev, world);
-    release_all(dev, &[grid, spheres, mirror_ball, mirror, light, lights]);
+    light_world(dev, world, [-0.3f32, -0.4, -1.0]);
+    release_all(dev, &[grid, spheres, mirror_ball, mirror]);
     release_all(dev, &surfaces);
     world
 }

@@ -355,23 +355,33 @@ fn albedo_grid_point(c: usize, r: usize) -> (f32, f32) {
     )
 }
 
-/// ∫ sheen_brdf cos_l dω over the hemisphere, midpoint rule in (cos θ_l, φ).
+/// ∫ sheen_brdf cos_l dω over the hemisphere.
 fn integrate_sheen(cos_v: f32, roughness: f32) -> f32 {
+    hemisphere_integral(cos_v, 64, |cos_l, cos_h| {
+        f64::from(sheen_brdf(roughness, cos_v, cos_l, cos_h) * cos_l)
+    }) as f32
+}
+
+/// ∫ f(cos θ_l, cos θ_h) dω_l over the hemisphere of light directions around the normal +z,
+/// seen from the direction at `cos_v` (θ_h: the half vector's angle to the normal); midpoint
+/// rule on `steps` × `steps` cells of (cos θ_l, φ), where dω = d(cos θ) dφ.
+pub(crate) fn hemisphere_integral(
+    cos_v: f32,
+    steps: u32,
+    integrand: impl Fn(f32, f32) -> f64,
+) -> f64 {
     let view = Vec3::new((1.0 - cos_v * cos_v).sqrt(), 0.0, cos_v);
-    let (rings, sectors) = (64, 64);
-    let mut sum = 0.0;
-    for i in 0..rings {
-        let cos_l = (i as f32 + 0.5) / rings as f32;
+    let mut sum = 0.0f64;
+    for i in 0..steps {
+        let cos_l = (i as f32 + 0.5) / steps as f32;
         let sin_l = (1.0 - cos_l * cos_l).sqrt();
-        for j in 0..sectors {
-            let phi = TAU * (j as f32 + 0.5) / sectors as f32;
+        for j in 0..steps {
+            let phi = TAU * (j as f32 + 0.5) / steps as f32;
             let light = Vec3::new(sin_l * phi.cos(), sin_l * phi.sin(), cos_l);
-            let half = (view + light).normalize();
-            sum += sheen_brdf(roughness, cos_v, cos_l, half.z) * cos_l;
+            sum += integrand(cos_l, (view + light).normalize().z);
         }
     }
-    // dω = d(cos θ) dφ.
-    sum * (1.0 / rings as f32) * (TAU / sectors as f32)
+    sum / f64::from(steps) * std::f64::consts::TAU / f64::from(steps)
 }
 
 /// glTF normal maps: the texel's components map to a tangent-space normal as 2·value − 1, in
@@ -431,21 +441,10 @@ mod tests {
     /// The single-scattering albedo ∫ D V (n·l) dω_l (F = 1) of the lobe seen at `cos_v`, by
     /// quadrature over light directions.
     fn albedo_by_quadrature(alpha: f32, cos_v: f32) -> f64 {
-        let view = Vec3::new((1.0 - cos_v * cos_v).sqrt(), 0.0, cos_v);
-        let (rings, sectors) = (600, 600);
-        let mut sum = 0.0f64;
-        for i in 0..rings {
-            let cos_l = (i as f32 + 0.5) / rings as f32;
-            let sin_l = (1.0 - cos_l * cos_l).sqrt();
-            for j in 0..sectors {
-                let phi = TAU * (j as f32 + 0.5) / sectors as f32;
-                let light = Vec3::new(sin_l * phi.cos(), sin_l * phi.sin(), cos_l);
-                let half = (view + light).normalize();
-                let f = ggx_distribution(alpha, half.z) * smith_visibility(alpha, cos_l, cos_v);
-                sum += f64::from(f * cos_l);
-            }
-        }
-        sum / f64::from(rings) * std::f64::consts::TAU / f64::from(sectors)
+        hemisphere_integral(cos_v, 600, |cos_l, cos_h| {
+            let f = ggx_distribution(alpha, cos_h) * smith_visibility(alpha, cos_l, cos_v);
+            f64::from(f * cos_l)
+        })
     }
 
     #[test]

@@ -453,3 +453,62 @@ pub fn bounds_of(dev: ANARIDevice, object: ANARIObject) -> [f32; 6] {
     );
     bounds
 }
+
+/// Gives `world` one directional light shining along `direction` (irradiance 1) and commits it.
+pub fn light_world(dev: ANARIDevice, world: ANARIWorld, direction: [f32; 3]) {
+    let light = anariNewLight(dev, c("directional").as_ptr());
+    set(dev, light, "direction", ANARI_FLOAT32_VEC3, &direction);
+    commit(dev, light);
+    let lights = object_array(dev, ANARI_LIGHT, &[light]);
+    set_object(dev, world, "light", ANARI_ARRAY1D, lights);
+    commit(dev, world);
+    release_all(dev, &[light, lights]);
+}
+
+/// CPU seconds used by this process so far (all threads): rates per CPU second stay meaningful
+/// on a shared machine.
+pub fn cpu_seconds() -> f64 {
+    let mut now = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: `now` is a valid, writable timespec for the duration of the call.
+    let status = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut now) };
+    if status != 0 {
+        return 0.0;
+    }
+    now.tv_sec as f64 + now.tv_nsec as f64 * 1e-9
+}
+
+/// The camera's rays through the pixel centres of a `size`×`size` frame, in the order the
+/// frame traces them (8×8 blocks of sixteen 2×2 quads).
+pub fn camera_rays(dev: ANARIDevice, camera: ANARICamera, size: u32) -> Vec<cavetrace::accel::Ray> {
+    let model = cavetrace::device::registry::device(dev as usize)
+        .and_then(|d| d.lookup(camera as usize))
+        .and_then(|o| o.derived_as::<cavetrace::camera::CameraModel>())
+        .expect("committed camera");
+    let viewport = model.0.viewports(size, size)[0];
+    let eye = model.0.prepare(viewport.eye, size, size);
+    let mut rays = Vec::with_capacity((size * size) as usize);
+    for by in (0..size).step_by(8) {
+        for bx in (0..size).step_by(8) {
+            for i in 0..64 {
+                let (quad, lane) = (i / 4, i % 4);
+                let x = bx + (quad % 4) * 2 + lane % 2;
+                let y = by + (quad / 4) * 2 + lane / 2;
+                let (u, v) = (
+                    (x as f32 + 0.5) / size as f32,
+                    (y as f32 + 0.5) / size as f32,
+                );
+                let r = eye.ray(u, v, glam::Vec2::ZERO);
+                rays.push(cavetrace::accel::Ray::new(
+                    r.origin,
+                    r.direction,
+                    r.t_min,
+                    r.t_max,
+                ));
+            }
+        }
+    }
+    rays
+}
