@@ -530,7 +530,8 @@ fn shade(
     let metal_fresnel =
         |cos: f32| iridescent(&model, schlick(sp.base_color, 1.0, cos), sp.base_color, cos);
     let alpha = microfacet_alpha(sp.roughness);
-    let glossy = sp.roughness > 0.0;
+    // Only a reflecting lobe needs the microfacet terms (a matte surface has none).
+    let glossy = sp.roughness > 0.0 && (specular_on || metal_on);
     let coat_on = model.clearcoat > 0.0;
     let coat_alpha = microfacet_alpha(model.clearcoat_roughness);
     let coat_glossy = coat_on && model.clearcoat_roughness > 0.0;
@@ -572,6 +573,10 @@ fn shade(
         normal,
         sampling,
         |to_light, irradiance| {
+            // The diffuse base alone needs nothing here: `direct_light` sums its irradiance.
+            if !(sheen_on || specular_on || metal_on || (coat_glossy && coat_shares_normal)) {
+                return;
+            }
             let cos_light = to_light.dot(normal);
             let half = (to_light + to_viewer).normalize_or(normal);
             let cos_half = half.dot(normal);
