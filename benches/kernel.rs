@@ -22,8 +22,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
 use cavetrace::accel::isa::{self, Isa};
-use cavetrace::accel::{InstanceDesc, PacketScratch, Ray, SceneBvh};
-use cavetrace::scene::geometry::Geometry;
+use cavetrace::accel::{PacketScratch, Ray, SceneBvh};
 
 /// CPU milliseconds used by this process so far (all threads).
 fn cpu_ms() -> f64 {
@@ -162,15 +161,7 @@ fn main() {
     );
     for &grid in grids {
         let geometry = height_field(dev, grid);
-        let bvh = cavetrace::device::registry::device(dev as usize)
-            .and_then(|d| d.lookup(geometry as usize))
-            .and_then(|o| o.derived_as::<Geometry>())
-            .map(|g| g.bvh.clone())
-            .expect("committed geometry");
-        let scene = SceneBvh::build(vec![InstanceDesc {
-            transform: glam::Affine3A::IDENTITY,
-            geometries: vec![bvh],
-        }]);
+        let scene = geometry_scene(dev, geometry);
         let surface = matte_surface(dev, geometry, [0.7, 0.7, 0.7]);
         let world = world_of(dev, &[surface]);
         let camera = anariNewCamera(dev, c("perspective").as_ptr());

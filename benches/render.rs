@@ -29,8 +29,7 @@ use glam::{Vec3, Vec3A};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use cavetrace::accel::{InstanceDesc, PacketScratch, Ray, SceneBvh};
-use cavetrace::scene::geometry::Geometry;
+use cavetrace::accel::{PacketScratch, Ray};
 
 /// Runs `work` `runs` times; medians of (wall ms, CPU ms) and the last result.
 fn timed<T>(runs: u32, mut work: impl FnMut() -> T) -> (f64, f64, T) {
@@ -280,15 +279,7 @@ fn same_rays(s: &Setup, geometry: ANARIGeometry, triangles: &Triangles, size: u3
         })
     });
 
-    let bvh = cavetrace::device::registry::device(s.dev as usize)
-        .and_then(|d| d.lookup(geometry as usize))
-        .and_then(|o| o.derived_as::<Geometry>())
-        .map(|g| g.bvh.clone())
-        .expect("committed geometry");
-    let scene = SceneBvh::build(vec![InstanceDesc {
-        transform: glam::Affine3A::IDENTITY,
-        geometries: vec![bvh],
-    }]);
+    let scene = geometry_scene(s.dev, geometry);
     thread_local! {
         // Packet working memory kept from one chunk to the next, as the frame keeps it.
         static SCRATCH: std::cell::RefCell<PacketScratch> =

@@ -53,19 +53,6 @@ impl Scene {
     }
 }
 
-fn directional_light(dev: ANARIDevice) -> ANARILight {
-    let light = anariNewLight(dev, c("directional").as_ptr());
-    set(
-        dev,
-        light,
-        "direction",
-        ANARI_FLOAT32_VEC3,
-        &[0.0f32, 0.0, -1.0],
-    );
-    commit(dev, light);
-    light
-}
-
 #[test]
 fn a_light_set_after_the_world_commit_warns_once_until_committed() {
     let log = Log::new();
@@ -75,7 +62,7 @@ fn a_light_set_after_the_world_commit_warns_once_until_committed() {
     assert_eq!(warnings(&log), Vec::<String>::new());
 
     // The third-party off-axis sample's mistake: the world's light set after its commit.
-    let light = directional_light(dev);
+    let light = directional_light(dev, [0.0, 0.0, -1.0]);
     let lights = object_array(dev, ANARI_LIGHT, &[light]);
     set_object(dev, s.world, "light", ANARI_ARRAY1D, lights);
     render_and_wait(dev, s.frame);

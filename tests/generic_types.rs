@@ -24,15 +24,7 @@ impl Scene {
         let surface = surface_of(dev, geometry, material);
         set(dev, surface, "id", ANARI_UINT32, &5u32);
         commit(dev, surface);
-        let light = anariNewLight(dev, c("directional").as_ptr());
-        set(
-            dev,
-            light,
-            "direction",
-            ANARI_FLOAT32_VEC3,
-            &[0.0f32, 0.0, -1.0],
-        );
-        commit(dev, light);
+        let light = directional_light(dev, [0.0, 0.0, -1.0]);
         Scene {
             geometry,
             material,

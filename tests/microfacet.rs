@@ -112,17 +112,7 @@ fn albedo(alpha: f64, cos_v: f64) -> f64 {
 
 /// A directional light arriving from `to_light` with irradiance 1.
 fn light_from(dev: ANARIDevice, to_light: [f32; 3]) -> ANARILight {
-    let light = anariNewLight(dev, c("directional").as_ptr());
-    set(
-        dev,
-        light,
-        "direction",
-        ANARI_FLOAT32_VEC3,
-        &to_light.map(|v| -v),
-    );
-    set(dev, light, "irradiance", ANARI_FLOAT32, &1.0f32);
-    commit(dev, light);
-    light
+    directional_light(dev, to_light.map(|v| -v))
 }
 
 /// The highlight of a metal sphere of `roughness` and grey `base` under a directional light

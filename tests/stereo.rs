@@ -162,15 +162,7 @@ fn mixed_world(dev: ANARIDevice) -> ANARIWorld {
     set(dev, volume, "unitDistance", ANARI_FLOAT32, &1.0f32);
     commit(dev, volume);
 
-    let light = anariNewLight(dev, c("directional").as_ptr());
-    set(
-        dev,
-        light,
-        "direction",
-        ANARI_FLOAT32_VEC3,
-        &[-0.3f32, -1.0, -0.5],
-    );
-    commit(dev, light);
+    let light = directional_light(dev, [-0.3, -1.0, -0.5]);
 
     let world = anariNewWorld(dev);
     for (name, kind, objects) in [

@@ -90,15 +90,7 @@ pub struct LightFieldCamera {
 
 impl LightFieldCamera {
     pub fn new(desc: &LightFieldDesc) -> Result<LightFieldCamera, CameraError> {
-        let corner = |name: &str, value: Option<Vec3>| match value {
-            Some(value) => validate::finite_point(name, value),
-            None => Err(CameraError::new(name, "is required")),
-        };
-        let ll = corner("screen.lowerLeft", desc.lower_left)?;
-        let lr = corner("screen.lowerRight", desc.lower_right)?;
-        let ur = corner("screen.upperRight", desc.upper_right)?;
-        let screen = ScreenFrame::new(ll, lr, ur)
-            .map_err(|error| CameraError::new("screen.upperRight", error.to_string()))?;
+        let screen = validate::screen_corners(desc.lower_left, desc.lower_right, desc.upper_right)?;
         let finite = |name: &str, value: f32| {
             if value.is_finite() {
                 Ok(f64::from(value))
@@ -134,7 +126,7 @@ impl LightFieldCamera {
                 ),
             ));
         }
-        let height = (ur - lr).length();
+        let height = (screen.upper_right - screen.lower_right).length();
         let viewing_distance = match desc.viewing_distance {
             Some(distance) => validate::positive("viewingDistance", distance)?,
             None => 0.5 * height / DEFAULT_HALF_FIELD_OF_VIEW_DEGREES.to_radians().tan(),

@@ -5,7 +5,7 @@ use std::sync::Arc;
 
 use glam::{DVec3, Vec3};
 
-use super::offaxis::{DegenerateScreen, OffAxisError, ScreenFrame};
+use super::offaxis::ScreenFrame;
 use super::rays::{Blended, ClipRange, ImageRegion, Pinhole, StereoGeometry};
 use super::validate;
 use super::viewers::{ViewerDesc, ViewerSet};
@@ -84,20 +84,7 @@ pub struct OffAxisCamera {
 
 impl OffAxisCamera {
     pub fn new(desc: &OffAxisDesc) -> Result<OffAxisCamera, CameraError> {
-        let corner = |name: &str, value: Option<Vec3>| match value {
-            Some(value) => validate::finite_point(name, value),
-            None => Err(CameraError::new(name, "is required")),
-        };
-        let ll = corner("screen.lowerLeft", desc.lower_left)?;
-        let lr = corner("screen.lowerRight", desc.lower_right)?;
-        let ur = corner("screen.upperRight", desc.upper_right)?;
-        let screen = ScreenFrame::new(ll, lr, ur).map_err(|error| {
-            let parameter = match error {
-                OffAxisError::DegenerateScreen(DegenerateScreen::ZeroWidth) => "screen.lowerRight",
-                _ => "screen.upperRight",
-            };
-            CameraError::new(parameter, error.to_string())
-        })?;
+        let screen = validate::screen_corners(desc.lower_left, desc.lower_right, desc.upper_right)?;
         let interpupillary_distance =
             validate::non_negative("interpupillaryDistance", desc.interpupillary_distance)?;
         let region = validate::image_region(desc.image_region)?;

@@ -3,6 +3,7 @@
 use glam::{DMat4, DVec3, Mat4, Vec3};
 
 use super::CameraError;
+use super::offaxis::{DegenerateScreen, OffAxisError, ScreenFrame};
 use super::rays::{ClipRange, ImageRegion};
 
 /// Sine of the smallest angle accepted between `direction` and `up`.
@@ -18,6 +19,29 @@ pub(crate) fn finite_point(name: &str, v: Vec3) -> Result<DVec3, CameraError> {
     } else {
         Err(CameraError::new(name, format!("must be finite, got {v}")))
     }
+}
+
+/// The screen rectangle of `screen.lowerLeft`, `screen.lowerRight`, `screen.upperRight` (each
+/// required and finite); a degenerate one is reported on the corner that makes it so.
+pub(crate) fn screen_corners(
+    lower_left: Option<Vec3>,
+    lower_right: Option<Vec3>,
+    upper_right: Option<Vec3>,
+) -> Result<ScreenFrame, CameraError> {
+    let corner = |name: &str, value: Option<Vec3>| match value {
+        Some(value) => finite_point(name, value),
+        None => Err(CameraError::new(name, "is required")),
+    };
+    let ll = corner("screen.lowerLeft", lower_left)?;
+    let lr = corner("screen.lowerRight", lower_right)?;
+    let ur = corner("screen.upperRight", upper_right)?;
+    ScreenFrame::new(ll, lr, ur).map_err(|error| {
+        let parameter = match error {
+            OffAxisError::DegenerateScreen(DegenerateScreen::ZeroWidth) => "screen.lowerRight",
+            _ => "screen.upperRight",
+        };
+        CameraError::new(parameter, error.to_string())
+    })
 }
 
 /// A finite, non-zero vector, normalized.

@@ -550,6 +550,10 @@ fn shade(
     } else {
         Vec3::ONE
     };
+    // What needs each light's direction; the diffuse base alone does not (`direct_light` sums
+    // its irradiance).
+    let lobes_per_light =
+        sheen_on || specular_on || metal_on || (coat_glossy && coat_shares_normal);
     let coat_albedo = if coat_glossy {
         microfacet_albedo(
             to_viewer.dot(model.coat_normal).clamp(0.0, 1.0),
@@ -573,8 +577,7 @@ fn shade(
         normal,
         sampling,
         |to_light, irradiance| {
-            // The diffuse base alone needs nothing here: `direct_light` sums its irradiance.
-            if !(sheen_on || specular_on || metal_on || (coat_glossy && coat_shares_normal)) {
+            if !lobes_per_light {
                 return;
             }
             let cos_light = to_light.dot(normal);

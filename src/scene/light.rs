@@ -25,6 +25,10 @@ const COLOR: ParamSpec = ParamSpec::new("color", &[ANARI_FLOAT32_VEC3], "light c
         SpecValue::Floats(&[1.0, 1.0, 1.0]),
     );
 
+const INTENSITY: ParamSpec =
+    ParamSpec::new("intensity", &[ANARI_FLOAT32], "radiant intensity (W/sr)")
+        .default(SpecValue::Float(1.0))
+        .range(SpecValue::Float(0.0), SpecValue::None);
 const POWER: ParamSpec = ParamSpec::new(
     "power",
     &[ANARI_FLOAT32],
@@ -93,9 +97,7 @@ pub const POINT: ObjectSpec = ObjectSpec::new(
         COLOR,
         ParamSpec::new("position", &[ANARI_FLOAT32_VEC3], "light position")
             .default(SpecValue::Floats(&[0.0, 0.0, 0.0])),
-        ParamSpec::new("intensity", &[ANARI_FLOAT32], "radiant intensity (W/sr)")
-            .default(SpecValue::Float(1.0))
-            .range(SpecValue::Float(0.0), SpecValue::None),
+        INTENSITY,
         POWER,
         ParamSpec::new("radius", &[ANARI_FLOAT32], "radius of the sphere light")
             .default(SpecValue::Float(0.0))
@@ -121,9 +123,7 @@ pub const SPOT: ObjectSpec = ObjectSpec::new(
         .default(SpecValue::Floats(&[0.0, 0.0, -1.0])),
         OPENING_ANGLE,
         FALLOFF_ANGLE,
-        ParamSpec::new("intensity", &[ANARI_FLOAT32], "radiant intensity (W/sr)")
-            .default(SpecValue::Float(1.0))
-            .range(SpecValue::Float(0.0), SpecValue::None),
+        INTENSITY,
         POWER,
     ],
 )

@@ -454,11 +454,17 @@ pub fn bounds_of(dev: ANARIDevice, object: ANARIObject) -> [f32; 6] {
     bounds
 }
 
-/// Gives `world` one directional light shining along `direction` (irradiance 1) and commits it.
-pub fn light_world(dev: ANARIDevice, world: ANARIWorld, direction: [f32; 3]) {
+/// A committed directional light shining along `direction` (irradiance 1).
+pub fn directional_light(dev: ANARIDevice, direction: [f32; 3]) -> ANARILight {
     let light = anariNewLight(dev, c("directional").as_ptr());
     set(dev, light, "direction", ANARI_FLOAT32_VEC3, &direction);
     commit(dev, light);
+    light
+}
+
+/// Gives `world` one directional light shining along `direction` (irradiance 1) and commits it.
+pub fn light_world(dev: ANARIDevice, world: ANARIWorld, direction: [f32; 3]) {
+    let light = directional_light(dev, direction);
     let lights = object_array(dev, ANARI_LIGHT, &[light]);
     set_object(dev, world, "light", ANARI_ARRAY1D, lights);
     commit(dev, world);
@@ -511,4 +517,18 @@ pub fn camera_rays(dev: ANARIDevice, camera: ANARICamera, size: u32) -> Vec<cave
         }
     }
     rays
+}
+
+/// The acceleration structure a world of `geometry` alone (committed, identity placement) traces
+/// against, for tracing rays without a frame.
+pub fn geometry_scene(dev: ANARIDevice, geometry: ANARIGeometry) -> cavetrace::accel::SceneBvh {
+    let bvh = cavetrace::device::registry::device(dev as usize)
+        .and_then(|d| d.lookup(geometry as usize))
+        .and_then(|o| o.derived_as::<cavetrace::scene::geometry::Geometry>())
+        .map(|g| g.bvh.clone())
+        .expect("committed geometry");
+    cavetrace::accel::SceneBvh::build(vec![cavetrace::accel::InstanceDesc {
+        transform: glam::Affine3A::IDENTITY,
+        geometries: vec![bvh],
+    }])
 }
