@@ -70,13 +70,39 @@ pub fn srgb8_rgba_encoder() -> impl Fn(glam::Vec4) -> [u8; 4] + Copy {
     move |linear: glam::Vec4| {
         // max(NaN, 0) is 0, as `NaN.clamp(0, 1) as usize` is.
         let clamped = linear.max(glam::Vec4::ZERO).min(glam::Vec4::ONE);
-        let index = (clamped * scale + glam::Vec4::splat(0.5)).as_ivec4();
+        let index = truncate4(clamped * scale + glam::Vec4::splat(0.5));
         [
-            table[index.x as usize],
-            table[index.y as usize],
-            table[index.z as usize],
-            index.w as u8,
+            table[index[0] as usize],
+            table[index[1] as usize],
+            table[index[2] as usize],
+            index[3] as u8,
         ]
+    }
+}
+
+/// Four non-negative values below 2³¹ truncated to integers, as `as` truncates them. One SSE2
+/// instruction on x86-64: `as` saturates and maps NaN to 0 lane by lane, which cost a sixth of
+/// the time a fast frame spends after tracing.
+#[inline(always)]
+fn truncate4(values: glam::Vec4) -> [i32; 4] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{__m128, _mm_cvtsi128_si32, _mm_cvttps_epi32, _mm_shuffle_epi32};
+        // SAFETY: SSE2 is part of every x86-64 CPU (the baseline this crate is built for);
+        // the intrinsics only compute on registers.
+        unsafe {
+            let truncated = _mm_cvttps_epi32(__m128::from(values));
+            [
+                _mm_cvtsi128_si32(truncated),
+                _mm_cvtsi128_si32(_mm_shuffle_epi32::<1>(truncated)),
+                _mm_cvtsi128_si32(_mm_shuffle_epi32::<2>(truncated)),
+                _mm_cvtsi128_si32(_mm_shuffle_epi32::<3>(truncated)),
+            ]
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        values.as_ivec4().to_array()
     }
 }
 

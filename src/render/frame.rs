@@ -979,11 +979,9 @@ fn render_tile<'a>(
     scratch: &mut TileScratch<'a>,
 ) {
     let setup = &job.setup;
-    // The tile's pixels are lattice points (sx, sy) of [tx, x_end) × [ty, y_end); for a tile
+    // The tile's pixels are lattice points (sx, sy) of [s0, s1) × [t0, t1); for a tile
     // of the whole frame they are plain pixel coordinates.
     let area = map.area();
-    let (tx, ty) = (area.s0, area.t0);
-    let tile_width = area.s1 - tx;
     let pixel_count = area.pixel_count();
     let samples = setup.settings.pixel_samples;
     // Colour summed over the samples, and whether any eye covers the pixel.
@@ -1059,8 +1057,14 @@ fn render_tile<'a>(
     // Final colours: the samples' mean (the background where no eye looks), then the running
     // mean over the passes when accumulating.
     let mut color_sum = job.color_sum.as_ref().map(lock);
-    for (k, color) in colors[..pixel_count].iter_mut().enumerate() {
-        let (sx, sy) = (tx + k as u32 % tile_width, ty + k as u32 / tile_width);
+    // Walked row by row: a division per pixel for its lattice point cost a tenth of this loop.
+    let (s0, s1) = (area.s0, area.s1);
+    let lattice_points = (area.t0..area.t1).flat_map(|sy| (s0..s1).map(move |sx| (sx, sy)));
+    for (k, (color, (sx, sy))) in colors[..pixel_count]
+        .iter_mut()
+        .zip(lattice_points)
+        .enumerate()
+    {
         if map.skips(sx, sy) {
             continue;
         }
