@@ -10,6 +10,14 @@ echo "== cargo clippy"
 cargo clippy --all-targets --quiet -- -D warnings
 echo "== cargo test"
 cargo test --quiet 2>&1 | tee target/cargo-test.log
+# The library must keep compiling for aarch64 (the x86 instruction-set paths are cfg'd out
+# there); checked when the target's standard library is installed.
+if rustup target list --installed 2>/dev/null | grep -qx aarch64-unknown-linux-gnu; then
+  echo "== cargo check --target aarch64-unknown-linux-gnu"
+  cargo check --quiet --lib --target aarch64-unknown-linux-gnu
+else
+  echo "== aarch64 check skipped: run 'rustup target add aarch64-unknown-linux-gnu' to include it"
+fi
 if [ -x capi-tests/run.sh ]; then
   echo "== C harness"
   capi-tests/run.sh
