@@ -8,6 +8,7 @@ pub mod accel;
 pub mod camera;
 pub mod capi;
 pub mod device;
+pub mod isa;
 pub mod render;
 pub mod scene;
 pub mod sdk;

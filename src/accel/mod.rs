@@ -41,7 +41,7 @@
 //!   [`GeometryBvh`] only when its primitives change ([`geometry_build_count`] counts builds).
 
 mod geometry;
-pub mod isa;
+pub use crate::isa;
 mod packet;
 mod primitives;
 mod scene;

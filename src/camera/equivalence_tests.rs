@@ -324,3 +324,112 @@ fn matrix_camera_keeps_precision_with_tiny_near_plane() {
         "naive f32 worst angle {worst_naive:e} rad"
     );
 }
+
+/// A ray's fields as bits, so that equal means bit for bit.
+fn ray_bits(ray: &CameraRay) -> [u32; 11] {
+    let v = |v: Vec3| v.to_array().map(f32::to_bits);
+    let [ox, oy, oz] = v(ray.origin);
+    let [dx, dy, dz] = v(ray.direction);
+    let [cx, cy, cz] = v(ray.cyclopean.unwrap_or(Vec3::NAN));
+    [
+        ox,
+        oy,
+        oz,
+        dx,
+        dy,
+        dz,
+        ray.t_min.to_bits(),
+        ray.t_max.to_bits(),
+        cx,
+        cy,
+        cz,
+    ]
+}
+
+#[test]
+fn block_rays_are_the_rays_made_one_by_one_on_every_path() {
+    use super::{BLOCK_RAYS, BlockRays, StereoMode};
+    // Viewport points: pixel centres, jittered samples and the viewport's edges.
+    let mut state = 3u64;
+    let mut unit = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let mut points: Vec<(f32, f32)> = pixel_centres(WIDTH, HEIGHT)
+        .map(|(_, _, s, t)| (s, t))
+        .collect();
+    points.extend((0..200).map(|_| (unit(), unit())));
+    points.extend([(0.0, 0.0), (1.0, 1.0), (0.0, 1.0), (1.0, 0.0)]);
+    let paths: &[bool] = if crate::isa::Isa::Avx2.supported() {
+        &[false, true]
+    } else {
+        &[false]
+    };
+    let mut block = BlockRays::default();
+    let mut checked = 0;
+    for screen in screens() {
+        for eye in screen.eyes() {
+            let (view, proj) =
+                off_axis_matrices(screen.ll, screen.lr, screen.ur, eye, NEAR, FAR).unwrap();
+            let stereo = OffAxisDesc {
+                stereo_mode: StereoMode::SideBySide,
+                interpupillary_distance: 0.0635,
+                near: None,
+                far: None,
+                image_region: [0.1, 0.2, 0.9, 0.7],
+                ..offaxis_camera(&screen, eye)
+            };
+            let fit = off_axis_perspective(screen.ll, screen.lr, screen.ur, eye).unwrap();
+            let cameras = [
+                // Clipped at near and far: t_min and t_max per ray.
+                offaxis_camera(&screen, eye)
+                    .build()
+                    .unwrap()
+                    .prepare(Eye::Mono, WIDTH, HEIGHT),
+                // Unclipped, cropped, one eye of a pair: the cyclopean point.
+                stereo.build().unwrap().prepare(Eye::Left, WIDTH, HEIGHT),
+                stereo.build().unwrap().prepare(Eye::Right, WIDTH, HEIGHT),
+                mono(&*PerspectiveDesc::from_fit(&fit).build().unwrap()),
+                // A perspective matrix, traced as the pinhole it is.
+                mono(&*matrix_camera(view, proj).build().unwrap()),
+            ];
+            assert!(cameras[4].traces_as_pinhole());
+            for rays in &cameras {
+                assert!(rays.makes_block_rays());
+                for chunk in points.chunks(BLOCK_RAYS) {
+                    let mut s = [0.5; BLOCK_RAYS];
+                    let mut t = [0.5; BLOCK_RAYS];
+                    for (i, (ps, pt)) in chunk.iter().enumerate() {
+                        (s[i], t[i]) = (*ps, *pt);
+                    }
+                    for &avx2 in paths {
+                        assert!(rays.block_rays_on(avx2, &s, &t, &mut block));
+                        for i in 0..BLOCK_RAYS {
+                            let one = rays.ray(s[i], t[i], Vec2::ZERO);
+                            assert_eq!(
+                                ray_bits(&block.ray(i)),
+                                ray_bits(&one),
+                                "{} eye {eye} avx2 {avx2}: ({}, {})",
+                                screen.name,
+                                s[i],
+                                t[i]
+                            );
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked > 10_000, "{checked}");
+    // Cameras whose rays do not share one pinhole make theirs one by one.
+    let lens = PerspectiveDesc {
+        aperture_radius: 0.01,
+        focus_distance: 2.0,
+        ..PerspectiveDesc::default()
+    };
+    assert!(!mono(&*lens.build().unwrap()).makes_block_rays());
+    assert!(!mono(&*OrthographicDesc::default().build().unwrap()).makes_block_rays());
+}

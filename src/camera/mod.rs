@@ -29,7 +29,10 @@ pub use matrix::MatrixDesc;
 pub use offaxis::{OffAxisError, PerspectiveFit};
 pub use orthographic::OrthographicDesc;
 pub use perspective::PerspectiveDesc;
-pub use rays::{DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR, DEFAULT_WINDOW_DEPTH_NEAR, EyeRays};
+pub(crate) use rays::BLOCK_RAYS;
+pub use rays::{
+    BlockRays, DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR, DEFAULT_WINDOW_DEPTH_NEAR, EyeRays,
+};
 pub use screen::OffAxisDesc;
 pub use viewers::{ViewerDesc, ViewerMode, ViewerWeighting};
 

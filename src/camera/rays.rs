@@ -443,6 +443,51 @@ impl EyeRays {
         })
     }
 
+    /// The lensless pinhole this eye's rays come from (perspective and offAxis cameras without
+    /// depth of field, perspective matrices), with the cyclopean point its rays carry.
+    #[inline]
+    fn lensless_pinhole(&self) -> Option<(&Pinhole, Option<Vec3>)> {
+        match &self.generator {
+            Generator::Pinhole(p) if p.lens_right == DVec3::ZERO && p.lens_up == DVec3::ZERO => {
+                Some((p, self.pinhole_cyclopean(p.eye)))
+            }
+            Generator::Unproject(_, Some(p)) => Some((p, None)),
+            _ => None,
+        }
+    }
+
+    /// Whether [`Self::block_rays`] makes this eye's rays.
+    #[inline]
+    pub fn makes_block_rays(&self) -> bool {
+        self.lensless_pinhole().is_some()
+    }
+
+    /// Writes into `block` the rays of viewport points `(s[i], t[i])` (as for [`Self::ray`],
+    /// lens ignored) for an eye that [`Self::makes_block_rays`] (else returns false): bit for
+    /// bit the rays [`Self::ray`] makes, computed lane by lane over arrays so that several are
+    /// made per instruction (four f64 lanes on the AVX2 path).
+    #[inline]
+    pub fn block_rays(
+        &self,
+        s: &[f32; BLOCK_RAYS],
+        t: &[f32; BLOCK_RAYS],
+        block: &mut BlockRays,
+    ) -> bool {
+        let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
+            return false;
+        };
+        block.origin = pinhole.eye.as_vec3();
+        block.cyclopean = cyclopean;
+        #[cfg(target_arch = "x86_64")]
+        if crate::isa::avx2_selected() {
+            // SAFETY: the AVX2 path is selected only on a CPU that has AVX2.
+            unsafe { pinhole_block_avx2(&self.region, pinhole, s, t, block) };
+            return true;
+        }
+        pinhole_block(&self.region, pinhole, s, t, block);
+        true
+    }
+
     /// Whether [`Self::rays4`] is cheaper than four calls of [`Self::ray`].
     #[inline]
     pub fn batches_rays(&self) -> bool {
@@ -608,6 +653,31 @@ impl EyeRays {
         }
     }
 
+    /// [`EyeRays::block_rays`] on the instruction-set path chosen here (AVX2 only where the CPU
+    /// has it), not the process's.
+    pub(crate) fn block_rays_on(
+        &self,
+        avx2: bool,
+        s: &[f32; BLOCK_RAYS],
+        t: &[f32; BLOCK_RAYS],
+        block: &mut BlockRays,
+    ) -> bool {
+        let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
+            return false;
+        };
+        block.origin = pinhole.eye.as_vec3();
+        block.cyclopean = cyclopean;
+        #[cfg(target_arch = "x86_64")]
+        if avx2 && crate::isa::Isa::Avx2.supported() {
+            // SAFETY: checked just above that this CPU has AVX2.
+            unsafe { pinhole_block_avx2(&self.region, pinhole, s, t, block) };
+            return true;
+        }
+        assert!(!avx2, "AVX2 path asked for on a CPU without it");
+        pinhole_block(&self.region, pinhole, s, t, block);
+        true
+    }
+
     /// Whether a matrix camera's rays are traced by the pinhole shortcut.
     pub(crate) fn traces_as_pinhole(&self) -> bool {
         matches!(self.generator, Generator::Unproject(_, Some(_)))
@@ -650,6 +720,112 @@ fn clipped_ray(origin: DVec3, target: DVec3, forward: DVec3, clip: &ClipRange) -
         t_min,
         t_max,
         cyclopean: None,
+    }
+}
+
+/// Rays a block of pixels traces together (an 8×8 packet).
+pub(crate) const BLOCK_RAYS: usize = 64;
+
+/// The rays of a block from one pinhole ([`EyeRays::block_rays`]), by lane.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BlockRays {
+    pub origin: Vec3,
+    /// As [`CameraRay::cyclopean`], the same for every ray of the block.
+    pub cyclopean: Option<Vec3>,
+    /// Unit directions, x, y and z by lane.
+    pub direction: [[f32; BLOCK_RAYS]; 3],
+    pub t_min: [f32; BLOCK_RAYS],
+    pub t_max: [f32; BLOCK_RAYS],
+}
+
+impl Default for BlockRays {
+    fn default() -> BlockRays {
+        BlockRays {
+            origin: Vec3::ZERO,
+            cyclopean: None,
+            direction: [[0.0; BLOCK_RAYS]; 3],
+            t_min: [0.0; BLOCK_RAYS],
+            t_max: [f32::INFINITY; BLOCK_RAYS],
+        }
+    }
+}
+
+impl BlockRays {
+    /// Lane `i`'s ray.
+    #[inline(always)]
+    pub fn ray(&self, i: usize) -> CameraRay {
+        CameraRay {
+            origin: self.origin,
+            direction: Vec3::new(
+                self.direction[0][i],
+                self.direction[1][i],
+                self.direction[2][i],
+            ),
+            t_min: self.t_min[i],
+            t_max: self.t_max[i],
+            cyclopean: self.cyclopean,
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn pinhole_block_avx2(
+    region: &ImageRegion,
+    pinhole: &Pinhole,
+    s: &[f32; BLOCK_RAYS],
+    t: &[f32; BLOCK_RAYS],
+    block: &mut BlockRays,
+) {
+    pinhole_block(region, pinhole, s, t, block);
+}
+
+/// [`clipped_ray`] from the pinhole's eye through the window points of `(s, t)`, written out
+/// lane by lane in the operation order of glam's vector methods (`region.apply`, the window
+/// point, `normalize`, `dot`) so that every lane is bit for bit the ray [`EyeRays::ray`] makes.
+/// No fused multiply-adds: the compiler never contracts them on its own.
+#[inline(always)]
+fn pinhole_block(
+    region: &ImageRegion,
+    pinhole: &Pinhole,
+    s: &[f32; BLOCK_RAYS],
+    t: &[f32; BLOCK_RAYS],
+    block: &mut BlockRays,
+) {
+    let (origin, right, up, eye) = (
+        pinhole.window_origin,
+        pinhole.window_right,
+        pinhole.window_up,
+        pinhole.eye,
+    );
+    let forward = pinhole.forward;
+    let clipped = pinhole.clip.near.is_some() || pinhole.clip.far.is_some();
+    let [dx, dy, dz] = &mut block.direction;
+    for i in 0..BLOCK_RAYS {
+        let st_x = region.lo.x + f64::from(s[i]) * region.extent.x;
+        let st_y = region.lo.y + f64::from(t[i]) * region.extent.y;
+        let x = origin.x + st_x * right.x + st_y * up.x - eye.x;
+        let y = origin.y + st_x * right.y + st_y * up.y - eye.y;
+        let z = origin.z + st_x * right.z + st_y * up.z - eye.z;
+        let recip = 1.0 / (x * x + y * y + z * z).sqrt();
+        let (x, y, z) = (x * recip, y * recip, z * recip);
+        dx[i] = x as f32;
+        dy[i] = y as f32;
+        dz[i] = z as f32;
+        if !clipped {
+            block.t_min[i] = 0.0;
+            block.t_max[i] = f32::INFINITY;
+        } else {
+            let per_distance = 1.0 / (x * forward.x + y * forward.y + z * forward.z);
+            block.t_min[i] = pinhole
+                .clip
+                .near
+                .map_or(0.0, |near| (near * per_distance) as f32);
+            block.t_max[i] = pinhole
+                .clip
+                .far
+                .map_or(f32::INFINITY, |far| (far * per_distance) as f32);
+        }
     }
 }
 

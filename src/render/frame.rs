@@ -10,7 +10,7 @@ use std::time::Instant;
 use glam::{Vec2, Vec3, Vec4};
 
 use crate::accel::{PacketScratch, Ray};
-use crate::camera::{Camera, CameraRay, EyeRays, PixelSet};
+use crate::camera::{BLOCK_RAYS, BlockRays, Camera, CameraRay, EyeRays, PixelSet};
 use crate::device::datatype::*;
 use crate::device::memory::{self, TooBig};
 use crate::device::property::PropertyValue;
@@ -1187,6 +1187,7 @@ fn trace_blocks<'a>(
     let mut batch: [Option<(f32, f32)>; 64] = [None; 64];
     let mut camera_rays = [None; 64];
     let mut hits = [None; 64];
+    let mut block = BlockRays::default();
     for by in (ty..y_end).step_by(PACKET_SIDE as usize) {
         for bx in (tx..x_end).step_by(PACKET_SIDE as usize) {
             let (bx_end, by_end) = ((bx + PACKET_SIDE).min(x_end), (by + PACKET_SIDE).min(y_end));
@@ -1201,11 +1202,39 @@ fn trace_blocks<'a>(
             if batched.is_some() {
                 batch = [None; 64];
             }
+            // A whole block of plain pixels seen from one lensless pinhole: its rays are made
+            // together, several per instruction.
+            let whole_block = matches!(pixel_rays, PixelRays::All)
+                && bx_end - bx == PACKET_SIDE
+                && by_end - by == PACKET_SIDE
+                && map.rectangle_origin().is_some();
+            let block_pinhole =
+                block_eye.filter(|(_, eye_rays)| whole_block && eye_rays.makes_block_rays());
             for s in 0..samples {
                 let index = job.pass * samples + s;
                 let offset = jitter(index);
                 let lens = lens_sample(index);
+                let block_rays = block_pinhole.and_then(|(viewport, eye_rays)| {
+                    let (width, height) = (viewport.width as f32, viewport.height as f32);
+                    let mut s = [0.0; BLOCK_RAYS];
+                    let mut t = [0.0; BLOCK_RAYS];
+                    for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
+                        // As below, for pixel (x0 + dx, y0 + dy) of the rectangle.
+                        s[lane] = ((x0 + dx - viewport.x) as f32 + offset.x) / width;
+                        t[lane] = ((y0 + dy - viewport.y) as f32 + offset.y) / height;
+                    }
+                    if !eye_rays.block_rays(&s, &t, &mut block) {
+                        return None;
+                    }
+                    for (lane, ray) in rays.iter_mut().enumerate() {
+                        *ray = traced(&block.ray(lane));
+                    }
+                    Some(eye_rays)
+                });
                 for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
+                    if block_rays.is_some() {
+                        break;
+                    }
                     let (sx, sy) = (bx + dx, by + dy);
                     rays[lane] = NO_RAY;
                     camera_rays[lane] = None;
@@ -1274,7 +1303,11 @@ fn trace_blocks<'a>(
                         .intersect_packet_with(&mut scratch.packets, &rays, &mut hits);
                 }
                 for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
-                    let Some((camera_ray, eye_rays)) = camera_rays[lane] else {
+                    let camera = match block_rays {
+                        Some(eye_rays) => Some((block.ray(lane), eye_rays)),
+                        None => camera_rays[lane],
+                    };
+                    let Some((camera_ray, eye_rays)) = camera else {
                         continue;
                     };
                     let (sx, sy) = (bx + dx, by + dy);

@@ -1,7 +1,8 @@
-//! Which instruction set the ray kernels use. The library is built for baseline x86-64 so that
+//! Which instruction set the hot kernels use. The library is built for baseline x86-64 so that
 //! it loads on any x86-64 CPU; the single-ray traversal (light-field rays, shadow and secondary
 //! rays, sparse progressive lattices) also has an AVX2+FMA box test, eight children in one
-//! vector, chosen when the CPU has it. The choice is the process's: made when a device is
+//! vector, and a pinhole camera's primary rays an AVX2 build (four f64 lanes per instruction),
+//! chosen when the CPU has it. The choice is the process's: made when a device is
 //! created (the environment variable `CAVETRACE_ISA`, else the best the CPU has) and whenever
 //! a device commits its `isa` parameter. Every path finds the same hits.
 
