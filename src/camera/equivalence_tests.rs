@@ -405,7 +405,7 @@ fn block_rays_are_the_rays_made_one_by_one_on_every_path() {
                         (s[i], t[i]) = (*ps, *pt);
                     }
                     for &avx2 in paths {
-                        assert!(rays.block_rays_on(avx2, &s, &t, &mut block));
+                        assert!(rays.block_rays_on_path(avx2, &s, &t, &mut block));
                         for i in 0..BLOCK_RAYS {
                             let one = rays.ray(s[i], t[i], Vec2::ZERO);
                             assert_eq!(

@@ -456,10 +456,11 @@ impl EyeRays {
         }
     }
 
-    /// Whether [`Self::block_rays`] makes this eye's rays.
+    /// Whether [`Self::block_rays`] makes this eye's rays: a lensless pinhole, or several
+    /// viewers' blended camera positions.
     #[inline]
     pub fn makes_block_rays(&self) -> bool {
-        self.lensless_pinhole().is_some()
+        self.lensless_pinhole().is_some() || matches!(self.generator, Generator::Blended(_))
     }
 
     /// Writes into `block` the rays of viewport points `(s[i], t[i])` (as for [`Self::ray`],
@@ -473,18 +474,36 @@ impl EyeRays {
         t: &[f32; BLOCK_RAYS],
         block: &mut BlockRays,
     ) -> bool {
+        self.block_rays_on(crate::isa::avx2_selected(), s, t, block)
+    }
+
+    /// [`Self::block_rays`] on the AVX2 path or not (the caller makes sure the CPU has AVX2).
+    #[inline(always)]
+    fn block_rays_on(
+        &self,
+        avx2: bool,
+        s: &[f32; BLOCK_RAYS],
+        t: &[f32; BLOCK_RAYS],
+        block: &mut BlockRays,
+    ) -> bool {
+        if let Generator::Blended(b) = &self.generator {
+            blended_block(&self.region, b, s, t, block);
+            return true;
+        }
         let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
             return false;
         };
-        block.origin = pinhole.eye.as_vec3();
-        block.cyclopean = cyclopean;
         #[cfg(target_arch = "x86_64")]
-        if crate::isa::avx2_selected() {
-            // SAFETY: the AVX2 path is selected only on a CPU that has AVX2.
+        if avx2 {
+            // SAFETY: the AVX2 path is taken only on a CPU that has AVX2.
             unsafe { pinhole_block_avx2(&self.region, pinhole, s, t, block) };
+            block.set_cyclopean(cyclopean);
             return true;
         }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = avx2;
         pinhole_block(&self.region, pinhole, s, t, block);
+        block.set_cyclopean(cyclopean);
         true
     }
 
@@ -655,27 +674,18 @@ impl EyeRays {
 
     /// [`EyeRays::block_rays`] on the instruction-set path chosen here (AVX2 only where the CPU
     /// has it), not the process's.
-    pub(crate) fn block_rays_on(
+    pub(crate) fn block_rays_on_path(
         &self,
         avx2: bool,
         s: &[f32; BLOCK_RAYS],
         t: &[f32; BLOCK_RAYS],
         block: &mut BlockRays,
     ) -> bool {
-        let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
-            return false;
-        };
-        block.origin = pinhole.eye.as_vec3();
-        block.cyclopean = cyclopean;
-        #[cfg(target_arch = "x86_64")]
-        if avx2 && crate::isa::Isa::Avx2.supported() {
-            // SAFETY: checked just above that this CPU has AVX2.
-            unsafe { pinhole_block_avx2(&self.region, pinhole, s, t, block) };
-            return true;
-        }
-        assert!(!avx2, "AVX2 path asked for on a CPU without it");
-        pinhole_block(&self.region, pinhole, s, t, block);
-        true
+        assert!(
+            !avx2 || crate::isa::Isa::Avx2.supported(),
+            "AVX2 path asked for on a CPU without it"
+        );
+        self.block_rays_on(avx2, s, t, block)
     }
 
     /// Whether a matrix camera's rays are traced by the pinhole shortcut.
@@ -726,26 +736,26 @@ fn clipped_ray(origin: DVec3, target: DVec3, forward: DVec3, clip: &ClipRange) -
 /// Rays a block of pixels traces together (an 8×8 packet).
 pub(crate) const BLOCK_RAYS: usize = 64;
 
-/// The rays of a block from one pinhole ([`EyeRays::block_rays`]), by lane.
+/// The rays of a block ([`EyeRays::block_rays`]), x, y and z by lane.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BlockRays {
-    pub origin: Vec3,
-    /// As [`CameraRay::cyclopean`], the same for every ray of the block.
-    pub cyclopean: Option<Vec3>,
-    /// Unit directions, x, y and z by lane.
+    pub origin: [[f32; BLOCK_RAYS]; 3],
+    /// Unit directions.
     pub direction: [[f32; BLOCK_RAYS]; 3],
     pub t_min: [f32; BLOCK_RAYS],
     pub t_max: [f32; BLOCK_RAYS],
+    /// As [`CameraRay::cyclopean`], when the rays have one.
+    pub cyclopean: Option<[[f32; BLOCK_RAYS]; 3]>,
 }
 
 impl Default for BlockRays {
     fn default() -> BlockRays {
         BlockRays {
-            origin: Vec3::ZERO,
-            cyclopean: None,
+            origin: [[0.0; BLOCK_RAYS]; 3],
             direction: [[0.0; BLOCK_RAYS]; 3],
             t_min: [0.0; BLOCK_RAYS],
             t_max: [f32::INFINITY; BLOCK_RAYS],
+            cyclopean: None,
         }
     }
 }
@@ -754,16 +764,43 @@ impl BlockRays {
     /// Lane `i`'s ray.
     #[inline(always)]
     pub fn ray(&self, i: usize) -> CameraRay {
+        let lane = |v: &[[f32; BLOCK_RAYS]; 3]| Vec3::new(v[0][i], v[1][i], v[2][i]);
         CameraRay {
-            origin: self.origin,
-            direction: Vec3::new(
-                self.direction[0][i],
-                self.direction[1][i],
-                self.direction[2][i],
-            ),
+            origin: lane(&self.origin),
+            direction: lane(&self.direction),
             t_min: self.t_min[i],
             t_max: self.t_max[i],
-            cyclopean: self.cyclopean,
+            cyclopean: self.cyclopean.as_ref().map(lane),
+        }
+    }
+
+    /// Every ray's cyclopean point `cyclopean`.
+    fn set_cyclopean(&mut self, cyclopean: Option<Vec3>) {
+        self.cyclopean = cyclopean.map(|c| c.to_array().map(|v| [v; BLOCK_RAYS]));
+    }
+
+    /// Lane `i`: the ray from `eye` through `target`, clipped as [`clipped_ray`] clips it, in
+    /// its operation order (glam's `normalize` and `dot` written out).
+    #[inline(always)]
+    fn set(&mut self, i: usize, eye: [f64; 3], target: [f64; 3], forward: DVec3, clip: &ClipRange) {
+        let x = target[0] - eye[0];
+        let y = target[1] - eye[1];
+        let z = target[2] - eye[2];
+        let recip = 1.0 / (x * x + y * y + z * z).sqrt();
+        let (x, y, z) = (x * recip, y * recip, z * recip);
+        for (axis, (value, start)) in [x, y, z].into_iter().zip(eye).enumerate() {
+            self.direction[axis][i] = value as f32;
+            self.origin[axis][i] = start as f32;
+        }
+        if clip.near.is_none() && clip.far.is_none() {
+            self.t_min[i] = 0.0;
+            self.t_max[i] = f32::INFINITY;
+        } else {
+            let per_distance = 1.0 / (x * forward.x + y * forward.y + z * forward.z);
+            self.t_min[i] = clip.near.map_or(0.0, |near| (near * per_distance) as f32);
+            self.t_max[i] = clip
+                .far
+                .map_or(f32::INFINITY, |far| (far * per_distance) as f32);
         }
     }
 }
@@ -782,8 +819,8 @@ fn pinhole_block_avx2(
 
 /// [`clipped_ray`] from the pinhole's eye through the window points of `(s, t)`, written out
 /// lane by lane in the operation order of glam's vector methods (`region.apply`, the window
-/// point, `normalize`, `dot`) so that every lane is bit for bit the ray [`EyeRays::ray`] makes.
-/// No fused multiply-adds: the compiler never contracts them on its own.
+/// point, then [`BlockRays::set`]) so that every lane is bit for bit the ray [`EyeRays::ray`]
+/// makes. No fused multiply-adds: the compiler never contracts them on its own.
 #[inline(always)]
 fn pinhole_block(
     region: &ImageRegion,
@@ -792,41 +829,60 @@ fn pinhole_block(
     t: &[f32; BLOCK_RAYS],
     block: &mut BlockRays,
 ) {
-    let (origin, right, up, eye) = (
+    let (origin, right, up) = (
         pinhole.window_origin,
         pinhole.window_right,
         pinhole.window_up,
-        pinhole.eye,
     );
-    let forward = pinhole.forward;
-    let clipped = pinhole.clip.near.is_some() || pinhole.clip.far.is_some();
-    let [dx, dy, dz] = &mut block.direction;
+    let eye = pinhole.eye.to_array();
     for i in 0..BLOCK_RAYS {
         let st_x = region.lo.x + f64::from(s[i]) * region.extent.x;
         let st_y = region.lo.y + f64::from(t[i]) * region.extent.y;
-        let x = origin.x + st_x * right.x + st_y * up.x - eye.x;
-        let y = origin.y + st_x * right.y + st_y * up.y - eye.y;
-        let z = origin.z + st_x * right.z + st_y * up.z - eye.z;
-        let recip = 1.0 / (x * x + y * y + z * z).sqrt();
-        let (x, y, z) = (x * recip, y * recip, z * recip);
-        dx[i] = x as f32;
-        dy[i] = y as f32;
-        dz[i] = z as f32;
-        if !clipped {
-            block.t_min[i] = 0.0;
-            block.t_max[i] = f32::INFINITY;
-        } else {
-            let per_distance = 1.0 / (x * forward.x + y * forward.y + z * forward.z);
-            block.t_min[i] = pinhole
-                .clip
-                .near
-                .map_or(0.0, |near| (near * per_distance) as f32);
-            block.t_max[i] = pinhole
-                .clip
-                .far
-                .map_or(f32::INFINITY, |far| (far * per_distance) as f32);
+        let target = [
+            origin.x + st_x * right.x + st_y * up.x,
+            origin.y + st_x * right.y + st_y * up.y,
+            origin.z + st_x * right.z + st_y * up.z,
+        ];
+        block.set(i, eye, target, pinhole.forward, &pinhole.clip);
+    }
+}
+
+/// [`EyeRays::ray_batch`]'s rays for a whole block: the camera positions four at a time as
+/// there (the same rays whichever rays they come with), the rays from them lane by lane.
+#[inline(always)]
+fn blended_block(
+    region: &ImageRegion,
+    b: &Blended,
+    s: &[f32; BLOCK_RAYS],
+    t: &[f32; BLOCK_RAYS],
+    block: &mut BlockRays,
+) {
+    let st: [DVec2; BLOCK_RAYS] = std::array::from_fn(|i| region.apply(s[i], t[i]));
+    let targets = st.map(|st| b.window_origin + st.x * b.window_right + st.y * b.window_up);
+    let stereo = b.eye_offset != 0.0;
+    let mut cyclopean = [[0.0; BLOCK_RAYS]; 3];
+    for (group, (points, st)) in targets.chunks_exact(4).zip(st.chunks_exact(4)).enumerate() {
+        let points: &[DVec3; 4] = points.try_into().expect("groups of four");
+        let st: &[DVec2; 4] = st.try_into().expect("groups of four");
+        for (k, (head, right)) in b
+            .viewers
+            .cameras4(points, st, stereo)
+            .into_iter()
+            .enumerate()
+        {
+            let i = group * 4 + k;
+            let eye = if stereo {
+                head + right * b.eye_offset
+            } else {
+                head
+            };
+            block.set(i, eye.to_array(), targets[i].to_array(), b.forward, &b.clip);
+            for (axis, value) in head.as_vec3().to_array().into_iter().enumerate() {
+                cyclopean[axis][i] = value;
+            }
         }
     }
+    block.cyclopean = stereo.then_some(cyclopean);
 }
 
 /// Window depth of eye-space distance `z` for a glFrustum-style projection; `far = None` is the

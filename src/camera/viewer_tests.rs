@@ -3,9 +3,10 @@
 
 use glam::{DVec3, Vec2, Vec3};
 
+use super::rays::BLOCK_RAYS;
 use super::test_support::{HEIGHT, Screen, WIDTH, max_screen_error, pixel_centres, screens};
 use super::viewers::{ViewerDesc, ViewerMode, ViewerWeighting};
-use super::{Camera, CameraRay, Eye, EyeRays, OffAxisDesc, StereoMode};
+use super::{BlockRays, Camera, CameraRay, Eye, EyeRays, OffAxisDesc, StereoMode};
 
 const MODES: [ViewerMode; 3] = [ViewerMode::PerPixel, ViewerMode::Tiles, ViewerMode::Zones];
 const WEIGHTINGS: [ViewerWeighting; 3] = [
@@ -497,6 +498,22 @@ fn rays_made_four_at_a_time_equal_rays_made_one_by_one() {
                     let batch = rays.rays4(points.map(|p| p.0), points.map(|p| p.1), Vec2::ZERO);
                     for (ray, (s, t)) in batch.iter().zip(points) {
                         assert_eq!(*ray, ray_at(&rays, s, t), "{mode:?} {weighting:?}");
+                    }
+                }
+                // A whole block's rays, made together, are the same rays.
+                assert!(rays.makes_block_rays());
+                let mut block = BlockRays::default();
+                for _ in 0..10 {
+                    let points: [(f32, f32); BLOCK_RAYS] = std::array::from_fn(|_| pick());
+                    let (s, t) = (points.map(|p| p.0), points.map(|p| p.1));
+                    assert!(rays.block_rays(&s, &t, &mut block));
+                    for (i, (s, t)) in points.into_iter().enumerate() {
+                        let one = ray_at(&rays, s, t);
+                        assert_eq!(block.ray(i), one, "{mode:?} {weighting:?} {eye:?}");
+                        assert_eq!(
+                            block.ray(i).origin.to_array().map(f32::to_bits),
+                            one.origin.to_array().map(f32::to_bits)
+                        );
                     }
                 }
             }

@@ -1202,8 +1202,8 @@ fn trace_blocks<'a>(
             if batched.is_some() {
                 batch = [None; 64];
             }
-            // A whole block of plain pixels seen from one lensless pinhole: its rays are made
-            // together, several per instruction.
+            // A whole block of plain pixels seen from one lensless pinhole (or from several
+            // viewers' blended positions): its rays are made together, lane by lane.
             let whole_block = matches!(pixel_rays, PixelRays::All)
                 && bx_end - bx == PACKET_SIDE
                 && by_end - by == PACKET_SIDE
@@ -1268,7 +1268,7 @@ fn trace_blocks<'a>(
                     rays[lane] = traced(&camera_ray);
                     camera_rays[lane] = Some((camera_ray, eye_rays));
                 }
-                if let Some((_, eye_rays)) = batched {
+                if let Some((_, eye_rays)) = batched.filter(|_| block_rays.is_none()) {
                     for (group, points) in batch.chunks_exact(4).enumerate() {
                         if points.iter().all(Option::is_none) {
                             continue;
