@@ -477,7 +477,7 @@ impl EyeRays {
         self.block_rays_on(crate::isa::avx2_selected(), s, t, block)
     }
 
-    /// [`Self::block_rays`] on the AVX2 path or not (the caller makes sure the CPU has AVX2).
+    /// [`Self::block_rays`] on the AVX2 path or not (the caller makes sure the CPU has it).
     #[inline(always)]
     fn block_rays_on(
         &self,
@@ -487,7 +487,7 @@ impl EyeRays {
         block: &mut BlockRays,
     ) -> bool {
         if let Generator::Blended(b) = &self.generator {
-            blended_block(&self.region, b, s, t, block);
+            blended_block(&self.region, b, s, t, block, avx2);
             return true;
         }
         let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
@@ -847,8 +847,8 @@ fn pinhole_block(
     }
 }
 
-/// [`EyeRays::ray_batch`]'s rays for a whole block: the camera positions four at a time as
-/// there (the same rays whichever rays they come with), the rays from them lane by lane.
+/// [`EyeRays::rays4`]'s rays for a whole block: the camera positions for all its points at
+/// once (the same bits as four at a time), the rays from them lane by lane.
 #[inline(always)]
 fn blended_block(
     region: &ImageRegion,
@@ -856,30 +856,22 @@ fn blended_block(
     s: &[f32; BLOCK_RAYS],
     t: &[f32; BLOCK_RAYS],
     block: &mut BlockRays,
+    avx2: bool,
 ) {
     let st: [DVec2; BLOCK_RAYS] = std::array::from_fn(|i| region.apply(s[i], t[i]));
     let targets = st.map(|st| b.window_origin + st.x * b.window_right + st.y * b.window_up);
     let stereo = b.eye_offset != 0.0;
     let mut cyclopean = [[0.0; BLOCK_RAYS]; 3];
-    for (group, (points, st)) in targets.chunks_exact(4).zip(st.chunks_exact(4)).enumerate() {
-        let points: &[DVec3; 4] = points.try_into().expect("groups of four");
-        let st: &[DVec2; 4] = st.try_into().expect("groups of four");
-        for (k, (head, right)) in b
-            .viewers
-            .cameras4(points, st, stereo)
-            .into_iter()
-            .enumerate()
-        {
-            let i = group * 4 + k;
-            let eye = if stereo {
-                head + right * b.eye_offset
-            } else {
-                head
-            };
-            block.set(i, eye.to_array(), targets[i].to_array(), b.forward, &b.clip);
-            for (axis, value) in head.as_vec3().to_array().into_iter().enumerate() {
-                cyclopean[axis][i] = value;
-            }
+    let cameras = b.viewers.cameras_block(&targets, &st, stereo, avx2);
+    for (i, (head, right)) in cameras.into_iter().enumerate() {
+        let eye = if stereo {
+            head + right * b.eye_offset
+        } else {
+            head
+        };
+        block.set(i, eye.to_array(), targets[i].to_array(), b.forward, &b.clip);
+        for (axis, value) in head.as_vec3().to_array().into_iter().enumerate() {
+            cyclopean[axis][i] = value;
         }
     }
     block.cyclopean = stereo.then_some(cyclopean);

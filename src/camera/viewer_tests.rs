@@ -500,20 +500,38 @@ fn rays_made_four_at_a_time_equal_rays_made_one_by_one() {
                         assert_eq!(*ray, ray_at(&rays, s, t), "{mode:?} {weighting:?}");
                     }
                 }
-                // A whole block's rays, made together, are the same rays.
+                // A whole block's rays, made together (on every instruction-set path this CPU
+                // has), are the same rays.
                 assert!(rays.makes_block_rays());
                 let mut block = BlockRays::default();
                 for _ in 0..10 {
                     let points: [(f32, f32); BLOCK_RAYS] = std::array::from_fn(|_| pick());
                     let (s, t) = (points.map(|p| p.0), points.map(|p| p.1));
-                    assert!(rays.block_rays(&s, &t, &mut block));
-                    for (i, (s, t)) in points.into_iter().enumerate() {
-                        let one = ray_at(&rays, s, t);
-                        assert_eq!(block.ray(i), one, "{mode:?} {weighting:?} {eye:?}");
-                        assert_eq!(
-                            block.ray(i).origin.to_array().map(f32::to_bits),
-                            one.origin.to_array().map(f32::to_bits)
-                        );
+                    for avx2 in [false, true] {
+                        if avx2 && !crate::isa::Isa::Avx2.supported() {
+                            continue;
+                        }
+                        assert!(rays.block_rays_on_path(avx2, &s, &t, &mut block));
+                        for (i, (s, t)) in points.into_iter().enumerate() {
+                            let one = ray_at(&rays, s, t);
+                            let bits = |ray: &CameraRay| {
+                                [
+                                    ray.origin,
+                                    ray.direction,
+                                    ray.cyclopean.unwrap_or(Vec3::NAN),
+                                ]
+                                .map(|v| v.to_array().map(f32::to_bits))
+                            };
+                            assert_eq!(
+                                bits(&block.ray(i)),
+                                bits(&one),
+                                "{mode:?} {weighting:?} {eye:?} avx2 {avx2}"
+                            );
+                            assert_eq!(
+                                (block.ray(i).t_min, block.ray(i).t_max),
+                                (one.t_min, one.t_max)
+                            );
+                        }
                     }
                 }
             }

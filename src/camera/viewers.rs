@@ -19,10 +19,13 @@
 //! inside none the mean of all heads. In stereo the eyes sit at `C(P) ± (ipd/2)·R(P)` with
 //! `R(P)` the normalised weighted sum of the right vectors.
 //!
-//! Weights and the blend are evaluated in f32 for four screen points at a time (one SIMD lane
-//! each); a point seen by one viewer alone gets exactly that viewer's head and right vector.
+//! Weights and the blend are evaluated in f32, lane by lane over arrays of screen points (four
+//! for single rays, a whole 8×8 block for the frame's blocks) so that the compiler makes them
+//! SIMD: the same operations in every lane and on every instruction-set path, so the same bits
+//! whichever points a lane comes with. A point seen by one viewer alone gets exactly that
+//! viewer's head and right vector.
 
-use glam::{BVec4A, DVec2, DVec3, Vec3, Vec4};
+use glam::{DVec2, DVec3, Vec3};
 
 use super::CameraError;
 use super::offaxis::ScreenFrame;
@@ -111,18 +114,24 @@ impl ViewerDesc {
     }
 }
 
-/// One viewer in f32, splatted over the four screen points a call handles.
+/// One viewer in f32, as the blend reads it.
 #[derive(Clone, Copy, Debug, PartialEq)]
-struct ViewerLanes {
-    head: [Vec4; 3],
+struct ViewerF32 {
+    head: [f32; 3],
     /// Unit length.
-    gaze: [Vec4; 3],
+    gaze: [f32; 3],
     /// Unit length.
-    right: [Vec4; 3],
+    right: [f32; 3],
 }
 
 /// Four screen points, one per SIMD lane.
 pub(crate) type Points4 = [DVec3; 4];
+
+/// Screen points of a frame's block (8×8 pixels).
+pub(crate) const BLOCK_POINTS: usize = super::rays::BLOCK_RAYS;
+
+/// A camera position and its right vector.
+type CameraAt = (DVec3, DVec3);
 
 /// Validated viewers, ready to give any screen point its camera.
 #[derive(Clone, Debug, PartialEq)]
@@ -130,7 +139,7 @@ pub struct ViewerSet {
     heads: Vec<DVec3>,
     rights: Vec<DVec3>,
     /// Per viewer.
-    lanes: Vec<ViewerLanes>,
+    lanes: Vec<ViewerF32>,
     mean_head: DVec3,
     /// The normalised sum of the right vectors, for points no viewer has a say on (the
     /// screen's X axis where they cancel).
@@ -255,15 +264,15 @@ impl ViewerSet {
             });
             heads.push(head);
         }
-        let splat = |v: &DVec3| [v.x, v.y, v.z].map(|c| Vec4::splat(c as f32));
+        let single = |v: &DVec3| v.as_vec3().to_array();
         let lanes = heads
             .iter()
             .zip(&gazes)
             .zip(&rights)
-            .map(|((head, gaze), right)| ViewerLanes {
-                head: splat(head),
-                gaze: splat(gaze),
-                right: splat(right),
+            .map(|((head, gaze), right)| ViewerF32 {
+                head: single(head),
+                gaze: single(gaze),
+                right: single(right),
             })
             .collect();
         let mean_head = heads.iter().sum::<DVec3>() / count as f64;
@@ -315,104 +324,109 @@ impl ViewerSet {
     /// `1/n` for the `n` viewers whose cone holds the point. `false` (weights all 0) where no
     /// viewer has a say, and the camera is the mean of all heads.
     pub fn weights_at(&self, point: DVec3, weights: &mut [f32; MAX_VIEWERS]) -> bool {
-        let mut lanes = [Vec4::ZERO; MAX_VIEWERS];
-        let any = self.weights4(&[point; 4], &mut lanes);
+        let mut lanes = [[0.0; 1]; MAX_VIEWERS];
+        let any = self.weights_of(&[point], &mut lanes);
         for (weight, lane) in weights.iter_mut().zip(&lanes) {
-            *weight = lane.x;
+            *weight = lane[0];
         }
-        any.test(0)
+        any & 1 != 0
     }
 
-    /// The normalised weights at four screen points at once: `weights[i]` holds viewer `i`'s
-    /// weight at each point (lane = point). Lanes where no viewer has a say are false in the
-    /// result (and their weights 0). A point in one viewer's cone alone (and, but for the
+    /// The normalised weights at `N` screen points at once: `weights[i]` holds viewer `i`'s
+    /// weight at each point (lane = point). Returns the mask of lanes where some viewer has a
+    /// say (the others' weights are 0). A point in one viewer's cone alone (and, but for the
     /// gaussian fall-off, outside every other one) is that viewer's, whatever the fall-off:
     /// its weight is exactly 1, so only points in several cones pay for angles. Every lane
-    /// gets the same result whatever the other lanes hold.
-    #[inline]
-    fn weights4(&self, points: &Points4, weights: &mut [Vec4]) -> BVec4A {
-        let lane = |axis: usize| Vec4::from_array(points.map(|p| p[axis] as f32));
-        let (px, py, pz) = (lane(0), lane(1), lane(2));
-        let to_point = |viewer: &ViewerLanes| {
-            let [hx, hy, hz] = viewer.head;
-            let [gx, gy, gz] = viewer.gaze;
-            let (vx, vy, vz) = (px - hx, py - hy, pz - hz);
-            (gx * vx + gy * vy + gz * vz, vx * vx + vy * vy + vz * vz)
-        };
-        let angle = |viewer: &ViewerLanes| {
-            let (dot, length_squared) = to_point(viewer);
-            acos4((dot / length_squared.sqrt()).clamp(-Vec4::ONE, Vec4::ONE))
-        };
+    /// gets the same result whatever the other lanes hold: only plain IEEE operations, lane by
+    /// lane (no fused multiply-adds, which the compiler never makes on its own).
+    #[inline(always)]
+    fn weights_of<const N: usize>(&self, points: &[DVec3; N], weights: &mut [[f32; N]]) -> u64 {
+        let lane = |axis: usize| -> [f32; N] { std::array::from_fn(|l| points[l][axis] as f32) };
+        let p = [lane(0), lane(1), lane(2)];
         let weights = &mut weights[..self.heads.len()];
         let gaussian =
             self.weighting == ViewerWeighting::Gaussian && self.mode != ViewerMode::Zones;
         if gaussian {
             // Log weights first, exponentiated relative to each point's largest.
-            let mut log_max = Vec4::NEG_INFINITY;
+            let mut log_max = [f32::NEG_INFINITY; N];
             for (weight, viewer) in weights.iter_mut().zip(&self.lanes) {
-                let x = angle(viewer) * self.gaussian_scale;
-                *weight = Vec4::from_array(x.to_array().map(ln_erfc));
-                log_max = log_max.max(*weight);
+                let a = angles(viewer, &p);
+                for l in 0..N {
+                    weight[l] = ln_erfc(a[l] * self.gaussian_scale);
+                    log_max[l] = max(log_max[l], weight[l]);
+                }
             }
-            let mut total = Vec4::ZERO;
+            let mut total = [0.0; N];
             for weight in weights.iter_mut() {
-                *weight = Vec4::from_array((*weight - log_max).to_array().map(f32::exp));
-                total += *weight;
+                for l in 0..N {
+                    weight[l] = (weight[l] - log_max[l]).exp();
+                    total[l] += weight[l];
+                }
             }
             for weight in weights.iter_mut() {
-                *weight /= total;
+                for l in 0..N {
+                    weight[l] /= total[l];
+                }
             }
-            return BVec4A::splat(true);
+            return lanes_where(N, |_| true);
         }
         // Cone membership without a square root: cos a > cos c, squared with its sign.
-        let reach = Vec4::splat(self.cos_reach);
+        let reach = self.cos_reach;
         let reach_squared = reach * reach;
-        let mut members = Vec4::ZERO;
+        let mut members = [0.0f32; N];
         for (weight, viewer) in weights.iter_mut().zip(&self.lanes) {
-            let (dot, length_squared) = to_point(viewer);
-            let ahead = dot.cmpgt(Vec4::ZERO);
-            let wide = (dot * dot).cmplt(reach_squared * length_squared);
-            let inside = if self.cos_reach >= 0.0 {
-                ahead & !wide
-            } else {
-                ahead | wide
-            };
-            *weight = Vec4::select(inside, Vec4::ONE, Vec4::ZERO);
-            members += *weight;
+            let (dot, length_squared) = to_point(viewer, &p);
+            for l in 0..N {
+                let ahead = dot[l] > 0.0;
+                let wide = dot[l] * dot[l] < reach_squared * length_squared[l];
+                let inside = if reach >= 0.0 {
+                    ahead & !wide
+                } else {
+                    ahead | wide
+                };
+                weight[l] = if inside { 1.0 } else { 0.0 };
+                members[l] += weight[l];
+            }
         }
-        let any = members.cmpgt(Vec4::ZERO);
+        let any = lanes_where(N, |l| members[l] > 0.0);
         if self.mode == ViewerMode::Zones {
-            let share = Vec4::select(any, Vec4::ONE / members, Vec4::ZERO);
             for weight in weights.iter_mut() {
-                *weight *= share;
+                for l in 0..N {
+                    let share = if members[l] > 0.0 {
+                        1.0 / members[l]
+                    } else {
+                        0.0
+                    };
+                    weight[l] *= share;
+                }
             }
             return any;
         }
-        let shared = members.cmpgt(Vec4::ONE);
-        if !shared.any() {
+        if !members.iter().any(|m| *m > 1.0) {
             return any;
         }
         // Points in several cones: weights from the angles.
-        let mut total = Vec4::ZERO;
+        let mut total = [0.0f32; N];
         for (weight, viewer) in weights.iter_mut().zip(&self.lanes) {
-            let a = angle(viewer) * self.inv_cutoff;
-            let raw = match self.weighting {
-                ViewerWeighting::Cosine => cos4(a),
-                _ => Vec4::ONE - a,
-            };
-            let member = weight.cmpgt(Vec4::ZERO);
-            *weight = Vec4::select(
-                shared,
-                Vec4::select(member, raw.max(Vec4::ZERO), Vec4::ZERO),
-                *weight,
-            );
-            total += *weight;
+            let a = angles(viewer, &p);
+            for l in 0..N {
+                let a = a[l] * self.inv_cutoff;
+                let raw = match self.weighting {
+                    ViewerWeighting::Cosine => cos(a),
+                    _ => 1.0 - a,
+                };
+                if members[l] > 1.0 {
+                    weight[l] = if weight[l] > 0.0 { max(raw, 0.0) } else { 0.0 };
+                }
+                total[l] += weight[l];
+            }
         }
-        let any = total.cmpgt(Vec4::ZERO);
-        let total = Vec4::select(any, total, Vec4::ONE);
+        let any = lanes_where(N, |l| total[l] > 0.0);
         for weight in weights.iter_mut() {
-            // Divided, not multiplied by a reciprocal, so that a viewer alone gets exactly 1.
-            *weight /= total;
+            for l in 0..N {
+                // Divided, not multiplied by a reciprocal, so that a viewer alone gets exactly 1.
+                weight[l] /= if total[l] > 0.0 { total[l] } else { 1.0 };
+            }
         }
         any
     }
@@ -432,78 +446,122 @@ impl ViewerSet {
         points: &Points4,
         st: &[DVec2; 4],
         needs_right: bool,
-    ) -> [(DVec3, DVec3); 4] {
-        if self.mode != ViewerMode::Tiles {
-            return self.cameras_at_points(points, needs_right);
+    ) -> [CameraAt; 4] {
+        if self.mode == ViewerMode::Tiles {
+            return st.map(|st| self.tile_camera(st, needs_right));
         }
+        self.cameras_at_points(points, needs_right)
+    }
+
+    /// [`Self::camera_at`] for a frame's block of screen points, on the AVX2 path (which the
+    /// caller has made sure this CPU has) or the baseline one; the same bits on both.
+    #[inline]
+    pub(crate) fn cameras_block(
+        &self,
+        points: &[DVec3; BLOCK_POINTS],
+        st: &[DVec2; BLOCK_POINTS],
+        needs_right: bool,
+        avx2: bool,
+    ) -> [CameraAt; BLOCK_POINTS] {
+        if self.mode == ViewerMode::Tiles {
+            return st.map(|st| self.tile_camera(st, needs_right));
+        }
+        #[cfg(target_arch = "x86_64")]
+        if avx2 {
+            // SAFETY: the AVX2 path is taken only on a CPU that has AVX2 (see above).
+            return unsafe { self.cameras_block_avx2(points, needs_right) };
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = avx2;
+        self.cameras_at_points(points, needs_right)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn cameras_block_avx2(
+        &self,
+        points: &[DVec3; BLOCK_POINTS],
+        needs_right: bool,
+    ) -> [CameraAt; BLOCK_POINTS] {
+        self.cameras_at_points(points, needs_right)
+    }
+
+    /// The camera of the tile holding screen coordinates `st`.
+    #[inline]
+    fn tile_camera(&self, st: DVec2, needs_right: bool) -> CameraAt {
         // Truncation is floor for these non-negative values (and needs no libm call).
         let tile = |coordinate: f64, tiles: u32| {
             ((coordinate * f64::from(tiles)).max(0.0) as u32).min(tiles - 1)
         };
-        st.map(|st| {
-            let (column, row) = (tile(st.x, self.tiles[0]), tile(st.y, self.tiles[1]));
-            match self
-                .tile_cameras
-                .get((row * self.tiles[0] + column) as usize)
-            {
-                Some(camera) => *camera,
-                None => self.camera_at_point(self.tile_centre(column, row), needs_right),
-            }
-        })
+        let (column, row) = (tile(st.x, self.tiles[0]), tile(st.y, self.tiles[1]));
+        match self
+            .tile_cameras
+            .get((row * self.tiles[0] + column) as usize)
+        {
+            Some(camera) => *camera,
+            None => self.camera_at_point(self.tile_centre(column, row), needs_right),
+        }
     }
 
     fn camera_at_point(&self, point: DVec3, needs_right: bool) -> (DVec3, DVec3) {
         self.cameras_at_points(&[point; 4], needs_right)[0]
     }
 
-    /// The cameras for the weights at four screen points: `Σ ŵ_i H_i` in f32, four points at a
-    /// time; exactly `H_i` and `R_i` where viewer `i`'s weight is 1.
-    #[inline]
-    fn cameras_at_points(&self, points: &Points4, needs_right: bool) -> [(DVec3, DVec3); 4] {
-        // Working memory sized for the viewers there are (it is set up for every four pixels).
+    /// The cameras for the weights at `N` screen points: `Σ ŵ_i H_i` in f32; exactly `H_i`
+    /// and `R_i` where viewer `i`'s weight is 1.
+    #[inline(always)]
+    fn cameras_at_points<const N: usize>(
+        &self,
+        points: &[DVec3; N],
+        needs_right: bool,
+    ) -> [CameraAt; N] {
+        // Working memory sized for the viewers there are (it is set up for every call).
         match self.heads.len() {
-            0..=4 => self.cameras_with::<4>(points, needs_right),
-            5..=16 => self.cameras_with::<16>(points, needs_right),
-            _ => self.cameras_with::<MAX_VIEWERS>(points, needs_right),
+            0..=4 => self.cameras_with::<4, N>(points, needs_right),
+            5..=16 => self.cameras_with::<16, N>(points, needs_right),
+            _ => self.cameras_with::<MAX_VIEWERS, N>(points, needs_right),
         }
     }
 
     #[inline(always)]
-    fn cameras_with<const N: usize>(
+    fn cameras_with<const V: usize, const N: usize>(
         &self,
-        points: &Points4,
+        points: &[DVec3; N],
         needs_right: bool,
-    ) -> [(DVec3, DVec3); 4] {
-        let mut weights = [Vec4::ZERO; N];
-        let any = self.weights4(points, &mut weights);
-        let mut head = [Vec4::ZERO; 3];
-        let mut right = [Vec4::ZERO; 3];
+    ) -> [CameraAt; N] {
+        let mut weights = [[0.0; N]; V];
+        let any = self.weights_of(points, &mut weights);
+        let mut head = [[0.0f32; N]; 3];
+        let mut right = [[0.0f32; N]; 3];
         // Per point, the viewer whose weight is 1 (then every other one's is 0).
-        let mut only = [usize::MAX; 4];
+        let mut only = [usize::MAX; N];
         for (index, (weight, viewer)) in weights.iter().zip(&self.lanes).enumerate() {
-            let mut ones = weight.cmpeq(Vec4::ONE).bitmask();
-            while ones != 0 {
-                only[ones.trailing_zeros() as usize] = index;
-                ones &= ones - 1;
+            for l in 0..N {
+                if weight[l] == 1.0 {
+                    only[l] = index;
+                }
             }
             for (sum, component) in head.iter_mut().zip(viewer.head) {
-                *sum += *weight * component;
+                for l in 0..N {
+                    sum[l] += weight[l] * component;
+                }
             }
             if needs_right {
                 for (sum, component) in right.iter_mut().zip(viewer.right) {
-                    *sum += *weight * component;
+                    for l in 0..N {
+                        sum[l] += weight[l] * component;
+                    }
                 }
             }
         }
-        std::array::from_fn(|lane| {
-            if !any.test(lane) {
+        std::array::from_fn(|l| {
+            if any & (1 << l) == 0 {
                 return (self.mean_head, self.mean_right);
             }
-            if let Some(head) = self.heads.get(only[lane]) {
-                return (*head, self.rights[only[lane]]);
+            if let Some(head) = self.heads.get(only[l]) {
+                return (*head, self.rights[only[l]]);
             }
-            let of =
-                |v: &[Vec4; 3]| DVec3::new(v[0][lane].into(), v[1][lane].into(), v[2][lane].into());
+            let of = |v: &[[f32; N]; 3]| DVec3::new(v[0][l].into(), v[1][l].into(), v[2][l].into());
             let right = if needs_right {
                 of(&right).try_normalize().unwrap_or(self.screen.x)
             } else {
@@ -527,14 +585,58 @@ impl ViewerSet {
     }
 }
 
-/// `acos` of four values in `[-1, 1]`, absolute error below 5·10⁻⁷ (Abramowitz & Stegun
-/// 4.4.46 on |x|, 2·10⁻⁸, mirrored for negative x; the rest is f32 rounding).
+/// Per lane, `gaze·(P − head)` and `|P − head|²` of a viewer and the points `P` (x, y, z).
+#[inline(always)]
+fn to_point<const N: usize>(viewer: &ViewerF32, p: &[[f32; N]; 3]) -> ([f32; N], [f32; N]) {
+    let [hx, hy, hz] = viewer.head;
+    let [gx, gy, gz] = viewer.gaze;
+    let mut dot = [0.0; N];
+    let mut length_squared = [0.0; N];
+    for l in 0..N {
+        let (vx, vy, vz) = (p[0][l] - hx, p[1][l] - hy, p[2][l] - hz);
+        dot[l] = gx * vx + gy * vy + gz * vz;
+        length_squared[l] = vx * vx + vy * vy + vz * vz;
+    }
+    (dot, length_squared)
+}
+
+/// Per lane, the angle between a viewer's gaze and the point from its head.
+#[inline(always)]
+fn angles<const N: usize>(viewer: &ViewerF32, p: &[[f32; N]; 3]) -> [f32; N] {
+    let (dot, length_squared) = to_point(viewer, p);
+    let mut angle = [0.0; N];
+    for l in 0..N {
+        angle[l] = acos(min(max(dot[l] / length_squared[l].sqrt(), -1.0), 1.0));
+    }
+    angle
+}
+
+/// The lanes (of `n`) where `test` holds, as bits.
+#[inline(always)]
+fn lanes_where(n: usize, test: impl Fn(usize) -> bool) -> u64 {
+    (0..n).fold(0, |bits, l| bits | (u64::from(test(l)) << l))
+}
+
+/// The larger of two values as a SIMD max instruction computes it (`b` when either is NaN).
+#[inline(always)]
+fn max(a: f32, b: f32) -> f32 {
+    if a > b { a } else { b }
+}
+
+/// The smaller of two values as a SIMD min instruction computes it (`b` when either is NaN).
+#[inline(always)]
+fn min(a: f32, b: f32) -> f32 {
+    if a < b { a } else { b }
+}
+
+/// `acos` of a value in `[-1, 1]`, absolute error below 5·10⁻⁷ (Abramowitz & Stegun 4.4.46
+/// on |x|, 2·10⁻⁸, mirrored for negative x; the rest is f32 rounding).
 // The published coefficients as printed (f32 rounds them).
 #[allow(clippy::excessive_precision)]
 #[inline(always)]
-fn acos4(x: Vec4) -> Vec4 {
-    let a = x.abs().min(Vec4::ONE);
-    let mut poly = Vec4::splat(-0.001_262_491_1);
+fn acos(x: f32) -> f32 {
+    let a = min(x.abs(), 1.0);
+    let mut poly = -0.001_262_491_1f32;
     for coefficient in [
         0.006_670_090_1,
         -0.017_088_125_6,
@@ -544,21 +646,21 @@ fn acos4(x: Vec4) -> Vec4 {
         -0.214_598_801_6,
         1.570_796_305,
     ] {
-        poly = poly * a + Vec4::splat(coefficient);
+        poly = poly * a + coefficient;
     }
-    let positive = (Vec4::ONE - a).max(Vec4::ZERO).sqrt() * poly;
-    Vec4::select(
-        x.cmplt(Vec4::ZERO),
-        Vec4::splat(std::f32::consts::PI) - positive,
-        positive,
-    )
+    let positive = max(1.0 - a, 0.0).sqrt() * poly;
+    if x < 0.0 {
+        std::f32::consts::PI - positive
+    } else {
+        positive
+    }
 }
 
-/// `cos` of four values in `[0, π/2]` (Taylor series to x¹², error below 10⁻⁸).
+/// `cos` of a value in `[0, π/2]` (Taylor series to x¹², error below 10⁻⁸).
 #[inline(always)]
-fn cos4(x: Vec4) -> Vec4 {
+fn cos(x: f32) -> f32 {
     let y = x * x;
-    let mut sum = Vec4::splat(1.0 / 479_001_600.0);
+    let mut sum = 1.0f32 / 479_001_600.0;
     for coefficient in [
         -1.0 / 3_628_800.0,
         1.0 / 40_320.0,
@@ -567,7 +669,7 @@ fn cos4(x: Vec4) -> Vec4 {
         -0.5,
         1.0,
     ] {
-        sum = sum * y + Vec4::splat(coefficient);
+        sum = sum * y + coefficient;
     }
     sum
 }
@@ -614,10 +716,10 @@ mod tests {
     fn polynomial_acos_cos_and_erfc_match_the_library_functions() {
         for i in 0..=2000 {
             let x = -1.0 + i as f32 / 1000.0;
-            let ours = acos4(Vec4::splat(x)).x;
+            let ours = acos(x);
             assert!((ours - x.acos()).abs() < 5e-7, "acos({x}): {ours}");
             let angle = i as f32 / 2000.0 * std::f32::consts::FRAC_PI_2;
-            assert!((cos4(Vec4::splat(angle)).x - angle.cos()).abs() < 2e-7);
+            assert!((cos(angle) - angle.cos()).abs() < 2e-7);
         }
         // erfc at known values (Abramowitz & Stegun table 7.1).
         for (x, erfc) in [
