@@ -1202,12 +1202,11 @@ fn trace_blocks<'a>(
             if batched.is_some() {
                 batch = [None; 64];
             }
-            // A whole block of plain pixels seen from one lensless pinhole (or from several
-            // viewers' blended positions): its rays are made together, lane by lane.
+            // A whole block of pixels seen from one lensless pinhole (or from several viewers'
+            // blended positions): its rays are made together, lane by lane.
             let whole_block = matches!(pixel_rays, PixelRays::All)
                 && bx_end - bx == PACKET_SIDE
-                && by_end - by == PACKET_SIDE
-                && map.rectangle_origin().is_some();
+                && by_end - by == PACKET_SIDE;
             let block_pinhole =
                 block_eye.filter(|(_, eye_rays)| whole_block && eye_rays.makes_block_rays());
             for s in 0..samples {
@@ -1219,9 +1218,14 @@ fn trace_blocks<'a>(
                     let mut s = [0.0; BLOCK_RAYS];
                     let mut t = [0.0; BLOCK_RAYS];
                     for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
-                        // As below, for pixel (x0 + dx, y0 + dy) of the rectangle.
-                        s[lane] = ((x0 + dx - viewport.x) as f32 + offset.x) / width;
-                        t[lane] = ((y0 + dy - viewport.y) as f32 + offset.y) / height;
+                        let (sx, sy) = (bx + dx, by + dy);
+                        if map.skips(sx, sy) {
+                            return None;
+                        }
+                        // As below, ray by ray.
+                        let (x, y) = map.pixel(sx, sy);
+                        s[lane] = ((x - viewport.x) as f32 + offset.x) / width;
+                        t[lane] = ((y - viewport.y) as f32 + offset.y) / height;
                     }
                     if !eye_rays.block_rays(&s, &t, &mut block) {
                         return None;
