@@ -12,7 +12,8 @@ echo "== cargo test"
 cargo test --quiet 2>&1 | tee target/cargo-test.log
 # The library must keep compiling for aarch64 (the x86 instruction-set paths are cfg'd out
 # there); checked when the target's standard library is installed.
-if rustup target list --installed 2>/dev/null | grep -qx aarch64-unknown-linux-gnu; then
+installed_targets=$(rustup target list --installed 2>/dev/null || true)
+if grep -qx aarch64-unknown-linux-gnu <<<"$installed_targets"; then
   echo "== cargo check --target aarch64-unknown-linux-gnu"
   cargo check --quiet --lib --target aarch64-unknown-linux-gnu
 else

@@ -1,31 +1,33 @@
 //! Which instruction set the hot kernels use. The library is built for baseline x86-64 so that
-//! it loads on any x86-64 CPU; the single-ray traversal (light-field rays, shadow and secondary
-//! rays, sparse progressive lattices) also has an AVX2+FMA box test, eight children in one
-//! vector, and a pinhole camera's primary rays an AVX2 build (four f64 lanes per instruction),
-//! chosen when the CPU has it. The choice is the process's: made when a device is
-//! created (the environment variable `CAVETRACE_ISA`, else the best the CPU has) and whenever
-//! a device commits its `isa` parameter. Every path finds the same hits.
+//! it loads on any x86-64 CPU; three kernels also have AVX2 builds, chosen when the CPU has
+//! AVX2: the single-ray traversal's box test (AVX2+FMA, eight children in one vector; used by
+//! light-field rays, shadow and secondary rays, sparse progressive lattices), a block of a
+//! pinhole camera's primary rays (four f64 lanes per instruction) and the blend of several
+//! viewers' camera positions for a block (eight f32 lanes). The choice is the process's: made
+//! when a device is created (the environment variable `CAVETRACE_ISA`, else the best the CPU
+//! has) and whenever a device commits its `isa` parameter. Every path finds the same hits and
+//! makes the same rays.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Whether the AVX2 path is selected (never on a CPU without it).
 static AVX2_SELECTED: AtomicBool = AtomicBool::new(false);
 
-/// Whether the traversal takes the AVX2 path: read for every node, so kept to one load.
+/// Whether the kernels take their AVX2 paths: read for every node, so kept to one load.
 #[inline(always)]
 pub(crate) fn avx2_selected() -> bool {
     AVX2_SELECTED.load(Ordering::Relaxed)
 }
 
-/// Selects the path the process's traversal takes: `isa` if this CPU has it, else the
-/// baseline. Returns the path selected.
+/// Selects the path the process's kernels take: `isa` if this CPU has it, else the baseline.
+/// Returns the path selected.
 pub fn select(isa: Isa) -> Isa {
     let usable = Isa::usable(isa);
     AVX2_SELECTED.store(usable == Isa::Avx2, Ordering::Relaxed);
     usable
 }
 
-/// The path the traversal takes now.
+/// The path the kernels take now.
 pub fn selected() -> Isa {
     if avx2_selected() {
         Isa::Avx2
@@ -40,7 +42,8 @@ pub enum Isa {
     /// SSE2, four lanes: every x86-64 CPU (and the portable code elsewhere).
     #[default]
     Baseline,
-    /// AVX2 with FMA (x86-64-v3): a node's eight child boxes in one vector.
+    /// AVX2 with FMA (x86-64-v3): a node's eight child boxes in one vector, a block's rays
+    /// and viewer blend in 256-bit vectors.
     Avx2,
 }
 

@@ -360,7 +360,7 @@ impl EyeRays {
         let st = self.region.apply(s, t);
         match &self.generator {
             Generator::Pinhole(p) => {
-                let target = p.window_origin + st.x * p.window_right + st.y * p.window_up;
+                let target = window_point(p, st);
                 let origin = if p.lens_right == DVec3::ZERO && p.lens_up == DVec3::ZERO {
                     p.eye
                 } else {
@@ -390,7 +390,7 @@ impl EyeRays {
                 cyclopean: None,
             },
             Generator::Unproject(_, Some(p)) => {
-                let target = p.window_origin + st.x * p.window_right + st.y * p.window_up;
+                let target = window_point(p, st);
                 clipped_ray(p.eye, target, p.forward, &p.clip)
             }
             Generator::Unproject(m, None) => {
@@ -477,7 +477,7 @@ impl EyeRays {
         self.block_rays_on(crate::isa::avx2_selected(), s, t, block)
     }
 
-    /// [`Self::block_rays`] on the AVX2 path or not (the caller makes sure the CPU has it).
+    /// [`Self::block_rays`] on the AVX2 path (where this CPU has AVX2) or the baseline one.
     #[inline(always)]
     fn block_rays_on(
         &self,
@@ -494,8 +494,8 @@ impl EyeRays {
             return false;
         };
         #[cfg(target_arch = "x86_64")]
-        if avx2 {
-            // SAFETY: the AVX2 path is taken only on a CPU that has AVX2.
+        if avx2 && std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
             unsafe { pinhole_block_avx2(&self.region, pinhole, s, t, block) };
             block.set_cyclopean(cyclopean);
             return true;
@@ -713,24 +713,50 @@ impl EyeRays {
 /// division serves both planes (it runs for every primary ray).
 #[inline]
 fn clipped_ray(origin: DVec3, target: DVec3, forward: DVec3, clip: &ClipRange) -> CameraRay {
-    let direction = (target - origin).normalize();
-    let (t_min, t_max) = if clip.near.is_some() || clip.far.is_some() {
-        let per_distance = 1.0 / direction.dot(forward);
-        (
-            clip.near.map_or(0.0, |near| (near * per_distance) as f32),
-            clip.far
-                .map_or(f32::INFINITY, |far| (far * per_distance) as f32),
-        )
-    } else {
-        (0.0, f32::INFINITY)
-    };
+    let (direction, t_min, t_max) = unit_ray(origin.to_array(), target.to_array(), forward, clip);
     CameraRay {
         origin: origin.as_vec3(),
-        direction: direction.as_vec3(),
+        direction: DVec3::from_array(direction).as_vec3(),
         t_min,
         t_max,
         cyclopean: None,
     }
+}
+
+/// The unit direction from `origin` to `target` (glam's `normalize`: times the reciprocal of
+/// the length) and the ray parameters of the clip planes at `clip` distances along `forward`.
+/// Written on plain f64 triples so that the block generators, which run it lane by lane, and
+/// [`clipped_ray`] share these exact operations.
+#[inline(always)]
+fn unit_ray(
+    origin: [f64; 3],
+    target: [f64; 3],
+    forward: DVec3,
+    clip: &ClipRange,
+) -> ([f64; 3], f32, f32) {
+    let x = target[0] - origin[0];
+    let y = target[1] - origin[1];
+    let z = target[2] - origin[2];
+    let recip = 1.0 / (x * x + y * y + z * z).sqrt();
+    let (x, y, z) = (x * recip, y * recip, z * recip);
+    if clip.near.is_none() && clip.far.is_none() {
+        return ([x, y, z], 0.0, f32::INFINITY);
+    }
+    // One division serves both planes.
+    let per_distance = 1.0 / (x * forward.x + y * forward.y + z * forward.z);
+    (
+        [x, y, z],
+        clip.near.map_or(0.0, |near| (near * per_distance) as f32),
+        clip.far
+            .map_or(f32::INFINITY, |far| (far * per_distance) as f32),
+    )
+}
+
+/// The window point `origin + s·right + t·up` of a pinhole, as [`EyeRays::ray`] and the block
+/// generator both compute it.
+#[inline(always)]
+fn window_point(pinhole: &Pinhole, st: DVec2) -> DVec3 {
+    pinhole.window_origin + st.x * pinhole.window_right + st.y * pinhole.window_up
 }
 
 /// Rays a block of pixels traces together (an 8×8 packet).
@@ -779,29 +805,16 @@ impl BlockRays {
         self.cyclopean = cyclopean.map(|c| c.to_array().map(|v| [v; BLOCK_RAYS]));
     }
 
-    /// Lane `i`: the ray from `eye` through `target`, clipped as [`clipped_ray`] clips it, in
-    /// its operation order (glam's `normalize` and `dot` written out).
+    /// Lane `i`: the ray from `eye` through `target` that [`clipped_ray`] makes.
     #[inline(always)]
     fn set(&mut self, i: usize, eye: [f64; 3], target: [f64; 3], forward: DVec3, clip: &ClipRange) {
-        let x = target[0] - eye[0];
-        let y = target[1] - eye[1];
-        let z = target[2] - eye[2];
-        let recip = 1.0 / (x * x + y * y + z * z).sqrt();
-        let (x, y, z) = (x * recip, y * recip, z * recip);
-        for (axis, (value, start)) in [x, y, z].into_iter().zip(eye).enumerate() {
+        let (direction, t_min, t_max) = unit_ray(eye, target, forward, clip);
+        for (axis, (value, start)) in direction.into_iter().zip(eye).enumerate() {
             self.direction[axis][i] = value as f32;
             self.origin[axis][i] = start as f32;
         }
-        if clip.near.is_none() && clip.far.is_none() {
-            self.t_min[i] = 0.0;
-            self.t_max[i] = f32::INFINITY;
-        } else {
-            let per_distance = 1.0 / (x * forward.x + y * forward.y + z * forward.z);
-            self.t_min[i] = clip.near.map_or(0.0, |near| (near * per_distance) as f32);
-            self.t_max[i] = clip
-                .far
-                .map_or(f32::INFINITY, |far| (far * per_distance) as f32);
-        }
+        self.t_min[i] = t_min;
+        self.t_max[i] = t_max;
     }
 }
 
@@ -817,10 +830,9 @@ fn pinhole_block_avx2(
     pinhole_block(region, pinhole, s, t, block);
 }
 
-/// [`clipped_ray`] from the pinhole's eye through the window points of `(s, t)`, written out
-/// lane by lane in the operation order of glam's vector methods (`region.apply`, the window
-/// point, then [`BlockRays::set`]) so that every lane is bit for bit the ray [`EyeRays::ray`]
-/// makes. No fused multiply-adds: the compiler never contracts them on its own.
+/// [`clipped_ray`] from the pinhole's eye through the window points of `(s, t)`, lane by lane
+/// with the functions [`EyeRays::ray`] uses, so that every lane is bit for bit its ray (and no
+/// fused multiply-adds in the AVX2 build: the compiler never contracts them on its own).
 #[inline(always)]
 fn pinhole_block(
     region: &ImageRegion,
@@ -829,21 +841,10 @@ fn pinhole_block(
     t: &[f32; BLOCK_RAYS],
     block: &mut BlockRays,
 ) {
-    let (origin, right, up) = (
-        pinhole.window_origin,
-        pinhole.window_right,
-        pinhole.window_up,
-    );
     let eye = pinhole.eye.to_array();
     for i in 0..BLOCK_RAYS {
-        let st_x = region.lo.x + f64::from(s[i]) * region.extent.x;
-        let st_y = region.lo.y + f64::from(t[i]) * region.extent.y;
-        let target = [
-            origin.x + st_x * right.x + st_y * up.x,
-            origin.y + st_x * right.y + st_y * up.y,
-            origin.z + st_x * right.z + st_y * up.z,
-        ];
-        block.set(i, eye, target, pinhole.forward, &pinhole.clip);
+        let target = window_point(pinhole, region.apply(s[i], t[i]));
+        block.set(i, eye, target.to_array(), pinhole.forward, &pinhole.clip);
     }
 }
 

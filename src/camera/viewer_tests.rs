@@ -597,3 +597,86 @@ fn any_number_of_viewers_blends_by_the_definition() {
         assert!(blended > 50, "{count}: {blended}");
     }
 }
+
+#[test]
+fn block_rays_of_any_number_of_viewers_are_the_rays_made_one_by_one() {
+    // Near and far planes and a cropped imageRegion (the clip and region arithmetic of the
+    // block), 2, 6 and 20 viewers (each size has working memory of its own), mono and stereo
+    // eyes, on every instruction-set path this CPU has; every field compared as bits.
+    let screen = screens()[0];
+    let mut state = 5u64;
+    let mut unit = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let bits = |ray: &CameraRay| {
+        let [o, d, c] = [
+            ray.origin,
+            ray.direction,
+            ray.cyclopean.unwrap_or(Vec3::NAN),
+        ]
+        .map(|v| v.to_array().map(f32::to_bits));
+        (o, d, c, ray.t_min.to_bits(), ray.t_max.to_bits())
+    };
+    let mut block = BlockRays::default();
+    let mut checked = 0;
+    for count in [2usize, 6, 20] {
+        let heads: Vec<Vec3> = (0..count)
+            .map(|i| {
+                screen
+                    .local(-0.3 + 0.6 * i as f64 / count as f64, 0.05, 1.2)
+                    .as_vec3()
+            })
+            .collect();
+        let gazes: Vec<Vec3> = heads
+            .iter()
+            .enumerate()
+            .map(|(i, head)| {
+                let target = screen.local(0.4 - 0.8 * i as f64 / count as f64, 0.1, 0.0);
+                (target - head.as_dvec3()).as_vec3()
+            })
+            .collect();
+        for weighting in WEIGHTINGS {
+            let desc = OffAxisDesc {
+                lower_left: Some(screen.ll.as_vec3()),
+                lower_right: Some(screen.lr.as_vec3()),
+                upper_right: Some(screen.ur.as_vec3()),
+                stereo_mode: StereoMode::SideBySide,
+                near: Some(0.05),
+                far: Some(40.0),
+                image_region: [0.1, 0.05, 0.8, 0.9],
+                viewers: Some(ViewerDesc {
+                    weighting,
+                    cutoff_angle: 0.6,
+                    ..ViewerDesc::new(heads.clone(), gazes.clone())
+                }),
+                ..OffAxisDesc::default()
+            };
+            let camera = super::screen::OffAxisCamera::new(&desc).unwrap();
+            for eye in [Eye::Mono, Eye::Right] {
+                let rays = rays(&camera, eye);
+                let s: [f32; BLOCK_RAYS] = std::array::from_fn(|_| unit());
+                let t: [f32; BLOCK_RAYS] = std::array::from_fn(|_| unit());
+                for avx2 in [false, true] {
+                    if avx2 && !crate::isa::Isa::Avx2.supported() {
+                        continue;
+                    }
+                    assert!(rays.block_rays_on_path(avx2, &s, &t, &mut block));
+                    for i in 0..BLOCK_RAYS {
+                        let one = ray_at(&rays, s[i], t[i]);
+                        assert!(one.t_min > 0.0 && one.t_max.is_finite());
+                        assert_eq!(
+                            bits(&block.ray(i)),
+                            bits(&one),
+                            "{count} viewers {weighting:?} {eye:?} avx2 {avx2}"
+                        );
+                        checked += 1;
+                    }
+                }
+            }
+        }
+    }
+    assert!(checked >= 3 * 3 * 2 * BLOCK_RAYS, "{checked}");
+}

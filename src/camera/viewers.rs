@@ -138,8 +138,8 @@ type CameraAt = (DVec3, DVec3);
 pub struct ViewerSet {
     heads: Vec<DVec3>,
     rights: Vec<DVec3>,
-    /// Per viewer.
-    lanes: Vec<ViewerF32>,
+    /// Per viewer, in f32.
+    viewers_f32: Vec<ViewerF32>,
     mean_head: DVec3,
     /// The normalised sum of the right vectors, for points no viewer has a say on (the
     /// screen's X axis where they cancel).
@@ -265,7 +265,7 @@ impl ViewerSet {
             heads.push(head);
         }
         let single = |v: &DVec3| v.as_vec3().to_array();
-        let lanes = heads
+        let viewers_f32 = heads
             .iter()
             .zip(&gazes)
             .zip(&rights)
@@ -293,7 +293,7 @@ impl ViewerSet {
         let mut set = ViewerSet {
             heads,
             rights,
-            lanes,
+            viewers_f32,
             mean_head,
             mean_right,
             mode: desc.mode,
@@ -341,6 +341,8 @@ impl ViewerSet {
     /// lane (no fused multiply-adds, which the compiler never makes on its own).
     #[inline(always)]
     fn weights_of<const N: usize>(&self, points: &[DVec3; N], weights: &mut [[f32; N]]) -> u64 {
+        // One bit per lane in the result.
+        const { assert!(N <= 64) };
         let lane = |axis: usize| -> [f32; N] { std::array::from_fn(|l| points[l][axis] as f32) };
         let p = [lane(0), lane(1), lane(2)];
         let weights = &mut weights[..self.heads.len()];
@@ -349,7 +351,7 @@ impl ViewerSet {
         if gaussian {
             // Log weights first, exponentiated relative to each point's largest.
             let mut log_max = [f32::NEG_INFINITY; N];
-            for (weight, viewer) in weights.iter_mut().zip(&self.lanes) {
+            for (weight, viewer) in weights.iter_mut().zip(&self.viewers_f32) {
                 let a = angles(viewer, &p);
                 for l in 0..N {
                     weight[l] = ln_erfc(a[l] * self.gaussian_scale);
@@ -374,7 +376,7 @@ impl ViewerSet {
         let reach = self.cos_reach;
         let reach_squared = reach * reach;
         let mut members = [0.0f32; N];
-        for (weight, viewer) in weights.iter_mut().zip(&self.lanes) {
+        for (weight, viewer) in weights.iter_mut().zip(&self.viewers_f32) {
             let (dot, length_squared) = to_point(viewer, &p);
             for l in 0..N {
                 let ahead = dot[l] > 0.0;
@@ -407,7 +409,7 @@ impl ViewerSet {
         }
         // Points in several cones: weights from the angles.
         let mut total = [0.0f32; N];
-        for (weight, viewer) in weights.iter_mut().zip(&self.lanes) {
+        for (weight, viewer) in weights.iter_mut().zip(&self.viewers_f32) {
             let a = angles(viewer, &p);
             for l in 0..N {
                 let a = a[l] * self.inv_cutoff;
@@ -439,7 +441,9 @@ impl ViewerSet {
         self.cameras4(&[point; 4], &[st; 4], needs_right)[0]
     }
 
-    /// [`Self::camera_at`] for four screen points at once.
+    /// The camera position and right vector (unused, and not computed, when `needs_right` is
+    /// false) for four screen points at once, whose screen coordinates (after imageRegion) are
+    /// `st`.
     #[inline]
     pub(crate) fn cameras4(
         &self,
@@ -453,8 +457,8 @@ impl ViewerSet {
         self.cameras_at_points(points, needs_right)
     }
 
-    /// [`Self::camera_at`] for a frame's block of screen points, on the AVX2 path (which the
-    /// caller has made sure this CPU has) or the baseline one; the same bits on both.
+    /// The cameras of a frame's block of screen points (as [`Self::cameras4`] gives them), on
+    /// the AVX2 path (where this CPU has AVX2) or the baseline one; the same bits on both.
     #[inline]
     pub(crate) fn cameras_block(
         &self,
@@ -467,8 +471,8 @@ impl ViewerSet {
             return st.map(|st| self.tile_camera(st, needs_right));
         }
         #[cfg(target_arch = "x86_64")]
-        if avx2 {
-            // SAFETY: the AVX2 path is taken only on a CPU that has AVX2 (see above).
+        if avx2 && std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
             return unsafe { self.cameras_block_avx2(points, needs_right) };
         }
         #[cfg(not(target_arch = "x86_64"))]
@@ -535,7 +539,7 @@ impl ViewerSet {
         let mut right = [[0.0f32; N]; 3];
         // Per point, the viewer whose weight is 1 (then every other one's is 0).
         let mut only = [usize::MAX; N];
-        for (index, (weight, viewer)) in weights.iter().zip(&self.lanes).enumerate() {
+        for (index, (weight, viewer)) in weights.iter().zip(&self.viewers_f32).enumerate() {
             for l in 0..N {
                 if weight[l] == 1.0 {
                     only[l] = index;

@@ -1207,16 +1207,16 @@ fn trace_blocks<'a>(
             let whole_block = matches!(pixel_rays, PixelRays::All)
                 && bx_end - bx == PACKET_SIDE
                 && by_end - by == PACKET_SIDE;
-            let block_pinhole =
+            let block_maker =
                 block_eye.filter(|(_, eye_rays)| whole_block && eye_rays.makes_block_rays());
             for s in 0..samples {
                 let index = job.pass * samples + s;
                 let offset = jitter(index);
                 let lens = lens_sample(index);
-                let block_rays = block_pinhole.and_then(|(viewport, eye_rays)| {
+                let block_rays = block_maker.and_then(|(viewport, eye_rays)| {
                     let (width, height) = (viewport.width as f32, viewport.height as f32);
-                    let mut s = [0.0; BLOCK_RAYS];
-                    let mut t = [0.0; BLOCK_RAYS];
+                    let mut s_lanes = [0.0; BLOCK_RAYS];
+                    let mut t_lanes = [0.0; BLOCK_RAYS];
                     for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
                         let (sx, sy) = (bx + dx, by + dy);
                         if map.skips(sx, sy) {
@@ -1224,10 +1224,10 @@ fn trace_blocks<'a>(
                         }
                         // As below, ray by ray.
                         let (x, y) = map.pixel(sx, sy);
-                        s[lane] = ((x - viewport.x) as f32 + offset.x) / width;
-                        t[lane] = ((y - viewport.y) as f32 + offset.y) / height;
+                        s_lanes[lane] = ((x - viewport.x) as f32 + offset.x) / width;
+                        t_lanes[lane] = ((y - viewport.y) as f32 + offset.y) / height;
                     }
-                    if !eye_rays.block_rays(&s, &t, &mut block) {
+                    if !eye_rays.block_rays(&s_lanes, &t_lanes, &mut block) {
                         return None;
                     }
                     for (lane, ray) in rays.iter_mut().enumerate() {
@@ -1235,10 +1235,13 @@ fn trace_blocks<'a>(
                     }
                     Some(eye_rays)
                 });
-                for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
-                    if block_rays.is_some() {
-                        break;
-                    }
+                // Otherwise ray by ray.
+                let per_lane = if block_rays.is_some() {
+                    &[][..]
+                } else {
+                    &PACKET_ORDER[..]
+                };
+                for (lane, (dx, dy)) in per_lane.iter().enumerate() {
                     let (sx, sy) = (bx + dx, by + dy);
                     rays[lane] = NO_RAY;
                     camera_rays[lane] = None;
