@@ -5,7 +5,7 @@ use glam::{DMat4, DVec3, Mat4, Vec2, Vec3};
 
 use super::offaxis::{off_axis_matrices, off_axis_perspective, perspective_from_matrices};
 use super::test_support::{
-    HEIGHT, Screen, WIDTH, angle_between, max_screen_error, pixel_centres, screens,
+    HEIGHT, Screen, WIDTH, angle_between, max_screen_error, pixel_centres, screens, unit_sequence,
 };
 use super::{
     Camera, CameraRay, Eye, EyeRays, MatrixDesc, OffAxisDesc, OrthographicDesc, PerspectiveDesc,
@@ -350,13 +350,8 @@ fn ray_bits(ray: &CameraRay) -> [u32; 11] {
 fn block_rays_are_the_rays_made_one_by_one_on_every_path() {
     use super::{BLOCK_RAYS, BlockRays, StereoMode};
     // Viewport points: pixel centres, jittered samples and the viewport's edges.
-    let mut state = 3u64;
-    let mut unit = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut sequence = unit_sequence(3);
+    let mut unit = || sequence() as f32;
     let mut points: Vec<(f32, f32)> = pixel_centres(WIDTH, HEIGHT)
         .map(|(_, _, s, t)| (s, t))
         .collect();

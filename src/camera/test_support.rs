@@ -171,3 +171,15 @@ pub(crate) fn gl_window_depth(view: DMat4, proj: DMat4, p: DVec3) -> f64 {
     let clip = proj * view * p.extend(1.0);
     0.5 * clip.z / clip.w + 0.5
 }
+
+/// A deterministic sequence of numbers in [0, 1) (a linear congruential generator's top 24
+/// bits), for tests that sample many points.
+pub(crate) fn unit_sequence(seed: u64) -> impl FnMut() -> f64 {
+    let mut state = seed;
+    move || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 40) as f64 / (1u64 << 24) as f64
+    }
+}

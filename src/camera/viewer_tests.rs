@@ -4,7 +4,9 @@
 use glam::{DVec3, Vec2, Vec3};
 
 use super::rays::BLOCK_RAYS;
-use super::test_support::{HEIGHT, Screen, WIDTH, max_screen_error, pixel_centres, screens};
+use super::test_support::{
+    HEIGHT, Screen, WIDTH, max_screen_error, pixel_centres, screens, unit_sequence,
+};
 use super::viewers::{ViewerDesc, ViewerMode, ViewerWeighting};
 use super::{BlockRays, Camera, CameraRay, Eye, EyeRays, OffAxisDesc, StereoMode};
 
@@ -544,13 +546,7 @@ fn any_number_of_viewers_blends_by_the_definition() {
     // 3, 6 and 20 viewers (each size has working memory of its own) against the weighted mean
     // of the heads computed here in f64.
     let screen = screens()[0];
-    let mut state = 11u64;
-    let mut unit = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 40) as f64 / (1u64 << 24) as f64
-    };
+    let mut unit = unit_sequence(11);
     for count in [3, 6, 20] {
         let heads: Vec<DVec3> = (0..count)
             .map(|_| screen.local(unit() - 0.5, 0.3 * unit() - 0.15, 0.8 + unit()))
@@ -604,13 +600,8 @@ fn block_rays_of_any_number_of_viewers_are_the_rays_made_one_by_one() {
     // block), 2, 6 and 20 viewers (each size has working memory of its own), mono and stereo
     // eyes, on every instruction-set path this CPU has; every field compared as bits.
     let screen = screens()[0];
-    let mut state = 5u64;
-    let mut unit = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut sequence = unit_sequence(5);
+    let mut unit = || sequence() as f32;
     let bits = |ray: &CameraRay| {
         let [o, d, c] = [
             ray.origin,
