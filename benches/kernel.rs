@@ -37,31 +37,12 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// The probe's height field: vertex (i, j) at x = −1 + 2i/G, y = −1 + 2j/G,
 /// z = 0.08 sin(9x) cos(7y) + 0.05 sin(23xy); cell triangles (a, b, d), (a, d, c).
 fn height_field(dev: ANARIDevice, grid: u32) -> ANARIGeometry {
-    let n = grid + 1;
-    let mut positions = Vec::with_capacity((n * n) as usize);
-    for j in 0..n {
-        for i in 0..n {
-            let x = -1.0 + 2.0 * i as f32 / grid as f32;
-            let y = -1.0 + 2.0 * j as f32 / grid as f32;
-            let z = 0.08 * (9.0 * x).sin() * (7.0 * y).cos() + 0.05 * (23.0 * x * y).sin();
-            positions.push([x, y, z]);
-        }
-    }
-    let mut indices = Vec::with_capacity((grid * grid * 2) as usize);
-    for j in 0..grid {
-        for i in 0..grid {
-            let a = j * n + i;
-            let (b, c, d) = (a + 1, a + n, a + n + 1);
-            indices.push([a, b, d]);
-            indices.push([a, d, c]);
-        }
-    }
-    let geometry = anariNewGeometry(dev, c("triangle").as_ptr());
-    let p = array1d(dev, ANARI_FLOAT32_VEC3, &positions);
-    let ix = array1d(dev, ANARI_UINT32_VEC3, &indices);
-    set_object(dev, geometry, "vertex.position", ANARI_ARRAY1D, p);
-    set_object(dev, geometry, "primitive.index", ANARI_ARRAY1D, ix);
-    release_all(dev, &[p, ix]);
+    let (geometry, _) = grid_geometry(dev, grid, |i, j| {
+        let x = -1.0 + 2.0 * i as f32 / grid as f32;
+        let y = -1.0 + 2.0 * j as f32 / grid as f32;
+        let z = 0.08 * (9.0 * x).sin() * (7.0 * y).cos() + 0.05 * (23.0 * x * y).sin();
+        [x, y, z]
+    });
     commit(dev, geometry);
     geometry
 }
@@ -167,19 +148,7 @@ fn main() {
         let camera = anariNewCamera(dev, c("perspective").as_ptr());
         let renderer = anariNewRenderer(dev, c("fast").as_ptr());
         commit(dev, renderer);
-        let frame = anariNewFrame(dev);
-        set(dev, frame, "size", ANARI_UINT32_VEC2, &[size, size]);
-        set(
-            dev,
-            frame,
-            "channel.color",
-            ANARI_DATA_TYPE,
-            &ANARI_UFIXED8_RGBA_SRGB,
-        );
-        set_object(dev, frame, "world", ANARI_WORLD, world);
-        set_object(dev, frame, "camera", ANARI_CAMERA, camera);
-        set_object(dev, frame, "renderer", ANARI_RENDERER, renderer);
-        commit(dev, frame);
+        let frame = square_frame(dev, size, world, camera, renderer);
         // Per path: packets, single rays, whole frame (wall and CPU each); paths alternate
         // frame by frame.
         let mut figures = vec![[(); 6].map(|_| Vec::new()); isas.len()];

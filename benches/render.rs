@@ -62,36 +62,12 @@ struct Setup {
 type Triangles = Vec<[[f32; 3]; 3]>;
 
 fn height_field(dev: ANARIDevice, cells: u32) -> (ANARIGeometry, Triangles) {
-    let n = cells + 1;
-    let mut positions = Vec::with_capacity((n * n) as usize);
-    for j in 0..n {
-        for i in 0..n {
-            let x = i as f32 / cells as f32 * 2.0 - 1.0;
-            let z = j as f32 / cells as f32 * 2.0 - 1.0;
-            let y = 0.05 * (x * 9.0).sin() * (z * 7.0).cos();
-            positions.push([x, y, z]);
-        }
-    }
-    let mut indices = Vec::with_capacity((cells * cells * 2) as usize);
-    for j in 0..cells {
-        for i in 0..cells {
-            let a = j * n + i;
-            indices.push([a, a + 1, a + n + 1]);
-            indices.push([a, a + n + 1, a + n]);
-        }
-    }
-    let g = anariNewGeometry(dev, c("triangle").as_ptr());
-    let p = array1d(dev, ANARI_FLOAT32_VEC3, &positions);
-    let ix = array1d(dev, ANARI_UINT32_VEC3, &indices);
-    set_object(dev, g, "vertex.position", ANARI_ARRAY1D, p);
-    set_object(dev, g, "primitive.index", ANARI_ARRAY1D, ix);
-    anariRelease(dev, p);
-    anariRelease(dev, ix);
-    let triangles = indices
-        .iter()
-        .map(|corners| corners.map(|i| positions[i as usize]))
-        .collect();
-    (g, triangles)
+    grid_geometry(dev, cells, |i, j| {
+        let x = i as f32 / cells as f32 * 2.0 - 1.0;
+        let z = j as f32 / cells as f32 * 2.0 - 1.0;
+        let y = 0.05 * (x * 9.0).sin() * (z * 7.0).cos();
+        [x, y, z]
+    })
 }
 
 fn sphere_cloud(dev: ANARIDevice, count: usize) -> ANARIGeometry {
@@ -145,25 +121,6 @@ fn setup(dev: ANARIDevice, geometry: ANARIGeometry, renderer_type: &str, size: u
         frame,
         world,
     }
-}
-
-/// A committed `size`×`size` frame with an sRGB colour channel.
-fn square_frame(
-    dev: ANARIDevice,
-    size: u32,
-    world: ANARIWorld,
-    camera: ANARICamera,
-    renderer: ANARIRenderer,
-) -> ANARIFrame {
-    let frame = anariNewFrame(dev);
-    set(dev, frame, "size", ANARI_UINT32_VEC2, &[size, size]);
-    let color = ANARI_UFIXED8_RGBA_SRGB;
-    set(dev, frame, "channel.color", ANARI_DATA_TYPE, &color);
-    set_object(dev, frame, "world", ANARI_WORLD, world);
-    set_object(dev, frame, "camera", ANARI_CAMERA, camera);
-    set_object(dev, frame, "renderer", ANARI_RENDERER, renderer);
-    commit(dev, frame);
-    frame
 }
 
 /// Moves the tracked head a little and commits the camera, as a VR application does per frame.

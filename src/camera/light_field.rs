@@ -167,16 +167,7 @@ impl LightFieldCamera {
         );
         EyeRays::pinhole(
             ImageRegion::from_box([0.0, 0.0, 1.0, 1.0]),
-            Pinhole {
-                eye,
-                window_origin: s.lower_left,
-                window_right: s.lower_right - s.lower_left,
-                window_up: s.upper_right - s.lower_right,
-                forward: -s.z,
-                lens_right: DVec3::ZERO,
-                lens_up: DVec3::ZERO,
-                clip: ClipRange::default(),
-            },
+            Pinhole::through_screen(eye, s, ClipRange::default()),
         )
     }
 }

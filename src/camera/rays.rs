@@ -6,6 +6,7 @@ use glam::{DMat4, DVec2, DVec3, DVec4, Vec2, Vec3};
 
 use super::CameraRay;
 use super::light_field::LightFieldCamera;
+use super::offaxis::ScreenFrame;
 use super::viewers::ViewerSet;
 
 /// Near plane used by `EyeRays::window_depth` for perspective-like cameras whose `near` is
@@ -62,6 +63,22 @@ pub(crate) struct Pinhole {
     pub lens_right: DVec3,
     pub lens_up: DVec3,
     pub clip: ClipRange,
+}
+
+impl Pinhole {
+    /// The lensless pinhole at `eye` whose window is `screen` (offAxis eyes, quilt views).
+    pub(crate) fn through_screen(eye: DVec3, screen: &ScreenFrame, clip: ClipRange) -> Pinhole {
+        Pinhole {
+            eye,
+            window_origin: screen.lower_left,
+            window_right: screen.lower_right - screen.lower_left,
+            window_up: screen.upper_right - screen.lower_right,
+            forward: -screen.z,
+            lens_right: DVec3::ZERO,
+            lens_up: DVec3::ZERO,
+            clip,
+        }
+    }
 }
 
 /// Parallel rays starting on a rectangle: orthographic camera.
@@ -431,7 +448,7 @@ impl EyeRays {
         };
         let st: [DVec2; 4] = std::array::from_fn(|i| self.region.apply(s[i], t[i]));
         let targets = st.map(|st| b.window_origin + st.x * b.window_right + st.y * b.window_up);
-        let cameras = b.viewers.cameras4(&targets, &st, b.eye_offset != 0.0);
+        let cameras = b.viewers.cameras(&targets, &st, b.eye_offset != 0.0, false);
         std::array::from_fn(|i| {
             let (head, right) = cameras[i];
             if b.eye_offset == 0.0 {
@@ -640,7 +657,7 @@ impl EyeRays {
                             (target - b.window_origin).dot(b.window_up)
                                 / b.window_up.length_squared(),
                         );
-                        let (head, right) = b.viewers.cameras4(&[target; 4], &[st; 4], true)[0];
+                        let (head, right) = b.viewers.cameras(&[target], &[st], true, false)[0];
                         (head, right * stereo.baseline.length())
                     }
                 };
@@ -863,7 +880,7 @@ fn blended_block(
     let targets = st.map(|st| b.window_origin + st.x * b.window_right + st.y * b.window_up);
     let stereo = b.eye_offset != 0.0;
     let mut cyclopean = [[0.0; BLOCK_RAYS]; 3];
-    let cameras = b.viewers.cameras_block(&targets, &st, stereo, avx2);
+    let cameras = b.viewers.cameras(&targets, &st, stereo, avx2);
     for (i, (head, right)) in cameras.into_iter().enumerate() {
         let eye = if stereo {
             head + right * b.eye_offset

@@ -175,16 +175,7 @@ impl Camera for OffAxisCamera {
         }
         EyeRays::pinhole(
             self.region,
-            Pinhole {
-                eye: self.eye_position(eye),
-                window_origin: screen.lower_left,
-                window_right: screen.lower_right - screen.lower_left,
-                window_up: screen.upper_right - screen.lower_right,
-                forward: -screen.z,
-                lens_right: DVec3::ZERO,
-                lens_up: DVec3::ZERO,
-                clip: self.clip,
-            },
+            Pinhole::through_screen(self.eye_position(eye), screen, self.clip),
         )
         .with_stereo(stereo)
     }

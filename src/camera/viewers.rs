@@ -124,12 +124,6 @@ struct ViewerF32 {
     right: [f32; 3],
 }
 
-/// Four screen points, one per SIMD lane.
-pub(crate) type Points4 = [DVec3; 4];
-
-/// Screen points of a frame's block (8×8 pixels).
-pub(crate) const BLOCK_POINTS: usize = super::rays::BLOCK_RAYS;
-
 /// A camera position and its right vector.
 type CameraAt = (DVec3, DVec3);
 
@@ -438,42 +432,28 @@ impl ViewerSet {
     /// imageRegion) are `st`.
     #[cfg(test)]
     pub(crate) fn camera_at(&self, point: DVec3, st: DVec2, needs_right: bool) -> (DVec3, DVec3) {
-        self.cameras4(&[point; 4], &[st; 4], needs_right)[0]
+        self.cameras(&[point], &[st], needs_right, false)[0]
     }
 
     /// The camera position and right vector (unused, and not computed, when `needs_right` is
-    /// false) for four screen points at once, whose screen coordinates (after imageRegion) are
-    /// `st`.
+    /// false) for `N` screen points at once (four for single rays, a frame's block), whose
+    /// screen coordinates (after imageRegion) are `st`: on the AVX2 path where `avx2` asks for
+    /// it and this CPU has AVX2, else the baseline one; the same bits on both.
     #[inline]
-    pub(crate) fn cameras4(
+    pub(crate) fn cameras<const N: usize>(
         &self,
-        points: &Points4,
-        st: &[DVec2; 4],
-        needs_right: bool,
-    ) -> [CameraAt; 4] {
-        if self.mode == ViewerMode::Tiles {
-            return st.map(|st| self.tile_camera(st, needs_right));
-        }
-        self.cameras_at_points(points, needs_right)
-    }
-
-    /// The cameras of a frame's block of screen points (as [`Self::cameras4`] gives them), on
-    /// the AVX2 path (where this CPU has AVX2) or the baseline one; the same bits on both.
-    #[inline]
-    pub(crate) fn cameras_block(
-        &self,
-        points: &[DVec3; BLOCK_POINTS],
-        st: &[DVec2; BLOCK_POINTS],
+        points: &[DVec3; N],
+        st: &[DVec2; N],
         needs_right: bool,
         avx2: bool,
-    ) -> [CameraAt; BLOCK_POINTS] {
+    ) -> [CameraAt; N] {
         if self.mode == ViewerMode::Tiles {
             return st.map(|st| self.tile_camera(st, needs_right));
         }
         #[cfg(target_arch = "x86_64")]
         if avx2 && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-            return unsafe { self.cameras_block_avx2(points, needs_right) };
+            return unsafe { self.cameras_avx2(points, needs_right) };
         }
         #[cfg(not(target_arch = "x86_64"))]
         let _ = avx2;
@@ -482,11 +462,11 @@ impl ViewerSet {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn cameras_block_avx2(
+    fn cameras_avx2<const N: usize>(
         &self,
-        points: &[DVec3; BLOCK_POINTS],
+        points: &[DVec3; N],
         needs_right: bool,
-    ) -> [CameraAt; BLOCK_POINTS] {
+    ) -> [CameraAt; N] {
         self.cameras_at_points(points, needs_right)
     }
 

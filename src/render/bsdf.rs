@@ -497,24 +497,15 @@ mod tests {
             }
         }
         let sampled = sum / f64::from(count);
-        let (mut weighted, mut total) = (0.0f64, 0.0f64);
-        let view = to_viewer;
-        let (rings, sectors) = (600, 600);
-        for i in 0..rings {
-            let cos_l = (i as f32 + 0.5) / rings as f32;
-            let sin_l = (1.0 - cos_l * cos_l).sqrt();
-            for j in 0..sectors {
-                let phi = TAU * (j as f32 + 0.5) / sectors as f32;
-                let light = Vec3::new(sin_l * phi.cos(), sin_l * phi.sin(), cos_l);
-                let half = (view + light).normalize();
-                let f = f64::from(
-                    ggx_distribution(alpha, half.z) * smith_visibility(alpha, cos_l, cos_v) * cos_l,
-                );
-                weighted += f * f64::from(cos_l);
-                total += f;
-            }
-        }
-        let expected = weighted / total;
+        let lobe = |cos_l: f32, cos_h: f32| {
+            f64::from(
+                ggx_distribution(alpha, cos_h) * smith_visibility(alpha, cos_l, cos_v) * cos_l,
+            )
+        };
+        let weighted = hemisphere_integral(cos_v, 600, |cos_l, cos_h| {
+            lobe(cos_l, cos_h) * f64::from(cos_l)
+        });
+        let expected = weighted / hemisphere_integral(cos_v, 600, lobe);
         assert!(
             (sampled - expected).abs() < 0.005,
             "mean cos_l: sampled {sampled}, lobe {expected}"

@@ -308,6 +308,69 @@ pub fn triangle_geometry(dev: ANARIDevice, positions: &[[f32; 3]]) -> ANARIGeome
     geometry
 }
 
+/// An uncommitted indexed triangle geometry over a `cells`×`cells` grid of vertices
+/// `(cells + 1)²`, vertex (i, j) at `vertex(i, j)` (row j after row j − 1); each cell split
+/// into triangles (a, a+1, a+n+1) and (a, a+n+1, a+n) for its corner a and n = cells + 1.
+/// Returns the geometry and its triangles as vertex triples.
+pub fn grid_geometry(
+    dev: ANARIDevice,
+    cells: u32,
+    vertex: impl Fn(u32, u32) -> [f32; 3],
+) -> (ANARIGeometry, Vec<[[f32; 3]; 3]>) {
+    let n = cells + 1;
+    let positions: Vec<[f32; 3]> = (0..n)
+        .flat_map(|j| (0..n).map(move |i| (i, j)))
+        .map(|(i, j)| vertex(i, j))
+        .collect();
+    let mut indices = Vec::with_capacity((cells * cells * 2) as usize);
+    for j in 0..cells {
+        for i in 0..cells {
+            let a = j * n + i;
+            indices.push([a, a + 1, a + n + 1]);
+            indices.push([a, a + n + 1, a + n]);
+        }
+    }
+    let geometry = anariNewGeometry(dev, c("triangle").as_ptr());
+    set_array(
+        dev,
+        geometry,
+        "vertex.position",
+        ANARI_FLOAT32_VEC3,
+        &positions,
+    );
+    set_array(
+        dev,
+        geometry,
+        "primitive.index",
+        ANARI_UINT32_VEC3,
+        &indices,
+    );
+    let triangles = indices
+        .iter()
+        .map(|corners| corners.map(|k| positions[k as usize]))
+        .collect();
+    (geometry, triangles)
+}
+
+/// A committed `size`×`size` frame with only an sRGB colour channel (what a display shows).
+pub fn square_frame(
+    dev: ANARIDevice,
+    size: u32,
+    world: ANARIWorld,
+    camera: ANARICamera,
+    renderer: ANARIRenderer,
+) -> ANARIFrame {
+    let frame = anariNewFrame(dev);
+    set(dev, frame, "size", ANARI_UINT32_VEC2, &[size, size]);
+    let color = ANARI_UFIXED8_RGBA_SRGB;
+    set(dev, frame, "channel.color", ANARI_DATA_TYPE, &color);
+    set_object(dev, frame, "world", ANARI_WORLD, world);
+    set_object(dev, frame, "camera", ANARI_CAMERA, camera);
+    set_object(dev, frame, "renderer", ANARI_RENDERER, renderer);
+    commit(dev, frame);
+    frame
+}
+
 /// A committed sphere geometry of one `radius` around `centers`.
 pub fn sphere_geometry(dev: ANARIDevice, centers: &[[f32; 3]], radius: f32) -> ANARIGeometry {
     let geometry = anariNewGeometry(dev, c("sphere").as_ptr());
