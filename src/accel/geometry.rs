@@ -5,17 +5,21 @@ use crate::accel::packet::{
     triangle_packet,
 };
 use crate::accel::primitives::{
-    PackedSphere, PackedTriangle, sphere_surface, sphere_t, triangle_t, triangle_t_uv,
+    GROUP_LANES, PackedSphere, PackedTriangle, TriangleGroup, group_any, group_closest,
+    sphere_surface, sphere_t, triangle_t_uv,
 };
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
 use crate::accel::wide_bvh::{
-    LeafSizing, TraversalRay, WideBvh, build_wide_bvh, prefetch, traverse,
+    LeafAlignment, LeafSizing, MAX_PRIMITIVES, PADDING, TraversalRay, WideBvh, WideNode,
+    build_wide_bvh, leaf_range, prefetch, traverse,
 };
 use crate::accel::{GeometryPrims, PrimHit, Ray};
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
-use obvhs::cwbvh::node::CwBvhNode;
-use rayon::iter::{IntoParallelIterator, IntoParallelRefIterator, ParallelIterator};
+use rayon::iter::{
+    IndexedParallelIterator, IntoParallelIterator, IntoParallelRefIterator, ParallelIterator,
+};
+use rayon::slice::ParallelSlice;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 static GEOMETRY_BUILDS: AtomicU64 = AtomicU64::new(0);
@@ -34,19 +38,21 @@ pub fn geometry_build_count() -> u64 {
 /// Marks, in a quad geometry's primitive ids, the second triangle `(v0, v2, v3)` of a quad.
 const QUAD_SECOND_HALF: u32 = 1 << 31;
 
-/// Primitive data in BVH slot order.
+/// Primitive data in BVH slot order: triangles (and quads' halves) in groups of four slots, one
+/// group per leaf; spheres and tubes one per slot, each tested by its own intersector.
 enum PrimitiveData {
-    Triangles(Vec<PackedTriangle>),
-    Quads(Vec<PackedTriangle>),
+    Triangles(Vec<TriangleGroup>),
+    Quads(Vec<TriangleGroup>),
     Spheres(Vec<PackedSphere>),
     Tubes(Vec<PackedTube>),
 }
 
 /// A BVH over the primitives of one geometry, in object space.
 pub struct GeometryBvh {
-    nodes: Vec<CwBvhNode>,
+    nodes: Vec<WideNode>,
     primitives: PrimitiveData,
-    /// Per BVH slot, the index of the source primitive (quads: plus `QUAD_SECOND_HALF`).
+    /// Per BVH slot, the index of the source primitive (quads: plus `QUAD_SECOND_HALF`);
+    /// padding slots of a triangle group repeat the group's first.
     source_ids: Vec<u32>,
     bounds: (Vec3, Vec3),
     primitive_count: usize,
@@ -137,12 +143,37 @@ fn usable_boxes(
     (usable, Some(source_ids))
 }
 
+/// `value(index)` for every slot of a BVH's primitive `order`; padding slots take the value
+/// of their group's first slot (which every leaf fills).
+fn in_slot_order<T: Send>(order: &[u32], value: impl Fn(u32) -> T + Send + Sync) -> Vec<T> {
+    order
+        .par_iter()
+        .enumerate()
+        .map(|(slot, &index)| {
+            let index = if index == PADDING {
+                order[slot - slot % GROUP_LANES]
+            } else {
+                index
+            };
+            value(index)
+        })
+        .collect()
+}
+
+/// Triangles in slot order as groups of four.
+fn triangle_groups(triangles: &[PackedTriangle]) -> Vec<TriangleGroup> {
+    triangles
+        .par_chunks(GROUP_LANES)
+        .map(TriangleGroup::new)
+        .collect()
+}
+
 /// Builds the BVH over the collected primitives, stores them in BVH slot order (wrapped by
 /// `wrap`) and counts `input_count - accepted` primitives as skipped.
 fn bvh_over_collected<P: Copy + Send + Sync>(
     collected: Collected<P>,
     bounds_of: impl Fn(&P) -> Aabb + Send + Sync,
-    sizing: LeafSizing,
+    (sizing, alignment): (LeafSizing, LeafAlignment),
     wrap: impl FnOnce(Vec<P>) -> PrimitiveData,
     (accepted, input_count): (usize, usize),
 ) -> GeometryBvh {
@@ -151,16 +182,10 @@ fn bvh_over_collected<P: Copy + Send + Sync>(
         nodes,
         order,
         bounds,
-    } = build_wide_bvh(&boxes, sizing);
+    } = build_wide_bvh(&boxes, sizing, alignment);
     drop(boxes);
-    let primitives = order
-        .par_iter()
-        .map(|&i| collected.primitives[i as usize])
-        .collect();
-    let source_ids = order
-        .par_iter()
-        .map(|&i| collected.source_ids[i as usize])
-        .collect();
+    let primitives = in_slot_order(&order, |i| collected.primitives[i as usize]);
+    let source_ids = in_slot_order(&order, |i| collected.source_ids[i as usize]);
     GeometryBvh {
         nodes,
         primitives: wrap(primitives),
@@ -182,7 +207,7 @@ impl GeometryBvh {
         match prims {
             GeometryPrims::Triangles { positions, indices } => {
                 let input_count = indices.len();
-                let candidates = &indices[..input_count.min(u32::MAX as usize)];
+                let candidates = &indices[..input_count.min(MAX_PRIMITIVES)];
                 // Only boxes are gathered before the build; the triangles are packed once, in
                 // BVH slot order, straight from the mesh.
                 let (boxes, usable_ids) = usable_boxes(candidates.len(), |id| {
@@ -193,13 +218,13 @@ impl GeometryBvh {
                     nodes,
                     order,
                     bounds,
-                } = build_wide_bvh(&boxes, LeafSizing::Whole);
+                } = build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group);
                 drop(boxes);
                 let source_ids = match usable_ids {
-                    None => order,
-                    Some(ids) => order.par_iter().map(|&i| ids[i as usize]).collect(),
+                    None => in_slot_order(&order, |i| i),
+                    Some(ids) => in_slot_order(&order, |i| ids[i as usize]),
                 };
-                let triangles = source_ids
+                let triangles: Vec<PackedTriangle> = source_ids
                     .par_iter()
                     .map(|&id| {
                         let [v0, v1, v2] = candidates[id as usize]
@@ -210,7 +235,7 @@ impl GeometryBvh {
                     .collect();
                 GeometryBvh {
                     nodes,
-                    primitives: PrimitiveData::Triangles(triangles),
+                    primitives: PrimitiveData::Triangles(triangle_groups(&triangles)),
                     source_ids,
                     bounds,
                     primitive_count: accepted,
@@ -220,7 +245,7 @@ impl GeometryBvh {
             GeometryPrims::Quads { positions, indices } => {
                 let mut collected = Collected::with_capacity(indices.len() * 2);
                 let mut accepted = 0;
-                for (id, quad) in indices.iter().enumerate().take(QUAD_SECOND_HALF as usize) {
+                for (id, quad) in indices.iter().enumerate().take(MAX_PRIMITIVES / 2) {
                     let first = triangle_from(&positions, [quad.x, quad.y, quad.z]);
                     let second = triangle_from(&positions, [quad.x, quad.z, quad.w]);
                     accepted += usize::from(first.is_some() || second.is_some());
@@ -234,14 +259,14 @@ impl GeometryBvh {
                 bvh_over_collected(
                     collected,
                     PackedTriangle::bounds,
-                    LeafSizing::Whole,
-                    PrimitiveData::Quads,
+                    (LeafSizing::Whole, LeafAlignment::Group),
+                    |triangles| PrimitiveData::Quads(triangle_groups(&triangles)),
                     (accepted, indices.len()),
                 )
             }
             GeometryPrims::Spheres { centers, radii } => {
                 let mut collected = Collected::with_capacity(centers.len());
-                for (id, center) in centers.iter().enumerate().take(u32::MAX as usize) {
+                for (id, center) in centers.iter().enumerate().take(MAX_PRIMITIVES) {
                     let sphere = radii
                         .get(id)
                         .and_then(|&radius| PackedSphere::new(*center, radius));
@@ -253,7 +278,7 @@ impl GeometryBvh {
                 bvh_over_collected(
                     collected,
                     PackedSphere::bounds,
-                    LeafSizing::Split,
+                    (LeafSizing::Split, LeafAlignment::Packed),
                     PrimitiveData::Spheres,
                     (accepted, centers.len()),
                 )
@@ -269,7 +294,7 @@ impl GeometryBvh {
         BUILDS_ON_THIS_THREAD.with(|count| count.set(count.get() + 1));
 
         let mut collected = Collected::with_capacity(segments.len());
-        for (id, segment) in segments.iter().enumerate().take(u32::MAX as usize) {
+        for (id, segment) in segments.iter().enumerate().take(MAX_PRIMITIVES) {
             if let Some(tube) = PackedTube::new(segment) {
                 collected.push(tube, id as u32);
             }
@@ -278,7 +303,7 @@ impl GeometryBvh {
         bvh_over_collected(
             collected,
             PackedTube::bounds,
-            LeafSizing::Split,
+            (LeafSizing::Split, LeafAlignment::Packed),
             PrimitiveData::Tubes,
             (accepted, segments.len()),
         )
@@ -350,13 +375,13 @@ impl GeometryBvh {
     pub fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
         let primitive_bytes = match &self.primitives {
-            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
-                triangles.capacity() * size_of::<PackedTriangle>()
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                groups.capacity() * size_of::<TriangleGroup>()
             }
             PrimitiveData::Spheres(spheres) => spheres.capacity() * size_of::<PackedSphere>(),
             PrimitiveData::Tubes(tubes) => tubes.capacity() * size_of::<PackedTube>(),
         };
-        self.nodes.capacity() * size_of::<CwBvhNode>()
+        self.nodes.capacity() * size_of::<WideNode>()
             + self.source_ids.capacity() * size_of::<u32>()
             + primitive_bytes
     }
@@ -371,35 +396,43 @@ impl GeometryBvh {
     pub(crate) fn closest_slot(&self, ray: &mut TraversalRay) -> Option<(u32, Vec2)> {
         let mut closest = None;
         match &self.primitives {
-            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
-                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
-                    let hit = triangle_t_uv(&triangles[slot as usize], ray);
-                    if let Some((t, bary)) = hit {
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                traverse::<false, _>(&self.nodes, ray, |code, ray| {
+                    let (group, count) = leaf_range(code);
+                    let hit = group_closest(&groups[group as usize], count, ray);
+                    if let Some((lane, t, bary)) = hit {
                         ray.t_max = t;
-                        closest = Some((slot, bary));
+                        closest = Some((group * GROUP_LANES as u32 + lane as u32, bary));
                     }
                     hit.is_some()
                 });
-                return closest;
             }
             PrimitiveData::Spheres(spheres) => {
-                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
-                    let hit = sphere_t(&spheres[slot as usize], ray);
-                    if let Some(t) = hit {
-                        ray.t_max = t;
-                        closest = Some((slot, Vec2::ZERO));
+                traverse::<false, _>(&self.nodes, ray, |code, ray| {
+                    let (first, count) = leaf_range(code);
+                    let mut found = false;
+                    for slot in first..first + count {
+                        if let Some(t) = sphere_t(&spheres[slot as usize], ray) {
+                            ray.t_max = t;
+                            closest = Some((slot, Vec2::ZERO));
+                            found = true;
+                        }
                     }
-                    hit.is_some()
+                    found
                 });
             }
             PrimitiveData::Tubes(tubes) => {
-                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
-                    let hit = tube_hit(&tubes[slot as usize], ray);
-                    if let Some((t, _)) = hit {
-                        ray.t_max = t;
-                        closest = Some((slot, Vec2::ZERO));
+                traverse::<false, _>(&self.nodes, ray, |code, ray| {
+                    let (first, count) = leaf_range(code);
+                    let mut found = false;
+                    for slot in first..first + count {
+                        if let Some((t, _)) = tube_hit(&tubes[slot as usize], ray) {
+                            ray.t_max = t;
+                            closest = Some((slot, Vec2::ZERO));
+                            found = true;
+                        }
                     }
-                    hit.is_some()
+                    found
                 });
             }
         }
@@ -415,13 +448,13 @@ impl GeometryBvh {
         active: &[u32; FRUSTUM_RAYS / LANES],
         closest: &mut [Option<u32>; FRUSTUM_RAYS],
     ) {
-        let prefetch_primitive = |slot: u32| self.prefetch_primitive(slot);
+        let prefetch_leaf = |code: u32| self.prefetch_leaf(code);
         traverse_frustum(
             &self.nodes,
             frustum,
             active,
-            prefetch_primitive,
-            |first, count, lanes, frustum| {
+            prefetch_leaf,
+            |code, lanes, frustum| {
                 // Usually one or two of the sixteen groups reach a leaf: visit just those.
                 let mut groups = 0u32;
                 for (group, lanes) in lanes.iter().enumerate() {
@@ -432,8 +465,7 @@ impl GeometryBvh {
                     let group = groups.trailing_zeros() as usize;
                     groups &= groups - 1;
                     self.test_leaf_packet(
-                        first,
-                        count,
+                        code,
                         &mut frustum.groups[group],
                         lanes[group],
                         &mut closest_by_group[group],
@@ -452,45 +484,50 @@ impl GeometryBvh {
         lanes: u32,
         closest: &mut [Option<u32>; LANES],
     ) {
-        traverse_packet(&self.nodes, packet, lanes, |first, count, lanes, packet| {
-            self.test_leaf_packet(first, count, packet, lanes, closest);
+        traverse_packet(&self.nodes, packet, lanes, |code, lanes, packet| {
+            self.test_leaf_packet(code, packet, lanes, closest);
         });
     }
 
+    /// Starts loading the primitives of a leaf.
     #[inline(always)]
-    fn prefetch_primitive(&self, slot: u32) {
-        let slot = slot as usize;
+    fn prefetch_leaf(&self, code: u32) {
+        let (first, _) = leaf_range(code);
+        let first = first as usize;
         match &self.primitives {
-            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
-                if let Some(triangle) = triangles.get(slot) {
-                    prefetch(triangle);
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                if let Some(group) = groups.get(first) {
+                    prefetch(group);
+                    prefetch(&group.vertices[1]);
+                    prefetch(&group.vertices[2][2]);
                 }
             }
             PrimitiveData::Spheres(spheres) => {
-                if let Some(sphere) = spheres.get(slot) {
+                if let Some(sphere) = spheres.get(first) {
                     prefetch(sphere);
                 }
             }
             PrimitiveData::Tubes(tubes) => {
-                if let Some(tube) = tubes.get(slot) {
+                if let Some(tube) = tubes.get(first) {
                     prefetch(tube);
                 }
             }
         }
     }
 
-    /// Tests the primitive slots `first..first + count` against the packet's `lanes`; lanes
-    /// that hit get their `t_max` shrunk and their slot written to `closest`. Spheres and
-    /// tubes are tested lane by lane with the single-ray routines.
+    /// Tests a leaf's primitives against the packet's `lanes`; lanes that hit get their
+    /// `t_max` shrunk and their slot written to `closest`. Triangles are tested one at a time
+    /// against the four rays, in slot order; spheres and tubes lane by lane with the
+    /// single-ray routines.
     #[inline(always)]
     fn test_leaf_packet(
         &self,
-        first: u32,
-        count: u32,
+        code: u32,
         packet: &mut RayPacket,
         lanes: u32,
         closest: &mut [Option<u32>; LANES],
     ) {
+        let (first, count) = leaf_range(code);
         let per_lane = |packet: &mut RayPacket,
                         closest: &mut [Option<u32>; LANES],
                         slot: u32,
@@ -505,20 +542,27 @@ impl GeometryBvh {
                 }
             }
         };
-        for slot in first..first + count {
-            match &self.primitives {
-                PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
-                    let mut hits = triangle_packet(&triangles[slot as usize], packet, lanes);
+        match &self.primitives {
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                let group = &groups[first as usize];
+                for triangle_lane in 0..count as usize {
+                    let slot = first * GROUP_LANES as u32 + triangle_lane as u32;
+                    let triangle = group.triangle(triangle_lane);
+                    let mut hits = triangle_packet(&triangle, packet, lanes);
                     while hits != 0 {
                         closest[hits.trailing_zeros() as usize] = Some(slot);
                         hits &= hits - 1;
                     }
                 }
-                PrimitiveData::Spheres(spheres) => {
+            }
+            PrimitiveData::Spheres(spheres) => {
+                for slot in first..first + count {
                     let sphere = &spheres[slot as usize];
                     per_lane(packet, closest, slot, &|ray| sphere_t(sphere, ray));
                 }
-                PrimitiveData::Tubes(tubes) => {
+            }
+            PrimitiveData::Tubes(tubes) => {
+                for slot in first..first + count {
                     let tube = &tubes[slot as usize];
                     per_lane(packet, closest, slot, &|ray| {
                         tube_hit(tube, ray).map(|hit| hit.0)
@@ -532,20 +576,31 @@ impl GeometryBvh {
     #[inline]
     pub(crate) fn any_hit(&self, ray: &mut TraversalRay) -> bool {
         match &self.primitives {
-            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
-                traverse::<true, _>(&self.nodes, ray, |slot, ray| {
-                    triangle_t(&triangles[slot as usize], ray).is_some()
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                traverse::<true, _>(&self.nodes, ray, |code, ray| {
+                    let (group, count) = leaf_range(code);
+                    group_any(&groups[group as usize], count, ray)
                 })
             }
             PrimitiveData::Spheres(spheres) => {
-                traverse::<true, _>(&self.nodes, ray, |slot, ray| {
-                    sphere_t(&spheres[slot as usize], ray).is_some()
+                traverse::<true, _>(&self.nodes, ray, |code, ray| {
+                    let (first, count) = leaf_range(code);
+                    (first..first + count)
+                        .any(|slot| sphere_t(&spheres[slot as usize], ray).is_some())
                 })
             }
-            PrimitiveData::Tubes(tubes) => traverse::<true, _>(&self.nodes, ray, |slot, ray| {
-                tube_hit(&tubes[slot as usize], ray).is_some()
+            PrimitiveData::Tubes(tubes) => traverse::<true, _>(&self.nodes, ray, |code, ray| {
+                let (first, count) = leaf_range(code);
+                (first..first + count).any(|slot| tube_hit(&tubes[slot as usize], ray).is_some())
             }),
         }
+    }
+
+    /// The triangle in a triangle or quad slot.
+    #[inline]
+    fn triangle(groups: &[TriangleGroup], slot: u32) -> PackedTriangle {
+        let lanes = GROUP_LANES as u32;
+        groups[(slot / lanes) as usize].triangle((slot % lanes) as usize)
     }
 
     /// Full hit record for the primitive in `slot`, found for `lane` of a packet.
@@ -570,8 +625,8 @@ impl GeometryBvh {
     /// The unit normal of the triangle in a triangle or quad slot; zero for other primitives.
     pub(crate) fn triangle_normal(&self, slot: u32) -> Vec3 {
         match &self.primitives {
-            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
-                triangles[slot as usize].normal()
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                Self::triangle(groups, slot).normal()
             }
             PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) => Vec3::ZERO,
         }
@@ -618,8 +673,8 @@ impl GeometryBvh {
             normal: Vec3::Z,
         };
         match &self.primitives {
-            PrimitiveData::Triangles(triangles) => {
-                let triangle = &triangles[slot];
+            PrimitiveData::Triangles(groups) => {
+                let triangle = &Self::triangle(groups, slot as u32);
                 let Some((t, uv)) = triangle_t_uv(triangle, ray) else {
                     return miss();
                 };
@@ -630,8 +685,8 @@ impl GeometryBvh {
                     normal: triangle.normal(),
                 }
             }
-            PrimitiveData::Quads(triangles) => {
-                let triangle = &triangles[slot];
+            PrimitiveData::Quads(groups) => {
+                let triangle = &Self::triangle(groups, slot as u32);
                 let Some((t, bary)) = triangle_t_uv(triangle, ray) else {
                     return miss();
                 };

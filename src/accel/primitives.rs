@@ -29,10 +29,8 @@ pub(crate) fn is_usable_box(aabb: &Aabb) -> bool {
         && aabb.max.abs().max_element() <= MAX_COORDINATE
 }
 
-/// A triangle stored per axis: `rows[axis] = (v0[axis], v1[axis], v2[axis], normal[axis])`, so
-/// that the three vertices are sheared with a few four-wide operations. The unit normal fills
-/// the lane that would be padding: packet tests record it with each hit, so that hit records
-/// need not load the triangle again.
+/// One triangle stored per axis: `rows[axis] = (v0[axis], v1[axis], v2[axis], 0)`, so that the
+/// three vertices are sheared with a few four-wide operations.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct PackedTriangle {
     pub rows: [Vec4; 3],
@@ -54,12 +52,11 @@ impl PackedTriangle {
 
     /// Packs vertices that [`Self::new`] has already accepted, without checking them again.
     pub fn from_usable(v0: Vec3, v1: Vec3, v2: Vec3) -> PackedTriangle {
-        let normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
         PackedTriangle {
             rows: [
-                Vec4::new(v0.x, v1.x, v2.x, normal.x),
-                Vec4::new(v0.y, v1.y, v2.y, normal.y),
-                Vec4::new(v0.z, v1.z, v2.z, normal.z),
+                Vec4::new(v0.x, v1.x, v2.x, 0.0),
+                Vec4::new(v0.y, v1.y, v2.y, 0.0),
+                Vec4::new(v0.z, v1.z, v2.z, 0.0),
             ],
         }
     }
@@ -81,9 +78,130 @@ impl PackedTriangle {
     /// Unit normal `(v1 - v0) x (v2 - v0)`; non-zero for every constructed triangle.
     #[inline]
     pub fn normal(&self) -> Vec3 {
-        let [x, y, z] = self.rows;
-        Vec3::new(x.w, y.w, z.w)
+        let [v0, v1, v2] = self.vertices();
+        (v1 - v0).cross(v2 - v0).normalize_or_zero()
     }
+}
+
+/// Triangles in a group: a leaf's triangles tested together against one ray.
+pub(crate) const GROUP_LANES: usize = 4;
+
+/// Up to four triangles in SIMD lanes: `vertices[i][axis]` holds coordinate `axis` of vertex
+/// `i` of every lane's triangle (what the watertight test reads, nothing to gather). Lanes
+/// beyond a leaf's count repeat lane 0 and are masked off.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TriangleGroup {
+    pub vertices: [[Vec4; 3]; 3],
+}
+
+impl TriangleGroup {
+    /// Packs up to four triangles (at least one); missing lanes repeat the first.
+    pub fn new(triangles: &[PackedTriangle]) -> TriangleGroup {
+        let mut vertices = [[Vec4::ZERO; 3]; 3];
+        for lane in 0..GROUP_LANES {
+            let triangle = triangles.get(lane).unwrap_or(&triangles[0]);
+            for (axis, row) in triangle.rows.iter().enumerate() {
+                for (vertex, coordinates) in vertices.iter_mut().enumerate() {
+                    coordinates[axis][lane] = row[vertex];
+                }
+            }
+        }
+        TriangleGroup { vertices }
+    }
+
+    /// The triangle in `lane`.
+    #[inline(always)]
+    pub fn triangle(&self, lane: usize) -> PackedTriangle {
+        let row = |axis: usize| {
+            Vec4::new(
+                self.vertices[0][axis][lane],
+                self.vertices[1][axis][lane],
+                self.vertices[2][axis][lane],
+                0.0,
+            )
+        };
+        PackedTriangle {
+            rows: [row(0), row(1), row(2)],
+        }
+    }
+}
+
+/// A group's watertight test against one ray, lane by lane the arithmetic of
+/// [`triangle_t_uv`] (the same `t` and barycentrics): the hit lanes among the first `count`,
+/// their `t`, and the edge functions `V`, `W` with the determinant `U + V + W`.
+#[inline(always)]
+fn group_hits(group: &TriangleGroup, count: u32, ray: &TraversalRay) -> (u32, Vec4, [Vec4; 3]) {
+    let [kx, ky, kz] = ray.shear_axes;
+    let origin = ray.permuted_origin;
+    let (shear_x, shear_y) = (Vec4::splat(ray.shear.x), Vec4::splat(ray.shear.y));
+    let sheared = |vertex: &[Vec4; 3]| {
+        let z = vertex[kz] - Vec4::splat(origin.z);
+        let x = (vertex[kx] - Vec4::splat(origin.x)) - shear_x * z;
+        let y = (vertex[ky] - Vec4::splat(origin.y)) - shear_y * z;
+        (x, y, z)
+    };
+    let (x0, y0, z0) = sheared(&group.vertices[0]);
+    let (x1, y1, z1) = sheared(&group.vertices[1]);
+    let (x2, y2, z2) = sheared(&group.vertices[2]);
+    let lanes = (1u32 << count) - 1;
+    let mut u = x2 * y1 - y2 * x1;
+    let mut v = x0 * y2 - y0 * x2;
+    let mut w = x1 * y0 - y1 * x0;
+    let zero = Vec4::ZERO;
+    let mut on_edge = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & lanes;
+    while on_edge != 0 {
+        let lane = on_edge.trailing_zeros() as usize;
+        on_edge &= on_edge - 1;
+        let exact = edge_functions_f64(
+            Vec4::new(x0[lane], x1[lane], x2[lane], 0.0),
+            Vec4::new(y0[lane], y1[lane], y2[lane], 0.0),
+        );
+        (u[lane], v[lane], w[lane]) = (exact.x, exact.y, exact.z);
+    }
+    let negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
+    let positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
+    let determinant = u + v + w;
+    let candidates = (!(negative & positive) & determinant.cmpne(zero)).bitmask() & lanes;
+    if candidates == 0 {
+        return (0, zero, [v, w, determinant]);
+    }
+    let shear_z = Vec4::splat(ray.shear.z);
+    let scaled_t = u * (z0 * shear_z) + v * (z1 * shear_z) + w * (z2 * shear_z);
+    let t = scaled_t / determinant;
+    let inside = t.cmpge(Vec4::splat(ray.t_min)) & t.cmple(Vec4::splat(ray.t_max));
+    (inside.bitmask() & candidates, t, [v, w, determinant])
+}
+
+/// Closest hit among a group's first `count` triangles: `(lane, t, b1, b2)`. Among lanes hit
+/// at the same `t` the last one wins, as when the triangles are tested one after another.
+#[inline(always)]
+pub(crate) fn group_closest(
+    group: &TriangleGroup,
+    count: u32,
+    ray: &TraversalRay,
+) -> Option<(usize, f32, Vec2)> {
+    let (hits, t, [v, w, determinant]) = group_hits(group, count, ray);
+    if hits == 0 {
+        return None;
+    }
+    let mut best = 31 - hits.leading_zeros();
+    let mut rest = hits & !(1 << best);
+    while rest != 0 {
+        let lane = 31 - rest.leading_zeros();
+        rest &= !(1 << lane);
+        if t[lane as usize] < t[best as usize] {
+            best = lane;
+        }
+    }
+    let lane = best as usize;
+    let inv = 1.0 / determinant[lane];
+    Some((lane, t[lane], Vec2::new(v[lane] * inv, w[lane] * inv)))
+}
+
+/// Whether any of a group's first `count` triangles is hit.
+#[inline(always)]
+pub(crate) fn group_any(group: &TriangleGroup, count: u32, ray: &TraversalRay) -> bool {
+    group_hits(group, count, ray).0 != 0
 }
 
 /// Edge functions recomputed in f64 for the rare rays that pass exactly through an edge.
@@ -140,7 +258,7 @@ fn triangle_hit<const WITH_UV: bool>(
 }
 
 /// Hit distance of a triangle, `None` on a miss.
-#[inline(always)]
+#[cfg(test)]
 pub(crate) fn triangle_t(triangle: &PackedTriangle, ray: &TraversalRay) -> Option<f32> {
     triangle_hit::<false>(triangle, ray).map(|hit| hit.0)
 }
