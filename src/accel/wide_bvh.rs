@@ -865,7 +865,7 @@ pub(crate) fn child_hits_scalar(
 ) -> (u32, [f32; 8]) {
     let mut nears = [0.0f32; 8];
     let mut mask = 0;
-    for slot in 0..WIDTH {
+    for (slot, slot_near) in nears.iter_mut().enumerate() {
         let mut near = t_min;
         let mut far = t_max;
         for axis in 0..3 {
@@ -876,7 +876,7 @@ pub(crate) fn child_hits_scalar(
         let near = near - near.abs() * SLAB_ERROR;
         let far = far + far.abs() * SLAB_ERROR;
         mask |= u32::from(near <= far) << slot;
-        nears[slot] = near;
+        *slot_near = near;
     }
     (mask, nears)
 }
