@@ -1,10 +1,14 @@
 #!/usr/bin/env bash
-# Builds the library (release) and the C examples, then renders:
-#   out/tutorial.png                       examples-c/tutorial.c
-#   out/matrix_camera/{left,right}.png     examples-c/matrix_camera.c
-#   out/cave/<head position>/…             examples-c/cave.c: every wall and eye with the offAxis
+# Builds the library (release) and the C examples, then renders (every file is listed at the end):
+#   out/tutorial.png                       examples-c/tutorial.c: the first program of the README
+#   out/matrix_camera/{left,right}.png     examples-c/matrix_camera.c: a headset's two eyes from
+#                                          OpenGL view and projection matrices
+#   out/cave/<head position>/              examples-c/cave.c: every wall and eye with the offAxis
 #                                          and the matrix camera, the unfolded CAVE, a red-cyan
 #                                          anaglyph and a side-by-side pair of the front wall
+#   out/cave/viewers/                      two tracked people, each alone and in every viewerMode
+#   out/cave/stereo/                       parallax (comfortable and too close), cyclopean and
+#                                          per-eye lighting, interleaved stereo, a light field
 # Usage: scripts/demo.sh [wall resolution (default 256)] [head positions (default 4)]
 set -euo pipefail
 
@@ -30,6 +34,8 @@ for example in tutorial matrix_camera cave; do
     -L"$bin/lib" -lcavetrace -Wl,-rpath,"$bin/lib" -lm
 done
 
+# Only the demo's own outputs are replaced, so the list below is exactly what this run wrote.
+rm -rf out/tutorial.png out/matrix_camera out/cave
 mkdir -p out/matrix_camera out/cave
 echo "== tutorial"
 "$bin/tutorial" out/tutorial.png
@@ -37,4 +43,19 @@ echo "== matrix camera (a headset's two eyes from OpenGL matrices)"
 "$bin/matrix_camera" out/matrix_camera
 echo "== CAVE: 5 walls × 2 eyes × offAxis and matrix cameras, $steps head positions"
 "$bin/cave" out/cave "$resolution" "$steps"
-echo "images in $root/out/"
+
+# Every folder and file written, folders with the same files on one line.
+echo "== outputs in $root/out/"
+echo "out/tutorial.png"
+declare -A folders_of
+order=()
+while IFS= read -r folder; do
+  files=$(find "$folder" -maxdepth 1 -type f -printf '%f\n' | sort | tr '\n' ' ')
+  [ -n "$files" ] || continue
+  [ -n "${folders_of[$files]+set}" ] || order+=("$files")
+  folders_of[$files]+="$folder/ "
+done < <(find out/matrix_camera out/cave -type d | sort -V)
+for files in "${order[@]}"; do
+  count=$(wc -w <<<"$files")
+  echo "${folders_of[$files]}($count files): $files" | fold -s -w 100 | sed '2,$s/^/    /'
+done
