@@ -4,6 +4,7 @@ pub mod bsdf;
 pub mod color;
 pub mod diagnostics;
 pub mod frame;
+pub mod integrator;
 pub mod interleave;
 pub mod progressive;
 pub mod renderer;
@@ -273,6 +274,7 @@ pub fn render_frame(device: &Device, frame: &Object) {
             SceneSnapshot::empty()
         }
     };
+    diagnostics::report_unlit(device, frame, state, &settings, &scene);
     let mut channels = HashMap::new();
     for (name, accepted) in CHANNELS {
         if let Some(t) = params.get_data_type(name)
