@@ -212,13 +212,13 @@ fn unit_box_clip(a: DVec3, b: DVec3) -> Option<(f64, f64)> {
     (t0 <= t1).then_some((t0, t1))
 }
 
-/// Widens a cell's stretch a little and cuts it to the ray's interval.
+/// Widens a cell's stretch a little and cuts it to the ray's interval. The upper end reaches
+/// up to the next f32 above `t_max`: a root found there may still round to `t_max` (as it does
+/// when a hit is looked up again with `t_max` set to it).
 fn search_interval((t0, t1): (f64, f64), ray: &Ray) -> Option<(f64, f64)> {
     let slack = (t1 - t0) * CLIP_SLACK + (t0.abs() + t1.abs()) * 1e-12;
-    let (t0, t1) = (
-        (t0 - slack).max(ray.t_min as f64),
-        (t1 + slack).min(ray.t_max as f64),
-    );
+    let upper = ray.t_max.next_up() as f64;
+    let (t0, t1) = ((t0 - slack).max(ray.t_min as f64), (t1 + slack).min(upper));
     (t0 <= t1).then_some((t0, t1))
 }
 
@@ -422,6 +422,22 @@ fn straddling_cells(field: &Field, isovalues: &[f32]) -> Vec<(u32, u32)> {
     entries
 }
 
+/// The BVH over the straddling cells and, per BVH primitive, its isovalue index (the ANARI
+/// primitive id).
+fn build(field: Field, isovalues: Vec<f32>) -> (GeometryBvh, Vec<u32>) {
+    let entries = straddling_cells(&field, &isovalues);
+    let primitive_ids = entries.iter().map(|(_, iso)| *iso).collect();
+    let cells = IsoCells {
+        field,
+        isovalues,
+        entries,
+    };
+    (
+        GeometryBvh::build_procedural(Arc::new(cells)),
+        primitive_ids,
+    )
+}
+
 /// Builds the isosurface geometry; reports and returns `None` when it cannot be rendered.
 pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
     let params = object.committed();
@@ -485,16 +501,8 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
         ),
         _ => {}
     }
-    let entries = straddling_cells(&field, &isovalues);
-    let primitive_ids: Vec<u32> = entries.iter().map(|(_, iso)| *iso).collect();
-    let cells = IsoCells {
-        field,
-        isovalues,
-        entries,
-    };
-    let bvh = with_build_pool(device.requested_thread_count(), || {
-        GeometryBvh::build_procedural(Arc::new(cells))
-    });
+    let (bvh, primitive_ids) =
+        with_build_pool(device.requested_thread_count(), || build(field, isovalues));
     Some(Geometry {
         shape: Shape::Isosurface,
         bvh: Arc::new(bvh),
