@@ -299,3 +299,84 @@ fn constant_cells_and_values_out_of_range_add_no_primitive() {
     let (bvh, _) = build(radial_field(), vec![100.0]);
     assert_eq!(bvh.primitive_count(), 0);
 }
+
+/// First root of `f − iso` along `origin + t direction` for t in [0, 10], by dense sampling and
+/// bisection of the closed form (independent of the cubic).
+fn reference_root(f: impl Fn(DVec3) -> f64, origin: DVec3, direction: DVec3) -> Option<f64> {
+    let g = |t: f64| f(origin + direction * t);
+    let samples = 200_000;
+    let mut previous = g(0.0);
+    for k in 1..=samples {
+        let t = 10.0 * k as f64 / samples as f64;
+        let value = g(t);
+        if (previous < 0.0) != (value < 0.0) {
+            return Some(bisect(g, t - 10.0 / samples as f64, t));
+        }
+        previous = value;
+    }
+    None
+}
+
+#[test]
+fn cross_terms_follow_the_cubic_along_the_ray() {
+    // One cell [−1, 1]³ holding the corner values of xyz: its trilinear interpolant is xyz.
+    let values = (0..8)
+        .map(|b| {
+            [b & 1, (b >> 1) & 1, b >> 2]
+                .iter()
+                .map(|&s| if s == 1 { 1.0 } else { -1.0 })
+                .product()
+        })
+        .collect();
+    let field = StructuredRegularField::from_floats(
+        [2; 3],
+        values,
+        Vec3::splat(-1.0),
+        Vec3::splat(2.0),
+        false,
+    )
+    .unwrap();
+    let iso = 0.02f32;
+    let (bvh, _) = build(Field::Structured(Arc::new(field)), vec![iso]);
+    let f = |p: DVec3| p.x * p.y * p.z - iso as f64;
+    let mut hits = 0;
+    for (origin, direction) in [
+        (Vec3::new(-2.0, -2.0, -2.0), Vec3::new(1.0, 1.0, 1.0)),
+        (Vec3::new(-2.0, -1.9, -2.1), Vec3::new(1.0, 1.0, 1.0)),
+        (Vec3::new(0.5, 0.6, 3.0), Vec3::new(0.0, 0.0, -1.0)),
+        (Vec3::new(-1.5, 0.9, 0.3), Vec3::new(1.0, -0.4, 0.2)),
+        (Vec3::new(1.8, -0.2, -1.7), Vec3::new(-1.0, 0.3, 0.9)),
+        (Vec3::new(0.2, 2.0, 0.7), Vec3::new(0.1, -1.0, -0.35)),
+    ] {
+        let direction = direction.normalize();
+        let ray = Ray::new(origin, direction, 0.0, f32::INFINITY);
+        let expected = reference_root(f, origin.as_dvec3(), direction.as_dvec3()).filter(|&t| {
+            (origin.as_dvec3() + direction.as_dvec3() * t)
+                .abs()
+                .max_element()
+                <= 1.0
+        });
+        match (bvh.intersect(&ray), expected) {
+            (Some(hit), Some(t)) => {
+                assert!(
+                    (hit.t as f64 - t).abs() < 1e-5,
+                    "{origin}: {} vs {t}",
+                    hit.t
+                );
+                let p = origin.as_dvec3() + direction.as_dvec3() * t;
+                let normal = DVec3::new(p.y * p.z, p.x * p.z, p.x * p.y)
+                    .normalize()
+                    .as_vec3();
+                assert!(
+                    (hit.normal - normal).length() < 1e-4,
+                    "{} vs {normal}",
+                    hit.normal
+                );
+                hits += 1;
+            }
+            (None, None) => {}
+            (hit, expected) => panic!("{origin}: {hit:?} vs {expected:?}"),
+        }
+    }
+    assert!(hits >= 4, "{hits}");
+}
