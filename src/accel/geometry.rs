@@ -5,8 +5,10 @@ use crate::accel::packet::{
     triangle_packet,
 };
 use crate::accel::primitives::{
-    PackedSphere, PackedTriangle, sphere_surface, sphere_t, triangle_t, triangle_t_uv,
+    PackedSphere, PackedTriangle, is_usable_box, sphere_surface, sphere_t, triangle_t,
+    triangle_t_uv,
 };
+use crate::accel::procedural::{ProceduralPrimitives, ProceduralSlots};
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
 use crate::accel::wide_bvh::{
     LeafSizing, TraversalRay, WideBvh, build_wide_bvh, prefetch, traverse,
@@ -16,6 +18,7 @@ use glam::{Vec2, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
 use obvhs::cwbvh::node::CwBvhNode;
 use rayon::iter::{IntoParallelIterator, IntoParallelRefIterator, ParallelIterator};
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 static GEOMETRY_BUILDS: AtomicU64 = AtomicU64::new(0);
@@ -40,6 +43,7 @@ enum PrimitiveData {
     Quads(Vec<PackedTriangle>),
     Spheres(Vec<PackedSphere>),
     Tubes(Vec<PackedTube>),
+    Procedural(ProceduralSlots),
 }
 
 /// A BVH over the primitives of one geometry, in object space.
@@ -284,6 +288,38 @@ impl GeometryBvh {
         )
     }
 
+    /// Builds the BVH over procedural primitives; those without a usable box are skipped.
+    /// Increments [`geometry_build_count`].
+    pub fn build_procedural(primitives: Arc<dyn ProceduralPrimitives>) -> GeometryBvh {
+        GEOMETRY_BUILDS.fetch_add(1, Ordering::Relaxed);
+        let count = primitives.count().min(u32::MAX as usize);
+        let boxes: Vec<Aabb> = (0..count as u32)
+            .map(|id| match primitives.bounds(id) {
+                Some((lo, hi)) if lo.cmple(hi).all() => Aabb::new(lo.into(), hi.into()),
+                _ => Aabb::INVALID,
+            })
+            .collect();
+        let mut collected = Collected::with_capacity(count);
+        for (id, aabb) in boxes.iter().enumerate() {
+            if aabb.valid() && is_usable_box(aabb) {
+                collected.push(id as u32, id as u32);
+            }
+        }
+        let accepted = collected.primitives.len();
+        bvh_over_collected(
+            collected,
+            |&id| boxes[id as usize],
+            LeafSizing::Split,
+            |indices| {
+                PrimitiveData::Procedural(ProceduralSlots {
+                    primitives,
+                    indices,
+                })
+            },
+            (accepted, count),
+        )
+    }
+
     /// Closest hit with `t` in `[t_min, t_max]`.
     pub fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         let mut ray = prepare(ray)?;
@@ -355,6 +391,7 @@ impl GeometryBvh {
             }
             PrimitiveData::Spheres(spheres) => spheres.capacity() * size_of::<PackedSphere>(),
             PrimitiveData::Tubes(tubes) => tubes.capacity() * size_of::<PackedTube>(),
+            PrimitiveData::Procedural(slots) => slots.memory_bytes(),
         };
         self.nodes.capacity() * size_of::<CwBvhNode>()
             + self.source_ids.capacity() * size_of::<u32>()
@@ -397,6 +434,16 @@ impl GeometryBvh {
                     let hit = tube_hit(&tubes[slot as usize], ray);
                     if let Some((t, _)) = hit {
                         ray.t_max = t;
+                        closest = Some((slot, Vec2::ZERO));
+                    }
+                    hit.is_some()
+                });
+            }
+            PrimitiveData::Procedural(slots) => {
+                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
+                    let hit = slots.hit(slot, ray);
+                    if let Some(hit) = hit {
+                        ray.t_max = hit.t;
                         closest = Some((slot, Vec2::ZERO));
                     }
                     hit.is_some()
@@ -476,6 +523,7 @@ impl GeometryBvh {
                     prefetch(tube);
                 }
             }
+            PrimitiveData::Procedural(_) => {}
         }
     }
 
@@ -524,6 +572,11 @@ impl GeometryBvh {
                         tube_hit(tube, ray).map(|hit| hit.0)
                     });
                 }
+                PrimitiveData::Procedural(slots) => {
+                    per_lane(packet, closest, slot, &|ray| {
+                        slots.hit(slot, ray).map(|h| h.t)
+                    });
+                }
             }
         }
     }
@@ -545,6 +598,9 @@ impl GeometryBvh {
             PrimitiveData::Tubes(tubes) => traverse::<true, _>(&self.nodes, ray, |slot, ray| {
                 tube_hit(&tubes[slot as usize], ray).is_some()
             }),
+            PrimitiveData::Procedural(slots) => {
+                traverse::<true, _>(&self.nodes, ray, |slot, ray| slots.hit(slot, ray).is_some())
+            }
         }
     }
 
@@ -573,7 +629,9 @@ impl GeometryBvh {
             PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
                 triangles[slot as usize].normal()
             }
-            PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) => Vec3::ZERO,
+            PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) | PrimitiveData::Procedural(_) => {
+                Vec3::ZERO
+            }
         }
     }
 
@@ -601,7 +659,9 @@ impl GeometryBvh {
                 uv: quad_coordinates(bary, source_id),
                 normal,
             }),
-            PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) => None,
+            PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) | PrimitiveData::Procedural(_) => {
+                None
+            }
         }
     }
 
@@ -664,6 +724,17 @@ impl GeometryBvh {
                     primitive: source_id,
                     uv,
                     normal,
+                }
+            }
+            PrimitiveData::Procedural(slots) => {
+                let Some(hit) = slots.hit(slot as u32, ray) else {
+                    return miss();
+                };
+                PrimHit {
+                    t: hit.t,
+                    primitive: source_id,
+                    uv: hit.uv,
+                    normal: hit.normal,
                 }
             }
         }

@@ -3,16 +3,20 @@
 
 pub mod array;
 pub mod attributes;
+pub mod cell_shapes;
 pub mod environment;
+pub mod field;
 pub mod geometry;
 pub mod group;
 pub mod instance;
+pub mod isosurface;
 pub mod light;
 pub mod limits;
 pub mod material;
 pub mod sampler;
 pub mod spatial_field;
 pub mod surface;
+pub mod unstructured_field;
 pub mod volume;
 pub mod world;
 
@@ -30,6 +34,7 @@ pub const SPECS: &[ObjectSpec] = &[
     geometry::CYLINDER,
     geometry::CONE,
     geometry::CURVE,
+    isosurface::ISOSURFACE,
     material::MATTE,
     material::PHYSICALLY_BASED,
     sampler::IMAGE1D,
@@ -45,6 +50,7 @@ pub const SPECS: &[ObjectSpec] = &[
     light::HDRI,
     surface::SURFACE,
     spatial_field::STRUCTURED_REGULAR,
+    unstructured_field::UNSTRUCTURED,
     volume::TRANSFER_FUNCTION1D,
     group::GROUP,
     instance::TRANSFORM,
@@ -64,6 +70,10 @@ pub fn commit(device: &Device, object: &Object) {
         ANARI_SAMPLER => {
             let sampler = sampler::commit(device, object);
             object.set_derived(sampler.map(|s| Arc::new(s) as _));
+        }
+        ANARI_SPATIAL_FIELD if object.subtype == unstructured_field::UNSTRUCTURED.subtype => {
+            let field = unstructured_field::commit(device, object);
+            object.set_derived(field.map(|f| Arc::new(f) as _));
         }
         ANARI_SPATIAL_FIELD => {
             let field = spatial_field::commit(device, object);

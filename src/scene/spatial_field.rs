@@ -146,6 +146,27 @@ impl StructuredRegularField {
         self.dims
     }
 
+    /// Position of vertex (0, 0, 0) and the size of a cell.
+    pub fn grid(&self) -> (Vec3, Vec3) {
+        (self.origin, self.spacing)
+    }
+
+    /// Whether values are reconstructed by nearest-vertex filtering.
+    pub fn is_nearest(&self) -> bool {
+        self.nearest
+    }
+
+    /// The value at grid vertex `[i, j, k]` (each below its `dims`).
+    pub fn vertex_value(&self, [i, j, k]: [usize; 3]) -> f32 {
+        let index = i + self.dims[0] * (j + self.dims[1] * k);
+        match &self.voxels {
+            Voxels::Unorm8(v) => v[index].value(),
+            Voxels::Snorm16(v) => v[index].value(),
+            Voxels::Unorm16(v) => v[index].value(),
+            Voxels::Float(v) => v[index],
+        }
+    }
+
     /// Object-space box [origin, origin + (dims − 1) × spacing].
     pub fn bounds(&self) -> (Vec3, Vec3) {
         (self.origin, self.origin + self.last * self.spacing)
@@ -199,6 +220,17 @@ impl StructuredRegularField {
         let plane = |offset: usize| lerp(row(offset), row(offset + sy), fy);
         lerp(plane(0), plane(sz), fz)
     }
+}
+
+/// Scalars of any `DATA_ELEMENT_TYPES` element type, fixed-point normalised (the unstructured
+/// field's `vertex.data` and `cell.data`).
+pub fn decode_scalars(element_type: ANARIDataType, bytes: &[u8]) -> Option<Vec<f32>> {
+    Some(match decode(element_type, bytes)? {
+        Voxels::Unorm8(v) => v.into_iter().map(Voxel::value).collect(),
+        Voxels::Snorm16(v) => v.into_iter().map(Voxel::value).collect(),
+        Voxels::Unorm16(v) => v.into_iter().map(Voxel::value).collect(),
+        Voxels::Float(v) => v,
+    })
 }
 
 fn decode(element_type: ANARIDataType, bytes: &[u8]) -> Option<Voxels> {

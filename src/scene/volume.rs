@@ -15,7 +15,7 @@ use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
 use crate::scene::array::ArrayStore;
 use crate::scene::attributes::{VALUE_ELEMENT_TYPES, read_values};
-use crate::scene::spatial_field::StructuredRegularField;
+use crate::scene::field::Field;
 
 pub const TRANSFER_FUNCTION1D: ObjectSpec = ObjectSpec::new(
     ANARI_VOLUME,
@@ -108,7 +108,6 @@ impl TransferFunction {
             && !opacities.is_empty()
             && value_range.0.is_finite()
             && value_range.1.is_finite()
-            && value_range.0 <= value_range.1
             && unit_distance.is_finite()
             && unit_distance > 0.0;
         valid.then_some(TransferFunction {
@@ -120,10 +119,11 @@ impl TransferFunction {
         })
     }
 
-    /// Position of a field value in valueRange, clamped to [0, 1]; NaN stays NaN.
+    /// Position of a field value in valueRange, clamped to [0, 1]; NaN stays NaN. A reversed
+    /// range (first end above the second) reverses the mapping.
     fn normalized(&self, value: f32) -> f32 {
         let (lo, hi) = self.value_range;
-        if hi > lo {
+        if hi != lo {
             ((value - lo) / (hi - lo)).clamp(0.0, 1.0)
         } else if value.is_nan() {
             value
@@ -199,10 +199,13 @@ pub fn commit(device: &Device, object: &Object) -> Option<TransferFunction> {
         return fail(format!("parameter 'valueRange' [{lo}, {hi}] is not finite"));
     }
     if lo > hi {
-        return fail(format!(
-            "parameter 'valueRange' [{lo}, {hi}] is reversed (its lower end must not exceed \
-             its upper end)"
-        ));
+        device.warning(
+            Some(object),
+            format!(
+                "{what} parameter 'valueRange' [{lo}, {hi}] is reversed: rendered as a reversed \
+                 mapping, value {lo} at the first table entry and {hi} at the last"
+            ),
+        );
     }
 
     let colors = match params.get("color") {
@@ -252,7 +255,7 @@ pub fn commit(device: &Device, object: &Object) -> Option<TransferFunction> {
 
     // A missing 'value' is already reported as a missing required parameter.
     if let Some(field) = params.get_object("value")
-        && field.derived_as::<StructuredRegularField>().is_none()
+        && Field::of(field).is_none()
     {
         device.warning(
             Some(object),
@@ -277,7 +280,7 @@ pub fn commit(device: &Device, object: &Object) -> Option<TransferFunction> {
 #[derive(Debug, Clone)]
 pub struct PlacedVolume {
     pub transfer: Arc<TransferFunction>,
-    pub field: Arc<StructuredRegularField>,
+    pub field: Field,
     pub object_to_world: Affine3A,
     pub world_to_object: Affine3A,
     /// channel.instanceId value.
@@ -288,13 +291,13 @@ impl PlacedVolume {
     /// `object_to_world` must be invertible.
     pub fn new(
         transfer: Arc<TransferFunction>,
-        field: Arc<StructuredRegularField>,
+        field: impl Into<Field>,
         object_to_world: Affine3A,
         instance_id: u32,
     ) -> PlacedVolume {
         PlacedVolume {
             transfer,
-            field,
+            field: field.into(),
             object_to_world,
             world_to_object: object_to_world.inverse(),
             instance_id,
@@ -516,6 +519,7 @@ pub fn integrate(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::spatial_field::StructuredRegularField;
 
     fn constant_box(value: f32, opacity: f32, unit_distance: f32, id: u32) -> PlacedVolume {
         // Unit cube [0,1]³ with every vertex at `value`.
@@ -600,6 +604,21 @@ mod tests {
         assert_eq!(transfer.classify(-10.0), (Vec3::ZERO, 0.0));
         assert_eq!(transfer.classify(10.0), (Vec3::ONE, 0.5));
         assert_eq!(transfer.classify(f32::NAN), (Vec3::ZERO, 0.0));
-        assert!(TransferFunction::new(0, (1.0, 0.0), vec![Vec4::ONE], vec![1.0], 1.0).is_none());
+        // A reversed range reverses the mapping.
+        let reversed = TransferFunction::new(
+            0,
+            (4.0, 2.0),
+            vec![Vec4::new(0.0, 0.0, 0.0, 0.5), Vec4::new(1.0, 1.0, 1.0, 0.5)],
+            vec![0.0, 0.5, 1.0],
+            1.0,
+        )
+        .unwrap();
+        let (c, o) = reversed.classify(2.5);
+        assert!(
+            (c.x - 0.75).abs() < 1e-6 && (o - 0.375).abs() < 1e-6,
+            "{c} {o}"
+        );
+        assert_eq!(reversed.classify(10.0), (Vec3::ZERO, 0.0));
+        assert_eq!(reversed.classify(-10.0), (Vec3::ONE, 0.5));
     }
 }

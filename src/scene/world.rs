@@ -16,10 +16,10 @@ use crate::device::pool::with_build_pool;
 use crate::device::spec::{ObjectSpec, ParamSpec};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
 use crate::scene::attributes::ATTRIBUTE_NAMES;
+use crate::scene::field::Field;
 use crate::scene::geometry::Geometry;
 use crate::scene::light::Light;
 use crate::scene::material::Material;
-use crate::scene::spatial_field::StructuredRegularField;
 use crate::scene::volume::{PlacedVolume, TransferFunction};
 
 pub const WORLD: ObjectSpec = ObjectSpec::new(
@@ -147,13 +147,11 @@ fn volume_data(volume: &Object) -> Option<VolumeParts> {
         return None;
     }
     let transfer = volume.derived_as::<TransferFunction>()?;
-    let field = params
-        .get_object("value")?
-        .derived_as::<StructuredRegularField>()?;
+    let field = Field::of(params.get_object("value")?)?;
     Some((transfer, field))
 }
 
-type VolumeParts = (Arc<TransferFunction>, Arc<StructuredRegularField>);
+type VolumeParts = (Arc<TransferFunction>, Field);
 
 /// What a group (or the world itself) holds.
 struct GroupContents {
