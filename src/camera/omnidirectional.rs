@@ -309,6 +309,26 @@ mod tests {
     }
 
     #[test]
+    fn depth_is_the_distance_from_the_eye_and_window_depth_its_gl_mapping() {
+        let desc = OmnidirectionalDesc {
+            position: Vec3::new(0.0, 1.0, 0.0),
+            stereo_mode: StereoMode::Left,
+            interpupillary_distance: 0.5,
+            ..OmnidirectionalDesc::default()
+        };
+        let rays = OmnidirectionalCamera::new(&desc)
+            .unwrap()
+            .prepare(Eye::Left, 32, 16);
+        let ray = rays.ray(0.3, 0.6, Vec2::ZERO);
+        let hit = ray.origin + ray.direction * 2.5;
+        assert_eq!(rays.depth(&ray, 2.5), 2.5);
+        let near = crate::camera::DEFAULT_WINDOW_DEPTH_NEAR;
+        let expected = (1.0 - near / 2.5) as f32;
+        assert!((rays.window_depth(&ray, hit) - expected).abs() < 1e-6);
+        assert!(rays.parallax(&ray, hit).is_nan());
+    }
+
+    #[test]
     fn invalid_parameters_name_themselves() {
         let error = |desc: OmnidirectionalDesc| OmnidirectionalCamera::new(&desc).unwrap_err();
         let up_along_direction = OmnidirectionalDesc {
