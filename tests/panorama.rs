@@ -191,6 +191,26 @@ fn image_region_renders_exactly_the_part_of_the_panorama() {
         }
     }
     assert!(hits > 50, "the region must show spheres: {hits}");
+    anariRelease(dev, camera);
+    // The dome's image circle belongs to the whole image, whatever the region's aspect.
+    let camera = fisheye(dev, eye, 0.0, 0.0, PI);
+    let full = render(dev, world, camera, [64, 64]);
+    let region = [0.5f32, 0.25, 1.0, 1.0];
+    set(dev, camera, "imageRegion", ANARI_FLOAT32_BOX2, &region);
+    commit(dev, camera);
+    let part = render(dev, world, camera, [32, 48]);
+    let mut hits = 0;
+    for y in 0..48 {
+        for x in 0..32 {
+            assert_eq!(
+                part.id(x, y),
+                full.id(x + 32, y + 16),
+                "dome pixel ({x}, {y})"
+            );
+            hits += u32::from(part.id(x, y) != NO_ID);
+        }
+    }
+    assert!(hits > 20, "the dome region must show spheres: {hits}");
     release_all(dev, &[camera, world]);
     release_device(lib, dev);
     assert!(log.errors().is_empty());

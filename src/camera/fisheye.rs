@@ -449,13 +449,14 @@ mod tests {
 
     #[test]
     fn image_region_crops_the_full_dome_image_exactly() {
+        // A region of another aspect than the image: the circle stays the whole image's.
         let full = camera(FisheyeDesc::default()).prepare(Eye::Mono, 40, 40);
         let crop = camera(FisheyeDesc {
-            image_region: [0.5, 0.25, 1.0, 0.75],
+            image_region: [0.5, 0.25, 1.0, 1.0],
             ..FisheyeDesc::default()
         })
-        .prepare(Eye::Mono, 20, 20);
-        for (x, y, s, t) in pixel_centres(20, 20) {
+        .prepare(Eye::Mono, 20, 30);
+        for (x, y, s, t) in pixel_centres(20, 30) {
             let a = crop.ray(s, t, Vec2::ZERO);
             let b = full.ray(
                 (x as f32 + 20.5) / 40.0,
@@ -469,49 +470,61 @@ mod tests {
 
     #[test]
     fn invalid_parameters_name_themselves() {
-        let error = |desc: FisheyeDesc| FisheyeCamera::new(&desc).unwrap_err().parameter;
-        assert_eq!(
-            error(FisheyeDesc {
-                fov: 7.0,
-                ..FisheyeDesc::default()
-            }),
-            "fov"
-        );
-        assert_eq!(
-            error(FisheyeDesc {
-                dome_up: Vec3::new(0.0, -3.0, 0.0),
-                ..FisheyeDesc::default()
-            }),
-            "dome.up"
-        );
-        assert_eq!(
-            error(FisheyeDesc {
-                dome_direction: Vec3::ZERO,
-                ..FisheyeDesc::default()
-            }),
-            "dome.direction"
-        );
-        assert_eq!(
-            error(FisheyeDesc {
-                position: Vec3::new(0.0, 0.0, 9.0),
-                dome_radius: Some(5.0),
-                ..FisheyeDesc::default()
-            }),
-            "position"
-        );
-        assert_eq!(
-            error(FisheyeDesc {
-                dome_radius: Some(0.0),
-                ..FisheyeDesc::default()
-            }),
-            "dome.radius"
-        );
-        assert_eq!(
-            error(FisheyeDesc {
-                dome_tilt: f32::NAN,
-                ..FisheyeDesc::default()
-            }),
-            "dome.tilt"
-        );
+        let defaults = FisheyeDesc::default;
+        let cases = [
+            (
+                FisheyeDesc {
+                    fov: 7.0,
+                    ..defaults()
+                },
+                "fov",
+            ),
+            (
+                FisheyeDesc {
+                    dome_up: Vec3::new(0.0, -3.0, 0.0),
+                    ..defaults()
+                },
+                "dome.up",
+            ),
+            (
+                FisheyeDesc {
+                    dome_direction: Vec3::ZERO,
+                    ..defaults()
+                },
+                "dome.direction",
+            ),
+            (
+                FisheyeDesc {
+                    dome_radius: Some(0.0),
+                    ..defaults()
+                },
+                "dome.radius",
+            ),
+            (
+                FisheyeDesc {
+                    dome_tilt: f32::NAN,
+                    ..defaults()
+                },
+                "dome.tilt",
+            ),
+            (
+                FisheyeDesc {
+                    right: Some(Vec3::ZERO),
+                    ..defaults()
+                },
+                "right",
+            ),
+            (
+                FisheyeDesc {
+                    position: Vec3::new(0.0, 0.0, 9.0),
+                    dome_radius: Some(5.0),
+                    ..defaults()
+                },
+                "position",
+            ),
+        ];
+        for (desc, parameter) in cases {
+            assert_eq!(FisheyeCamera::new(&desc).unwrap_err().parameter, parameter);
+        }
     }
 }
