@@ -54,6 +54,11 @@
  *     sample calibration, 45 views): front_hologram.png, and the same display's 9×5 quilt:
  *     front_quilt.png.
  *
+ * Then the whole scene around the CAVE's centre, written to <folder>/panorama/: a 360°
+ * equirectangular image (omnidirectional camera), its omni-directional stereo pair for 360°
+ * video, and a tilted planetarium dome (fisheye camera) from its centre and from a tracked head
+ * (see panoramas()).
+ *
  *   cc -std=c99 cave.c $(pkg-config --cflags --libs cavetrace) -lm -o cave
  *   ./cave [folder (default out/cave)] [wall resolution (default 256)] [head positions (4)]
  *          [budget in ms (default 0: none)]
@@ -648,6 +653,68 @@ static double render_budgeted(ANARIDevice device, ANARIFrame frame, float *progr
   return elapsed;
 }
 
+/* ----- panoramas ------------------------------------------------------------------------- */
+
+/* Renders `camera` into a new width×height frame and writes it to <folder>/<name>; returns 1 on
+ * success and prints the render time. */
+static int render_panorama(ANARIDevice device, ANARIWorld world, ANARIRenderer renderer,
+                           ANARICamera camera, uint32_t width, uint32_t height,
+                           const char *folder, const char *name) {
+  ANARIFrame frame = color_frame(device, width, height, world, renderer);
+  double seconds = render(device, frame, camera, NULL, 0);
+  char path[2048];
+  snprintf(path, sizeof path, "%s/%s", folder, name);
+  int ok = cavetraceWriteFramePNG(device, frame, "channel.color", path) == ANARI_STATUS_NO_ERROR;
+  printf("panorama: %s %u×%u in %.1f ms\n", name, width, height, 1e3 * seconds);
+  anariRelease(device, frame);
+  return ok;
+}
+
+/* The CAVE's scene all around one point, written to <folder>/: equirectangular.png (the
+ * omnidirectional camera, ANARI_KHR_CAMERA_OMNIDIRECTIONAL: 360° × 180°, the front wall's
+ * direction in the middle), equirectangular_ods.png (360° stereo video's layout: omni-directional
+ * stereo, left eye on top), dome.png (the fisheye camera, ANARI_CAVETRACE_CAMERA_FISHEYE: a
+ * 4 m planetarium dome over the CAVE's centre, tilted 30° towards the front wall, 180° field of
+ * view, seen from its centre; outside the image circle the renderer's background) and
+ * dome_tracked.png (the same dome from a tracked head 0.7 m right of and 0.9 m behind the centre:
+ * every pixel still shows its point of the dome). */
+static int panoramas(ANARIDevice device, ANARIWorld world, ANARIRenderer renderer,
+                     const char *folder, uint32_t n) {
+  int ok = 1;
+  const float eye[3] = {0, 1.6f, 0.3f}, front[3] = {0, 0, -1}, up[3] = {0, 1, 0};
+  ANARICamera omni = anariNewCamera(device, "omnidirectional");
+  anariSetParameter(device, omni, "position", ANARI_FLOAT32_VEC3, eye);
+  anariSetParameter(device, omni, "direction", ANARI_FLOAT32_VEC3, front);
+  anariSetParameter(device, omni, "up", ANARI_FLOAT32_VEC3, up);
+  anariSetParameter(device, omni, "layout", ANARI_STRING, "equirectangular");
+  anariCommitParameters(device, omni);
+  ok &= render_panorama(device, world, renderer, omni, 2 * n, n, folder, "equirectangular.png");
+  float ipd = IPD;
+  anariSetParameter(device, omni, "stereoMode", ANARI_STRING, "topBottom");
+  anariSetParameter(device, omni, "interpupillaryDistance", ANARI_FLOAT32, &ipd);
+  anariCommitParameters(device, omni);
+  ok &= render_panorama(device, world, renderer, omni, 2 * n, 2 * n, folder,
+                        "equirectangular_ods.png");
+  anariRelease(device, omni);
+
+  const float center[3] = {0, 1.2f, 0.3f}, radius = 4, tilt = 0.5236f, fov = 3.14159265f;
+  ANARICamera dome = anariNewCamera(device, "fisheye");
+  anariSetParameter(device, dome, "dome.center", ANARI_FLOAT32_VEC3, center);
+  anariSetParameter(device, dome, "dome.radius", ANARI_FLOAT32, &radius);
+  anariSetParameter(device, dome, "dome.tilt", ANARI_FLOAT32, &tilt);
+  anariSetParameter(device, dome, "fov", ANARI_FLOAT32, &fov);
+  anariSetParameter(device, dome, "position", ANARI_FLOAT32_VEC3, center);
+  anariCommitParameters(device, dome);
+  ok &= render_panorama(device, world, renderer, dome, n, n, folder, "dome.png");
+  const float head[3] = {0.7f, 1.6f, 1.2f};
+  anariSetParameter(device, dome, "position", ANARI_FLOAT32_VEC3, head);
+  anariCommitParameters(device, dome);
+  ok &= render_panorama(device, world, renderer, dome, n, n, folder, "dome_tracked.png");
+  anariRelease(device, dome);
+  return ok;
+}
+
+
 int main(int argc, char **argv) {
   const char *folder = argc > 1 ? argv[1] : "out/cave";
   const uint32_t n = argc > 2 ? (uint32_t)atoi(argv[2]) : 256;
@@ -1073,6 +1140,15 @@ int main(int argc, char **argv) {
     ANARIObject stereo_objects[] = {mono_camera, pair_camera, mirror, lit, mirror_frame};
     for (size_t i = 0; i < sizeof stereo_objects / sizeof stereo_objects[0]; i++)
       anariRelease(device, stereo_objects[i]);
+  }
+
+  char panorama_folder[1024];
+  snprintf(panorama_folder, sizeof panorama_folder, "%s/panorama", folder);
+  if (make_folders(panorama_folder) != 0) {
+    fprintf(stderr, "cannot create %s\n", panorama_folder);
+    ok = 0;
+  } else {
+    ok &= panoramas(device, world, renderer, panorama_folder, n);
   }
 
   for (int e = 0; e < EYES; e++)
