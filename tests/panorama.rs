@@ -162,6 +162,19 @@ fn spheres_appear_at_their_longitude_and_latitude_and_across_the_seam() {
     assert!(log.errors().is_empty());
 }
 
+/// `part` shows the ids of `full` from pixel `offset` on; returns how many show an object.
+fn assert_part(part: &Image, full: &Image, offset: (u32, u32), what: &str) -> u32 {
+    let mut hits = 0;
+    for y in 0..part.height {
+        for x in 0..part.width {
+            let want = full.id(x + offset.0, y + offset.1);
+            assert_eq!(part.id(x, y), want, "{what} pixel ({x}, {y})");
+            hits += u32::from(want != NO_ID);
+        }
+    }
+    hits
+}
+
 #[test]
 fn image_region_renders_exactly_the_part_of_the_panorama() {
     let log = Log::new();
@@ -183,13 +196,7 @@ fn image_region_renders_exactly_the_part_of_the_panorama() {
     set(dev, camera, "imageRegion", ANARI_FLOAT32_BOX2, &region);
     commit(dev, camera);
     let part = render(dev, world, camera, [64, 32]);
-    let mut hits = 0;
-    for y in 0..32 {
-        for x in 0..64 {
-            assert_eq!(part.id(x, y), full.id(x + 32, y + 8), "pixel ({x}, {y})");
-            hits += u32::from(part.id(x, y) != NO_ID);
-        }
-    }
+    let hits = assert_part(&part, &full, (32, 8), "panorama");
     assert!(hits > 50, "the region must show spheres: {hits}");
     anariRelease(dev, camera);
     // The dome's image circle belongs to the whole image, whatever the region's aspect.
@@ -199,17 +206,7 @@ fn image_region_renders_exactly_the_part_of_the_panorama() {
     set(dev, camera, "imageRegion", ANARI_FLOAT32_BOX2, &region);
     commit(dev, camera);
     let part = render(dev, world, camera, [32, 48]);
-    let mut hits = 0;
-    for y in 0..48 {
-        for x in 0..32 {
-            assert_eq!(
-                part.id(x, y),
-                full.id(x + 32, y + 16),
-                "dome pixel ({x}, {y})"
-            );
-            hits += u32::from(part.id(x, y) != NO_ID);
-        }
-    }
+    let hits = assert_part(&part, &full, (32, 16), "dome");
     assert!(hits > 20, "the dome region must show spheres: {hits}");
     release_all(dev, &[camera, world]);
     release_device(lib, dev);
