@@ -468,6 +468,63 @@ fn a_tracked_viewer_sees_through_the_dome_point_of_each_pixel() {
 }
 
 #[test]
+fn dome_stereo_halves_see_from_each_eye_through_the_same_dome_points() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let (size, radius, ipd) = (64, 5.0f32, 0.5f32);
+    let spheres = [
+        (along([0.0; 3], direction(0.3, 1.0), 4.5), 0.6),
+        ([0.3, 2.2, -0.8], 0.35),
+        ([-0.9, 1.4, 0.6], 0.3),
+    ];
+    let world = world_of_sized_spheres(dev, &spheres);
+    let (tilt, fov) = (0.2, 3.0);
+    let head = [0.4f32, 1.1, 0.5];
+    let right = glam::DVec3::new(1.0, 0.0, -1.0).normalize();
+    let camera = fisheye(dev, head, radius, tilt, fov);
+    set(
+        dev,
+        camera,
+        "right",
+        ANARI_FLOAT32_VEC3,
+        &[2.0f32, 0.0, -2.0],
+    );
+    set(dev, camera, "interpupillaryDistance", ANARI_FLOAT32, &ipd);
+    set_string(dev, camera, "stereoMode", "sideBySide");
+    commit(dev, camera);
+    let pair = render(dev, world, camera, [2 * size, size]);
+    for (half, fraction) in [(0u32, -0.5f64), (1, 0.5)] {
+        let eye = glam::Vec3::from(head).as_dvec3() + right * (fraction * f64::from(ipd));
+        let expected = expected_ids(size, size, &spheres, |x, y| {
+            dome_direction(x, y, size, size, fov, tilt).map(|d| (eye, d * f64::from(radius) - eye))
+        });
+        let columns =
+            |row: &[u32]| row[(half * size) as usize..((half + 1) * size) as usize].to_vec();
+        let colors =
+            |row: &[[f32; 4]]| row[(half * size) as usize..((half + 1) * size) as usize].to_vec();
+        let image = Image {
+            width: size,
+            height: size,
+            ids: pair
+                .ids
+                .chunks(2 * size as usize)
+                .flat_map(columns)
+                .collect(),
+            color: pair
+                .color
+                .chunks(2 * size as usize)
+                .flat_map(colors)
+                .collect(),
+        };
+        let shown = assert_ids(&image, &expected, &format!("eye {fraction}"));
+        assert!(shown > 150, "{shown}");
+    }
+    release_all(dev, &[camera, world]);
+    release_device(lib, dev);
+    assert!(log.errors().is_empty());
+}
+
+#[test]
 fn both_cameras_are_advertised_and_bad_parameters_are_reported() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
