@@ -162,6 +162,19 @@ fn spheres_appear_at_their_longitude_and_latitude_and_across_the_seam() {
     assert!(log.errors().is_empty());
 }
 
+/// `part` shows the ids of `full` from pixel `offset` on; returns how many show an object.
+fn assert_part(part: &Image, full: &Image, offset: (u32, u32), what: &str) -> u32 {
+    let mut hits = 0;
+    for y in 0..part.height {
+        for x in 0..part.width {
+            let want = full.id(x + offset.0, y + offset.1);
+            assert_eq!(part.id(x, y), want, "{what} pixel ({x}, {y})");
+            hits += u32::from(want != NO_ID);
+        }
+    }
+    hits
+}
+
 #[test]
 fn image_region_renders_exactly_the_part_of_the_panorama() {
     let log = Log::new();
@@ -183,13 +196,7 @@ fn image_region_renders_exactly_the_part_of_the_panorama() {
     set(dev, camera, "imageRegion", ANARI_FLOAT32_BOX2, &region);
     commit(dev, camera);
     let part = render(dev, world, camera, [64, 32]);
-    let mut hits = 0;
-    for y in 0..32 {
-        for x in 0..64 {
-            assert_eq!(part.id(x, y), full.id(x + 32, y + 8), "pixel ({x}, {y})");
-            hits += u32::from(part.id(x, y) != NO_ID);
-        }
-    }
+    let hits = assert_part(&part, &full, (32, 8), "panorama");
     assert!(hits > 50, "the region must show spheres: {hits}");
     anariRelease(dev, camera);
     // The dome's image circle belongs to the whole image, whatever the region's aspect.
@@ -199,17 +206,7 @@ fn image_region_renders_exactly_the_part_of_the_panorama() {
     set(dev, camera, "imageRegion", ANARI_FLOAT32_BOX2, &region);
     commit(dev, camera);
     let part = render(dev, world, camera, [32, 48]);
-    let mut hits = 0;
-    for y in 0..48 {
-        for x in 0..32 {
-            assert_eq!(
-                part.id(x, y),
-                full.id(x + 32, y + 16),
-                "dome pixel ({x}, {y})"
-            );
-            hits += u32::from(part.id(x, y) != NO_ID);
-        }
-    }
+    let hits = assert_part(&part, &full, (32, 16), "dome");
     assert!(hits > 20, "the dome region must show spheres: {hits}");
     release_all(dev, &[camera, world]);
     release_device(lib, dev);
@@ -466,6 +463,63 @@ fn a_tracked_viewer_sees_through_the_dome_point_of_each_pixel() {
     let b = images[1].centroid(3, 0, size).unwrap();
     assert!((a.0 - b.0).hypot(a.1 - b.1) > 5.0, "{a:?} {b:?}");
     anariRelease(dev, world);
+    release_device(lib, dev);
+    assert!(log.errors().is_empty());
+}
+
+#[test]
+fn dome_stereo_halves_see_from_each_eye_through_the_same_dome_points() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let (size, radius, ipd) = (64, 5.0f32, 0.5f32);
+    let spheres = [
+        (along([0.0; 3], direction(0.3, 1.0), 4.5), 0.6),
+        ([0.3, 2.2, -0.8], 0.35),
+        ([-0.9, 1.4, 0.6], 0.3),
+    ];
+    let world = world_of_sized_spheres(dev, &spheres);
+    let (tilt, fov) = (0.2, 3.0);
+    let head = [0.4f32, 1.1, 0.5];
+    let right = glam::DVec3::new(1.0, 0.0, -1.0).normalize();
+    let camera = fisheye(dev, head, radius, tilt, fov);
+    set(
+        dev,
+        camera,
+        "right",
+        ANARI_FLOAT32_VEC3,
+        &[2.0f32, 0.0, -2.0],
+    );
+    set(dev, camera, "interpupillaryDistance", ANARI_FLOAT32, &ipd);
+    set_string(dev, camera, "stereoMode", "sideBySide");
+    commit(dev, camera);
+    let pair = render(dev, world, camera, [2 * size, size]);
+    for (half, fraction) in [(0u32, -0.5f64), (1, 0.5)] {
+        let eye = glam::Vec3::from(head).as_dvec3() + right * (fraction * f64::from(ipd));
+        let expected = expected_ids(size, size, &spheres, |x, y| {
+            dome_direction(x, y, size, size, fov, tilt).map(|d| (eye, d * f64::from(radius) - eye))
+        });
+        let columns =
+            |row: &[u32]| row[(half * size) as usize..((half + 1) * size) as usize].to_vec();
+        let colors =
+            |row: &[[f32; 4]]| row[(half * size) as usize..((half + 1) * size) as usize].to_vec();
+        let image = Image {
+            width: size,
+            height: size,
+            ids: pair
+                .ids
+                .chunks(2 * size as usize)
+                .flat_map(columns)
+                .collect(),
+            color: pair
+                .color
+                .chunks(2 * size as usize)
+                .flat_map(colors)
+                .collect(),
+        };
+        let shown = assert_ids(&image, &expected, &format!("eye {fraction}"));
+        assert!(shown > 150, "{shown}");
+    }
+    release_all(dev, &[camera, world]);
     release_device(lib, dev);
     assert!(log.errors().is_empty());
 }

@@ -175,12 +175,7 @@ impl Camera for FisheyeCamera {
             DomeRays {
                 eye: self.position + self.head_right * offset,
                 head: (offset != 0.0).then_some(self.position),
-                center: self.dome.center,
-                radius: self.dome.radius,
-                axis: self.dome.axis,
-                right: self.dome.right,
-                up: self.dome.up,
-                half_fov: self.dome.half_fov,
+                dome: self.dome,
                 image,
                 circle_radius: 0.5 * image.x.min(image.y),
             },
@@ -194,12 +189,7 @@ pub(crate) struct DomeRays {
     eye: DVec3,
     /// The head between the eyes, for a stereo eye.
     head: Option<DVec3>,
-    center: DVec3,
-    radius: Option<f64>,
-    axis: DVec3,
-    right: DVec3,
-    up: DVec3,
-    half_fov: f64,
+    dome: Dome,
     /// Size of the whole image (before imageRegion) in viewport pixels, and its circle's radius.
     image: DVec2,
     circle_radius: f64,
@@ -216,13 +206,14 @@ impl DomeRays {
         if r > 1.0 {
             return None;
         }
-        let (sin_angle, cos_angle) = (r * self.half_fov).sin_cos();
+        let dome = &self.dome;
+        let (sin_angle, cos_angle) = (r * dome.half_fov).sin_cos();
         let across = if distance > 0.0 {
-            (self.right * offset.x + self.up * offset.y) / distance
+            (dome.right * offset.x + dome.up * offset.y) / distance
         } else {
             DVec3::ZERO
         };
-        Some(self.axis * cos_angle + across * sin_angle)
+        Some(dome.axis * cos_angle + across * sin_angle)
     }
 
     /// The ray of image point `st` (after imageRegion).
@@ -232,14 +223,14 @@ impl DomeRays {
         let Some(direction) = self.dome_direction(st) else {
             return CameraRay {
                 origin: self.eye.as_vec3(),
-                direction: self.axis.as_vec3(),
+                direction: self.dome.axis.as_vec3(),
                 t_min: 0.0,
                 t_max: 0.0,
                 cyclopean,
             };
         };
-        let direction = match self.radius {
-            Some(radius) => (self.center + direction * radius - self.eye).normalize(),
+        let direction = match self.dome.radius {
+            Some(radius) => (self.dome.center + direction * radius - self.eye).normalize(),
             None => direction,
         };
         CameraRay {
