@@ -1,6 +1,7 @@
 //! The device: object registry, parameters, commits, reference counting and status reporting.
 //! Everything here takes plain Rust values; the C boundary (`crate::capi`) converts arguments.
 
+pub mod array;
 pub mod catalog;
 #[cfg(test)]
 mod cycle_tests;
@@ -18,13 +19,13 @@ use std::collections::HashMap;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 
+use crate::device::array::{ANARIMemoryDeleter, ArrayError, ArrayStore};
 use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::params::ParamValue;
 use crate::device::pool::WorkerPool;
 use crate::device::spec::ObjectSpec;
 use crate::device::status::*;
-use crate::scene::array::{ANARIMemoryDeleter, ArrayError, ArrayStore};
 
 /// A parameter value as it arrived from C, before handles are resolved.
 #[derive(Clone, Debug)]

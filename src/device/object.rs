@@ -6,11 +6,11 @@ use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, RwLock};
 
+use crate::device::array::ArrayStore;
 use crate::device::datatype::*;
 use crate::device::params::ParamSet;
 use crate::device::spec::ObjectSpec;
 use crate::render::frame::FrameState;
-use crate::scene::array::ArrayStore;
 
 /// What the application has set but not yet committed.
 #[derive(Default)]

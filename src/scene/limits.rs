@@ -64,10 +64,10 @@ pub fn check_geometry(params: &ParamSet) -> Result<(), Refusal> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::device::array::ArrayStore;
     use crate::device::datatype::*;
     use crate::device::object::Object;
     use crate::device::params::ParamValue;
-    use crate::scene::array::ArrayStore;
     use std::sync::Arc;
 
     /// A shared array that claims `count` elements of `element_type` (never read).
