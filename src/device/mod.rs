@@ -6,6 +6,7 @@ pub mod catalog;
 #[cfg(test)]
 mod cycle_tests;
 pub mod datatype;
+pub mod frame;
 pub mod memory;
 pub mod object;
 pub mod params;
@@ -72,7 +73,7 @@ impl Device {
             objects: Mutex::new(HashMap::new()),
             created: Mutex::new(Vec::new()),
             status: Arc::new(StatusSink::new(handle, callback, user_data)),
-            self_object: Object::new(handle, ANARI_DEVICE, "", Some(&catalog::DEVICE), None),
+            self_object: Object::new(handle, ANARI_DEVICE, "", Some(&catalog::DEVICE), None, None),
             pool: Mutex::new(None),
             commit_epoch: AtomicU64::new(0),
         });
@@ -172,7 +173,10 @@ impl Device {
     pub fn new_object(&self, function: &str, kind: ANARIDataType, subtype: &str) -> usize {
         let spec = catalog::find(kind, subtype);
         let handle = registry::next_handle();
-        let object = Object::new(handle, kind, subtype, spec, None);
+        let frame = (kind == ANARI_FRAME).then(|| {
+            Arc::new(crate::render::frame::FrameState::default()) as Arc<dyn frame::Frame>
+        });
+        let object = Object::new(handle, kind, subtype, spec, None, frame);
         if spec.is_none() {
             self.warning(
                 Some(&object),
@@ -236,7 +240,7 @@ impl Device {
                 return 0;
             }
         };
-        let object = Object::new(registry::next_handle(), kind, "", None, Some(store));
+        let object = Object::new(registry::next_handle(), kind, "", None, Some(store), None);
         if is_object(element_type) && !app_memory.is_null() {
             self.resolve_array_objects(function, &object);
         }

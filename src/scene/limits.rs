@@ -83,7 +83,7 @@ mod tests {
         .unwrap();
         ParamValue::Object {
             data_type: ANARI_ARRAY1D,
-            object: Arc::new(Object::new(16, ANARI_ARRAY1D, "", None, Some(store))),
+            object: Arc::new(Object::new(16, ANARI_ARRAY1D, "", None, Some(store), None)),
         }
     }
 
