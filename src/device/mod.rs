@@ -1,10 +1,12 @@
 //! The device: object registry, parameters, commits, reference counting and status reporting.
 //! Everything here takes plain Rust values; the C boundary (`crate::capi`) converts arguments.
 
+pub mod array;
 pub mod catalog;
 #[cfg(test)]
 mod cycle_tests;
 pub mod datatype;
+pub mod frame;
 pub mod memory;
 pub mod object;
 pub mod params;
@@ -18,13 +20,13 @@ use std::collections::HashMap;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 
+use crate::device::array::{ANARIMemoryDeleter, ArrayError, ArrayStore};
 use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::params::ParamValue;
 use crate::device::pool::WorkerPool;
 use crate::device::spec::ObjectSpec;
 use crate::device::status::*;
-use crate::scene::array::{ANARIMemoryDeleter, ArrayError, ArrayStore};
 
 /// A parameter value as it arrived from C, before handles are resolved.
 #[derive(Clone, Debug)]
@@ -71,7 +73,7 @@ impl Device {
             objects: Mutex::new(HashMap::new()),
             created: Mutex::new(Vec::new()),
             status: Arc::new(StatusSink::new(handle, callback, user_data)),
-            self_object: Object::new(handle, ANARI_DEVICE, "", Some(&catalog::DEVICE), None),
+            self_object: Object::new(handle, ANARI_DEVICE, "", Some(&catalog::DEVICE), None, None),
             pool: Mutex::new(None),
             commit_epoch: AtomicU64::new(0),
         });
@@ -171,7 +173,10 @@ impl Device {
     pub fn new_object(&self, function: &str, kind: ANARIDataType, subtype: &str) -> usize {
         let spec = catalog::find(kind, subtype);
         let handle = registry::next_handle();
-        let object = Object::new(handle, kind, subtype, spec, None);
+        let frame = (kind == ANARI_FRAME).then(|| {
+            Arc::new(crate::render::frame::FrameState::default()) as Arc<dyn frame::Frame>
+        });
+        let object = Object::new(handle, kind, subtype, spec, None, frame);
         if spec.is_none() {
             self.warning(
                 Some(&object),
@@ -235,7 +240,7 @@ impl Device {
                 return 0;
             }
         };
-        let object = Object::new(registry::next_handle(), kind, "", None, Some(store));
+        let object = Object::new(registry::next_handle(), kind, "", None, Some(store), None);
         if is_object(element_type) && !app_memory.is_null() {
             self.resolve_array_objects(function, &object);
         }

@@ -9,6 +9,7 @@ mod channels;
 mod samples;
 mod tile;
 
+use std::any::Any;
 use std::collections::HashMap;
 use std::ffi::c_void;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
@@ -19,6 +20,7 @@ use glam::Vec4;
 
 use crate::camera::{Camera, EyeRays, PixelSet};
 use crate::device::datatype::*;
+use crate::device::frame::Frame;
 use crate::device::memory::{self, TooBig};
 use crate::device::property::PropertyValue;
 use crate::render::interleave::lattice_size;
@@ -151,38 +153,6 @@ impl FrameState {
     pub fn first_unlit_render(&self, unlit: bool) -> bool {
         let reported_before = self.reported_unlit.swap(unlit, Ordering::AcqRel);
         unlit && !reported_before
-    }
-
-    pub fn is_ready(&self) -> bool {
-        let inner = self.lock();
-        inner.running.is_none() || inner.in_callback()
-    }
-
-    /// Blocks until no render is in flight.
-    pub fn wait(&self) {
-        let mut inner = self.lock();
-        while inner.running.is_some() && !inner.in_callback() {
-            inner = self.finished.wait(inner).unwrap_or_else(|e| e.into_inner());
-        }
-    }
-
-    /// Asks the render in flight to stop after the tiles being rendered now.
-    pub fn discard(&self) {
-        if let Some(job) = &self.lock().running {
-            job.cancel.store(true, Ordering::Release);
-        }
-    }
-
-    pub fn property(&self, name: &str, wait: bool) -> Option<PropertyValue> {
-        if wait {
-            self.wait();
-        }
-        match name {
-            "duration" => Some(PropertyValue::Float32(self.lock().duration)),
-            "progress" => Some(PropertyValue::Float32(self.lock().progress)),
-            "parallaxRange" => Some(PropertyValue::Float32Vec2(self.lock().parallax_range)),
-            _ => None,
-        }
     }
 
     /// Starts a render. The size was checked by the caller; buffers beyond the memory available
@@ -408,9 +378,43 @@ impl FrameState {
         }
         self.finished.notify_all();
     }
+}
+
+impl Frame for FrameState {
+    fn is_ready(&self) -> bool {
+        let inner = self.lock();
+        inner.running.is_none() || inner.in_callback()
+    }
+
+    /// Blocks until no render is in flight.
+    fn wait(&self) {
+        let mut inner = self.lock();
+        while inner.running.is_some() && !inner.in_callback() {
+            inner = self.finished.wait(inner).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+
+    /// Asks the render in flight to stop after the tiles being rendered now.
+    fn discard(&self) {
+        if let Some(job) = &self.lock().running {
+            job.cancel.store(true, Ordering::Release);
+        }
+    }
+
+    fn property(&self, name: &str, wait: bool) -> Option<PropertyValue> {
+        if wait {
+            self.wait();
+        }
+        match name {
+            "duration" => Some(PropertyValue::Float32(self.lock().duration)),
+            "progress" => Some(PropertyValue::Float32(self.lock().progress)),
+            "parallaxRange" => Some(PropertyValue::Float32Vec2(self.lock().parallax_range)),
+            _ => None,
+        }
+    }
 
     /// Waits for the render and returns the channel's pixels (kept alive until unmap).
-    pub fn map(&self, channel: &str) -> Option<(*const c_void, u32, u32, ANARIDataType)> {
+    fn map(&self, channel: &str) -> Option<(*const c_void, u32, u32, ANARIDataType)> {
         self.wait();
         let mut inner = self.lock();
         let output = inner.output.clone()?;
@@ -432,7 +436,7 @@ impl FrameState {
     }
 
     /// Ends the oldest mapping of the channel; false when it is not mapped.
-    pub fn unmap(&self, channel: &str) -> bool {
+    fn unmap(&self, channel: &str) -> bool {
         let mut inner = self.lock();
         let Some(maps) = inner.mapped.get_mut(channel) else {
             return false;
@@ -442,6 +446,10 @@ impl FrameState {
             inner.mapped.remove(channel);
         }
         true
+    }
+
+    fn into_any(self: Arc<Self>) -> Arc<dyn Any + Send + Sync> {
+        self
     }
 }
 

@@ -18,7 +18,7 @@ use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::*;
-use crate::render::frame::{CHANNELS, RenderSetup};
+use crate::render::frame::{CHANNELS, FrameState, RenderSetup};
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
 
@@ -216,7 +216,13 @@ fn budget(params: &crate::device::params::ParamSet) -> Option<frame::Budget> {
 
 /// anariRenderFrame: snapshots the committed scene and starts rendering on the device's threads.
 pub fn render_frame(device: &Device, frame: &Object) {
-    let Some(state) = &frame.frame else { return };
+    let Some(state) = frame
+        .frame
+        .clone()
+        .and_then(|state| state.into_any().downcast::<FrameState>().ok())
+    else {
+        return;
+    };
     diagnostics::report_uncommitted(device, frame);
     let params = frame.committed();
     let fail = |code, text: String| {
@@ -274,7 +280,7 @@ pub fn render_frame(device: &Device, frame: &Object) {
             SceneSnapshot::empty()
         }
     };
-    diagnostics::report_unlit(device, frame, state, &settings, &scene);
+    diagnostics::report_unlit(device, frame, &state, &settings, &scene);
     let mut channels = HashMap::new();
     for (name, accepted) in CHANNELS {
         if let Some(t) = params.get_data_type(name)

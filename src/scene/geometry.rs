@@ -493,7 +493,7 @@ fn bad_radius(from_array: bool, array_name: &str) -> String {
     }
 }
 
-fn array<'p>(params: &'p ParamSet, name: &str) -> Option<&'p crate::scene::array::ArrayStore> {
+fn array<'p>(params: &'p ParamSet, name: &str) -> Option<&'p crate::device::array::ArrayStore> {
     params.get_object(name).and_then(|o| o.array.as_ref())
 }
 

@@ -1,7 +1,6 @@
 //! Scene objects: one file per ANARI object kind. Commits validate parameters and build what is
 //! expensive (geometry BVHs, sampler images) once; frames take cheap snapshots of the rest.
 
-pub mod array;
 pub mod attributes;
 pub mod cell_shapes;
 pub mod environment;

@@ -8,12 +8,12 @@ use std::sync::Arc;
 use glam::{Affine3A, Vec3, Vec4};
 
 use crate::device::Device;
+use crate::device::array::ArrayStore;
 use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::params::ParamValue;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
-use crate::scene::array::ArrayStore;
 use crate::scene::attributes::{VALUE_ELEMENT_TYPES, read_values};
 use crate::scene::field::Field;
 

@@ -20,11 +20,11 @@ use crate::capi::object::kind_from_name;
 use crate::capi::params::incoming_value;
 use crate::capi::types::*;
 use crate::capi::{plain_string, string_arg};
+use crate::device::array::ANARIMemoryDeleter;
 use crate::device::datatype::*;
 use crate::device::status::*;
 use crate::device::{Device, IncomingValue, catalog};
 use crate::render::frame::ANARIFrameCompletionCallback;
-use crate::scene::array::ANARIMemoryDeleter;
 use crate::sdk::{VirtualTable, allocate, panic_text};
 
 /// Begins with the layout of `anari::DeviceImpl` (vtable, then its two data members); cavetrace's
