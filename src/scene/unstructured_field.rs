@@ -11,7 +11,7 @@ use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::spec::{ObjectSpec, ParamSpec};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
-use crate::scene::array::ArrayStore;
+use crate::device::array::ArrayStore;
 use crate::scene::cell_shapes::{CellGeometry, CellShape, MAX_CELL_VERTICES};
 use crate::scene::spatial_field::{DATA_ELEMENT_TYPES, decode_scalars};
 
