@@ -42,7 +42,8 @@ pub const ISOSURFACE: ObjectSpec = ObjectSpec::new(
         ParamSpec::new(
             "field",
             &[ANARI_SPATIAL_FIELD],
-            "spatial field to be isosurfaced",
+            "spatial field to be isosurfaced (structuredRegular or unstructured; read when \
+             the isosurface is committed)",
         )
         .required(),
     ],
