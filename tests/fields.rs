@@ -167,13 +167,17 @@ fn isosurfaces_of_a_radial_field_render_their_shells_with_isovalue_ids_and_colou
     release_device(lib, dev);
 }
 
+/// Positions, index, cell types and vertex values of an unstructured mesh.
+struct Mesh {
+    positions: Vec<[f32; 3]>,
+    index: Vec<u32>,
+    types: Vec<u8>,
+    values: Vec<f32>,
+}
+
 /// The cells of an n³ grid over [x0, x0 + 1] × [−1, 1] × [−0.5, 0.5] as hexahedra (or six
 /// tetrahedra each): positions, index, cell types and the vertex values of `f`.
-fn mesh(
-    n: usize,
-    f: impl Fn([f32; 3]) -> f32,
-    tetrahedra: bool,
-) -> (Vec<[f32; 3]>, Vec<u32>, Vec<u8>, Vec<f32>) {
+fn mesh(n: usize, f: impl Fn([f32; 3]) -> f32, tetrahedra: bool) -> Mesh {
     let step = |i: usize| i as f32 / (n - 1) as f32;
     let mut positions = Vec::new();
     for k in 0..n {
@@ -211,12 +215,22 @@ fn mesh(
             }
         }
     }
-    (positions, index, types, values)
+    Mesh {
+        positions,
+        index,
+        types,
+        values,
+    }
 }
 
 fn unstructured_field(
     dev: ANARIDevice,
-    (positions, index, types, values): &(Vec<[f32; 3]>, Vec<u32>, Vec<u8>, Vec<f32>),
+    Mesh {
+        positions,
+        index,
+        types,
+        values,
+    }: &Mesh,
 ) -> ANARISpatialField {
     let field = anariNewSpatialField(dev, c("unstructured").as_ptr());
     set_array(dev, field, "vertex.position", ANARI_FLOAT32_VEC3, positions);
@@ -266,7 +280,7 @@ fn an_unstructured_volume_renders_what_the_same_structured_grid_does() {
     let wavy = |p: [f32; 3]| 0.5 + 0.45 * (3.0 * p[0]).sin() * (2.0 * p[1] + p[2]).cos();
     let cells = mesh(n, wavy, false);
     // The same vertices and values as a structured grid.
-    let data = array3d(dev, ANARI_FLOAT32, &cells.3, [n as u64; 3]);
+    let data = array3d(dev, ANARI_FLOAT32, &cells.values, [n as u64; 3]);
     let grid = anariNewSpatialField(dev, c("structuredRegular").as_ptr());
     set_object(dev, grid, "data", ANARI_ARRAY3D, data);
     set(

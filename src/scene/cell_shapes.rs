@@ -17,7 +17,7 @@ pub enum CellShape {
 }
 
 /// The most vertices a cell has (hexahedra).
-pub const MAX_CELL_VERTICES: usize = 8;
+pub(crate) const MAX_CELL_VERTICES: usize = 8;
 
 /// Parametric slack when deciding whether a point is inside a cell: points on a shared face
 /// belong to both cells, and rounding must not open a crack between them.

@@ -42,7 +42,8 @@ pub const ISOSURFACE: ObjectSpec = ObjectSpec::new(
         ParamSpec::new(
             "field",
             &[ANARI_SPATIAL_FIELD],
-            "spatial field to be isosurfaced",
+            "spatial field to be isosurfaced (structuredRegular or unstructured; read when \
+             the isosurface is committed)",
         )
         .required(),
     ],
@@ -501,8 +502,18 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
         ),
         _ => {}
     }
-    let (bvh, primitive_ids) =
-        with_build_pool(device.requested_thread_count(), || build(field, isovalues));
+    let (bvh, primitive_ids) = with_build_pool(device.requested_thread_count(), || {
+        build(field, isovalues.clone())
+    });
+    if primitive_ids.is_empty() {
+        device.warning(
+            Some(object),
+            format!(
+                "{what}: no cell of the field has values on both sides of any isovalue \
+                 {isovalues:?}; the isosurface is empty"
+            ),
+        );
+    }
     Some(Geometry {
         shape: Shape::Isosurface,
         bvh: Arc::new(bvh),
