@@ -98,7 +98,8 @@ fn messages_with(log: &Log, needle: &str) -> Vec<(i32, i32, String)> {
 
 #[test]
 fn isosurfaces_of_a_radial_field_render_their_shells_with_isovalue_ids_and_colours() {
-    let extensions = cavetrace::device::catalog::extensions();
+    use cavetrace::device::catalog::Kinds;
+    let extensions = cavetrace::kinds::KINDS.extensions();
     assert!(extensions.contains(&"ANARI_KHR_GEOMETRY_ISOSURFACE"));
     assert!(extensions.contains(&"ANARI_KHR_SPATIAL_FIELD_UNSTRUCTURED"));
     let log = Log::new();

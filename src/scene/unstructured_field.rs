@@ -7,11 +7,11 @@
 use glam::{DVec3, Vec3};
 
 use crate::device::Device;
+use crate::device::array::ArrayStore;
 use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::spec::{ObjectSpec, ParamSpec};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
-use crate::device::array::ArrayStore;
 use crate::scene::cell_shapes::{CellGeometry, CellShape, MAX_CELL_VERTICES};
 use crate::scene::spatial_field::{DATA_ELEMENT_TYPES, decode_scalars};
 
