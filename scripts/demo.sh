@@ -9,6 +9,10 @@
 #   out/cave/viewers/                      two tracked people, each alone and in every viewerMode
 #   out/cave/stereo/                       parallax (comfortable and too close), cyclopean and
 #                                          per-eye lighting, interleaved stereo, a light field
+#   out/cave/panorama/                     360° equirectangular (mono, omni-directional stereo) and
+#                                          a tilted planetarium dome (fisheye, centred and tracked)
+#   out/fields.png                         examples-c/fields.c: isosurfaces of a structured field
+#                                          beside an unstructured (tetrahedra) volume
 # Usage: scripts/demo.sh [wall resolution (default 256)] [head positions (default 4)]
 set -euo pipefail
 
@@ -29,13 +33,13 @@ ln -sf "$target_dir/release/libcavetrace.so" "$bin/lib/libcavetrace.so"
 ln -sf "$target_dir/release/libcavetrace.so" "$bin/lib/libcavetrace.so.0"
 cflags=(-std=c99 -O2 -Wall -Wextra -I"$root/include")
 echo "== building examples-c"
-for example in tutorial matrix_camera cave; do
+for example in tutorial matrix_camera cave fields; do
   "${CC:-cc}" "${cflags[@]}" "examples-c/$example.c" -o "$bin/$example" \
     -L"$bin/lib" -lcavetrace -Wl,-rpath,"$bin/lib" -lm
 done
 
 # Only the demo's own outputs are replaced, so the list below is exactly what this run wrote.
-rm -rf out/tutorial.png out/matrix_camera out/cave
+rm -rf out/tutorial.png out/matrix_camera out/cave out/fields.png
 mkdir -p out/matrix_camera out/cave
 echo "== tutorial"
 "$bin/tutorial" out/tutorial.png
@@ -43,10 +47,13 @@ echo "== matrix camera (a headset's two eyes from OpenGL matrices)"
 "$bin/matrix_camera" out/matrix_camera
 echo "== CAVE: 5 walls × 2 eyes × offAxis and matrix cameras, $steps head positions"
 "$bin/cave" out/cave "$resolution" "$steps"
+echo "== isosurfaces and an unstructured volume"
+"$bin/fields" out/fields.png
 
 # Every folder and file written, folders with the same files on one line.
 echo "== outputs in $root/out/"
 echo "out/tutorial.png"
+echo "out/fields.png"
 declare -A folders_of
 order=()
 while IFS= read -r folder; do
