@@ -83,7 +83,8 @@ impl MacrocellGrid {
     }
 
     /// Macrocells over the box `bounds` for cells given as (box, value range): every block a
-    /// cell's box touches takes its range. About one block per 8 cells, at most 64 per axis.
+    /// cell's box touches takes its range. About one block per cell, 8 to 64 along the box's
+    /// longest side.
     pub fn over_cells(
         bounds: (Vec3, Vec3),
         cells: impl Iterator<Item = ((Vec3, Vec3), ValueRange)>,
@@ -91,7 +92,9 @@ impl MacrocellGrid {
     ) -> MacrocellGrid {
         let (lo, hi) = bounds;
         let extent = (hi - lo).max(Vec3::splat(f32::MIN_POSITIVE));
-        let per_axis = ((cell_count as f32 / 8.0).cbrt()).max(1.0);
+        let per_axis = (cell_count as f32)
+            .cbrt()
+            .clamp(8.0, MAX_MACROCELLS_PER_AXIS as f32);
         // Blocks roughly cubic: proportional to the box's sides, the longest getting per_axis.
         let longest = extent.max_element();
         let dims = [0, 1, 2].map(|a| {

@@ -706,14 +706,15 @@ pub fn integrate(
 
 /// Fraction of light that crosses the volumes from `origin + t_start × direction` to
 /// `origin + t_end × direction` (0 once below the opaque threshold), samples `jitter` into their
-/// stretch (see [`march`]), and the number of field samples taken.
+/// stretch, with or without empty-space skipping (see [`march`]), and the number of field
+/// samples taken.
 pub fn transmittance(
     volumes: &[PlacedVolume],
     origin: Vec3,
     direction: Vec3,
-    t_start: f32,
-    t_end: f32,
+    (t_start, t_end): (f32, f32),
     jitter: f32,
+    skip: bool,
 ) -> (f32, u32) {
     let mut through = 1.0f32;
     let samples = march(
@@ -723,7 +724,7 @@ pub fn transmittance(
         t_start,
         t_end,
         jitter,
-        true,
+        skip,
         |step| {
             through *= step.transmittance();
             if through < OPAQUE_TRANSMITTANCE {
