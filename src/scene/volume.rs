@@ -784,6 +784,31 @@ mod tests {
     }
 
     #[test]
+    fn shadow_rays_see_the_analytic_transmittance_wherever_samples_fall() {
+        // Opacity 0.3 per unit distance 0.4: σ = −ln(0.7)/0.4. A ray entering at x = 0 at
+        // 30° from the axis crosses 1/cos 30° of the box before leaving through x = 1.
+        let volume = constant_box(0.5, 0.3, 0.4, 0);
+        let sigma = -(0.7f32.ln()) / 0.4;
+        let direction = Vec3::new(30f32.to_radians().cos(), 0.0, 30f32.to_radians().sin());
+        let origin = Vec3::new(0.0, 0.5, 0.1) - direction;
+        let path = 1.0 / 30f32.to_radians().cos();
+        for jitter in [0.0, 0.3, 0.77, 0.999] {
+            for skip in [true, false] {
+                let volumes = std::slice::from_ref(&volume);
+                let (through, samples) =
+                    transmittance(volumes, origin, direction, (0.0, 100.0), jitter, skip);
+                let expected = (-sigma * path).exp();
+                assert!((through - expected).abs() < 1e-5, "{through} vs {expected}");
+                assert!(samples >= 1);
+            }
+        }
+        // Stopping halfway through the box.
+        let half = 1.0 + 0.5 * path;
+        let (through, _) = transmittance(&[volume], origin, direction, (0.0, half), 0.5, true);
+        assert!((through - (-sigma * path * 0.5).exp()).abs() < 1e-5);
+    }
+
+    #[test]
     fn overlapping_volumes_absorb_together() {
         // Two identical boxes in the same place absorb like one with twice the optical depth.
         let a = constant_box(0.5, 0.5, 1.0, 1);
