@@ -12,6 +12,7 @@ use crate::render::bsdf::{
 };
 use crate::render::renderer::RendererSettings;
 use crate::render::surface_model::{HitInputs, SurfaceModel, evaluate_input};
+use crate::render::volume_lighting::{lit_volumes, shadow_transmittance};
 use crate::scene::attributes::{ATTRIBUTE_DEFAULT, Interpolation};
 use crate::scene::geometry::Geometry;
 use crate::scene::light::LightSampling;
@@ -180,6 +181,7 @@ fn direct_light(
         if cos <= 0.0 {
             continue;
         }
+        let mut visibility = 1.0;
         if settings.shadows {
             let t_max = if incoming.distance.is_finite() {
                 let light_point = point + incoming.to_light * incoming.distance;
@@ -193,8 +195,10 @@ fn direct_light(
             {
                 continue;
             }
+            let (t_min, direction) = (surface_epsilon(point), incoming.to_light);
+            visibility = shadow_transmittance(scene, point, direction, t_min, t_max, sampling);
         }
-        let irradiance = incoming.radiance * cos;
+        let irradiance = incoming.radiance * cos * visibility;
         each(incoming.to_light, irradiance);
         sum += irradiance;
     }
@@ -233,7 +237,7 @@ fn trace_seeing(
     beyond: impl FnOnce(Vec4) -> Vec4,
 ) -> Vec4 {
     let hit = scene.bvh.intersect(ray);
-    let volume = volumes_in_front(scene, ray, hit.as_ref());
+    let volume = volumes_in_front(scene, settings, ray, hit.as_ref(), sampling);
     if let Some(volume) = volume.filter(|v| v.transmittance == 0.0) {
         return volume.over(Vec4::ZERO);
     }
@@ -257,14 +261,21 @@ fn trace_seeing(
     volume.map_or(behind, |v| v.over(behind))
 }
 
-/// The volumes between the ray's start and its surface hit (or its end).
+/// The volumes between the ray's start and its surface hit (or its end): lit by the scene
+/// under the default renderer, emitting their colour under the fast one.
 fn volumes_in_front(
     scene: &SceneSnapshot,
+    settings: &RendererSettings,
     ray: &Ray,
     hit: Option<&SceneHit>,
+    sampling: &LightSampling,
 ) -> Option<VolumeIntegral> {
     let t_end = hit.map_or(ray.t_max, |h| h.t);
-    integrate(&scene.volumes, ray.origin, ray.direction, ray.t_min, t_end)
+    if settings.fast {
+        integrate(&scene.volumes, ray.origin, ray.direction, ray.t_min, t_end)
+    } else {
+        lit_volumes(scene, settings, ray, t_end, sampling)
+    }
 }
 
 /// The default renderer's shading, glTF's layering (glTF 2.0 Appendix B and the
@@ -685,7 +696,7 @@ pub fn shade_primary_at(
     cyclopean: Option<Vec3>,
     sampling: &LightSampling,
 ) -> Sample {
-    let Some(volume) = volumes_in_front(scene, ray, hit.as_ref()) else {
+    let Some(volume) = volumes_in_front(scene, settings, ray, hit.as_ref(), sampling) else {
         return shade_surface_primary(scene, settings, ray, hit, screen, cyclopean, sampling);
     };
     // What lies behind matters only if light from there gets through.

@@ -9,6 +9,7 @@ pub mod interleave;
 pub mod progressive;
 pub mod renderer;
 pub mod surface_model;
+pub mod volume_lighting;
 
 use std::collections::HashMap;
 use std::sync::Arc;

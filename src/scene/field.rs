@@ -5,6 +5,7 @@ use std::sync::Arc;
 use glam::Vec3;
 
 use crate::device::object::Object;
+use crate::scene::macrocells::MacrocellGrid;
 use crate::scene::spatial_field::StructuredRegularField;
 use crate::scene::unstructured_field::UnstructuredField;
 
@@ -62,6 +63,14 @@ impl Field {
         match self {
             Field::Structured(f) => f.sample(point),
             Field::Unstructured(f) => f.sample(point),
+        }
+    }
+
+    /// Value ranges of blocks of the field, for empty-space skipping.
+    pub fn macrocells(&self) -> &MacrocellGrid {
+        match self {
+            Field::Structured(f) => f.macrocells(),
+            Field::Unstructured(f) => f.macrocells(),
         }
     }
 }

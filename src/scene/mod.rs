@@ -11,6 +11,7 @@ pub mod instance;
 pub mod isosurface;
 pub mod light;
 pub mod limits;
+pub mod macrocells;
 pub mod material;
 pub mod sampler;
 pub mod spatial_field;

@@ -9,6 +9,7 @@ use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
+use crate::scene::macrocells::MacrocellGrid;
 
 /// Element types `data` may hold (KHR_SPATIAL_FIELD_STRUCTURED_REGULAR).
 pub const DATA_ELEMENT_TYPES: &[ANARIDataType] = &[
@@ -103,6 +104,8 @@ pub struct StructuredRegularField {
     /// Largest grid coordinate on each axis (dims − 1).
     last: Vec3,
     nearest: bool,
+    /// Value ranges of blocks of cells, for volumes' empty-space skipping.
+    macrocells: MacrocellGrid,
 }
 
 impl StructuredRegularField {
@@ -113,7 +116,7 @@ impl StructuredRegularField {
         spacing: Vec3,
         nearest: bool,
     ) -> StructuredRegularField {
-        StructuredRegularField {
+        let mut field = StructuredRegularField {
             dims,
             voxels,
             origin,
@@ -125,7 +128,16 @@ impl StructuredRegularField {
                 (dims[2] - 1) as f32,
             ),
             nearest,
-        }
+            macrocells: MacrocellGrid::over_grid([1, 1, 1], origin, spacing, |_| f32::NAN),
+        };
+        field.macrocells =
+            MacrocellGrid::over_grid(dims, origin, spacing, |v| field.vertex_value(v));
+        field
+    }
+
+    /// Value ranges of blocks of cells.
+    pub fn macrocells(&self) -> &MacrocellGrid {
+        &self.macrocells
     }
 
     /// A field of FLOAT32 values (x fastest); `None` when `values` does not fill `dims`.

@@ -13,6 +13,7 @@ use crate::device::object::Object;
 use crate::device::spec::{ObjectSpec, ParamSpec};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
 use crate::scene::cell_shapes::{CellGeometry, CellShape, MAX_CELL_VERTICES};
+use crate::scene::macrocells::MacrocellGrid;
 use crate::scene::spatial_field::{DATA_ELEMENT_TYPES, decode_scalars};
 
 const ARRAY: &[ANARIDataType] = &[ANARI_ARRAY1D];
@@ -104,6 +105,8 @@ pub struct UnstructuredField {
     order: Vec<u32>,
     bounds: (Vec3, Vec3),
     step: f32,
+    /// Value ranges of blocks of space, for volumes' empty-space skipping.
+    macrocells: MacrocellGrid,
 }
 
 fn cell_box(points: &[DVec3]) -> (Vec3, Vec3) {
@@ -130,6 +133,7 @@ impl UnstructuredField {
             order: Vec::new(),
             bounds: (Vec3::INFINITY, Vec3::NEG_INFINITY),
             step: 0.0,
+            macrocells: MacrocellGrid::over_cells((Vec3::ZERO, Vec3::ONE), std::iter::empty(), 0),
         };
         let mut smallest_side = f32::INFINITY;
         field.boxes = (0..field.cells.len())
@@ -154,7 +158,20 @@ impl UnstructuredField {
         let mut order = std::mem::take(&mut field.order);
         field.build_node(&mut order, 0);
         field.order = order;
+        let ranges = (0..field.cells.len() as u32).map(|c| {
+            let count = field.cells[c as usize].shape.vertex_count();
+            let values = &field.cell_values(c)[..count];
+            let lo = values.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = values.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            (field.boxes[c as usize], (lo as f32, hi as f32))
+        });
+        field.macrocells = MacrocellGrid::over_cells(field.bounds, ranges, field.cells.len());
         field
+    }
+
+    /// Value ranges of blocks of space (empty where no cell is).
+    pub fn macrocells(&self) -> &MacrocellGrid {
+        &self.macrocells
     }
 
     /// Builds the subtree over `cells` (a slice of the order starting at `offset`).
