@@ -233,6 +233,7 @@ mod tests {
                 position: Vec3::ZERO,
                 intensity: Vec3::ONE,
                 radius: 0.0,
+                visible: true,
             })
         );
         device.release("anariRelease", handle);
