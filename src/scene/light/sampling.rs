@@ -92,6 +92,28 @@ impl LightSampling {
     }
 }
 
+impl LightSampling {
+    /// The point in [0,1)² that picks the ambient-occlusion ray at bounce `depth`. At the
+    /// camera ray's hit: Roberts' R2 sequence by sample index, shifted by a per-pixel offset
+    /// (hashed from the light's, so the two are independent), so that pixelSamples and
+    /// accumulated frames cover the hemisphere evenly while neighbouring pixels do not share a
+    /// pattern. Deeper bounces hash the index, the pixel and the depth.
+    pub fn ambient_point(&self, depth: u32) -> Vec2 {
+        let unit = |bits: u32| (bits >> 8) as f32 * (1.0 / (1u32 << 24) as f32);
+        if depth == 0 {
+            let hash = mix(self.scramble.x.to_bits() ^ mix(self.scramble.y.to_bits() ^ 0xA0761D65));
+            let shift = Vec2::new(unit(hash), unit(mix(hash)));
+            let r2 = Vec2::new(
+                unit(self.index.wrapping_mul(3_242_174_889)),
+                unit(self.index.wrapping_mul(2_447_445_414)),
+            );
+            return (r2 + shift).fract().min(Vec2::splat(1.0 - f32::EPSILON));
+        }
+        let mut more = self.reflection_numbers(depth.wrapping_add(0x8000_0000));
+        Vec2::new(more(), more())
+    }
+}
+
 impl Default for LightSampling {
     /// Sample 0 with no scramble: the centre-weighted first Halton point.
     fn default() -> LightSampling {
