@@ -287,19 +287,19 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
 #[derive(Clone, Copy)]
 enum Leaving {
     /// A camera ray, or one that continues it straight through a transparent surface: the
-    /// lights that are `visible`, over the background unless a visible hdri light takes its
-    /// place.
+    /// environment lights that are `visible`, in the background's place.
     Camera,
-    /// A mirror reflection or a refraction: every environment light, over the background
-    /// unless an hdri light takes its place.
+    /// A mirror reflection or a refraction: every environment light, in the background's
+    /// place.
     Mirror,
     /// A reflection drawn from a glossy lobe: as a mirror's, each environment light weighed
     /// against its light samples.
     Lobe(Lobe),
 }
 
-/// What a ray along unit `direction` sees where it leaves the scene: the background (through
-/// `beyond`) unless an hdri light takes its place, plus the environment lights.
+/// What a ray along unit `direction` sees where it leaves the scene: the environment lights,
+/// or where none is there (no hdri light, no disk in that direction) the background (through
+/// `beyond`).
 fn leaving_scene(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
@@ -314,6 +314,7 @@ fn leaving_scene(
     for light in scene.lights.iter().filter(|light| seen(light)) {
         replaced |= light.is_hdri();
         if let Some(environment) = light.environment(direction) {
+            replaced = true;
             let weight = match &leaving {
                 Leaving::Lobe(lobe) => power_heuristic(lobe.pdf(direction), environment.pdf),
                 _ => 1.0,
@@ -322,13 +323,23 @@ fn leaving_scene(
         }
     }
     if replaced {
-        return radiance.extend(1.0);
+        radiance.extend(1.0)
+    } else {
+        beyond(settings.background_for(screen))
     }
-    let backdrop = beyond(settings.background_for(screen));
-    if radiance == Vec3::ZERO {
-        return backdrop;
+}
+
+/// The radiance of the nearest visible light with extent in the scene (a sphere, quad or ring
+/// light) that a camera ray meets before `t_end`.
+fn visible_light_in_front(scene: &SceneSnapshot, ray: &Ray, t_end: f32) -> Option<Vec3> {
+    let mut nearest: Option<(f32, Vec3)> = None;
+    for light in scene.lights.iter().filter(|light| light.visible()) {
+        let t_max = nearest.map_or(t_end, |(t, _)| t);
+        if let Some(found) = light.hit_by(ray.origin, ray.direction, t_max) {
+            nearest = Some(found);
+        }
     }
-    (backdrop.truncate() + radiance).extend(1.0)
+    nearest.map(|(_, radiance)| radiance)
 }
 
 /// Radiance along a ray (the default renderer) of the pixel sample at `screen` (see
@@ -371,9 +382,16 @@ fn trace_seeing(
     if let Some(volume) = volume.filter(|v| v.transmittance == 0.0) {
         return volume.over(Vec4::ZERO);
     }
-    let behind = match hit {
-        None => leaving_scene(scene, settings, ray.direction, screen, leaving, beyond),
-        Some(hit) => {
+    let light = match leaving {
+        Leaving::Camera => {
+            visible_light_in_front(scene, ray, hit.as_ref().map_or(ray.t_max, |h| h.t))
+        }
+        _ => None,
+    };
+    let behind = match (light, hit) {
+        (Some(radiance), _) => radiance.extend(1.0),
+        (None, None) => leaving_scene(scene, settings, ray.direction, screen, leaving, beyond),
+        (None, Some(hit)) => {
             let sp = shading_point(scene, ray, &hit);
             shade(
                 scene,
@@ -973,6 +991,17 @@ fn shade_surface_primary(
     cyclopean: Option<Vec3>,
     sampling: &LightSampling,
 ) -> Sample {
+    // A visible light with extent in front of the surface shows instead (no channel
+    // describes it, as none describes the background).
+    if !settings.fast
+        && let Some(radiance) =
+            visible_light_in_front(scene, ray, hit.as_ref().map_or(ray.t_max, |h| h.t))
+    {
+        return Sample {
+            color: radiance.extend(1.0),
+            hit: None,
+        };
+    }
     let Some(hit) = hit else {
         let color = if settings.fast {
             settings.background_for(screen)

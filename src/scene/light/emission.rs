@@ -8,7 +8,7 @@ use std::f32::consts::PI;
 use glam::Vec3;
 
 use super::Light;
-use super::sampling::disk_pdf;
+use super::sampling::{disk_pdf, spot_falloff};
 
 /// An environment's radiance from one direction and the density per solid angle of its light
 /// samples there.
@@ -52,6 +52,86 @@ impl Light {
                     radiance: map.radiance(local),
                     pdf: map.pdf(local),
                 })
+            }
+            _ => None,
+        }
+    }
+
+    /// Where a ray from `origin` along unit `direction` meets a light with extent in the scene
+    /// (a sphere light, a quad, a ring) before `t_max`, and the radiance it sees there; `None`
+    /// for lights at infinity and lights without extent.
+    pub fn hit_by(&self, origin: Vec3, direction: Vec3, t_max: f32) -> Option<(f32, Vec3)> {
+        match *self {
+            Light::Point {
+                position,
+                intensity,
+                radius,
+                ..
+            } if radius > 0.0 => {
+                // |o + t d − p|² = r²: the near root.
+                let to_centre = position - origin;
+                let along = to_centre.dot(direction);
+                let across2 = to_centre.length_squared() - along * along;
+                let inside = radius * radius - across2;
+                let t = along - inside.max(0.0).sqrt();
+                (inside >= 0.0 && t > 0.0 && t < t_max)
+                    .then(|| (t, intensity / (PI * radius * radius)))
+            }
+            Light::Quad {
+                position,
+                edge1,
+                edge2,
+                radiance,
+                side,
+                ..
+            } => {
+                let normal = edge1.cross(edge2);
+                let facing = direction.dot(normal);
+                let t = (position - origin).dot(normal) / facing;
+                if !(t > 0.0 && t < t_max) {
+                    return None;
+                }
+                let offset = origin + direction * t - position;
+                let norm2 = normal.length_squared();
+                let u = offset.cross(edge2).dot(normal) / norm2;
+                let v = edge1.cross(offset).dot(normal) / norm2;
+                // The front side faces along edge1 × edge2, so a ray against it sees it.
+                let seen = match side {
+                    super::QuadSide::Front => facing < 0.0,
+                    super::QuadSide::Back => facing > 0.0,
+                    super::QuadSide::Both => true,
+                };
+                ((0.0..=1.0).contains(&u) && (0.0..=1.0).contains(&v) && seen)
+                    .then_some((t, radiance))
+            }
+            Light::Ring {
+                position,
+                direction: axis,
+                intensity,
+                cos_outer,
+                cos_inner,
+                inner,
+                outer,
+                ..
+            } if outer > 0.0 => {
+                // The annulus emits along its axis: a ray travelling against it sees it.
+                let cos_angle = -direction.dot(axis);
+                if cos_angle <= 0.0 {
+                    return None;
+                }
+                let t = (position - origin).dot(axis) / direction.dot(axis);
+                if !(t > 0.0 && t < t_max) {
+                    return None;
+                }
+                let radius = (origin + direction * t - position).length();
+                if radius < inner || radius > outer {
+                    return None;
+                }
+                // Each point is a spot of the ring's intensity over its area: radiance is
+                // that intensity per area over the projected area, cos of the angle.
+                let area = PI * (outer * outer - inner * inner);
+                let falloff = spot_falloff(cos_angle, cos_outer, cos_inner);
+                Some((t, intensity * falloff / (area * cos_angle)))
             }
             _ => None,
         }

@@ -145,6 +145,20 @@ pub fn radical_inverse(mut i: u32, base: u32) -> f32 {
     value as f32
 }
 
+/// A spot's share of its intensity at cos `cos_angle` off its axis: 1 inside the inner cone,
+/// 0 outside the outer, smoothstep in cos between.
+pub(super) fn spot_falloff(cos_angle: f32, cos_outer: f32, cos_inner: f32) -> f32 {
+    if cos_angle <= cos_outer {
+        return 0.0;
+    }
+    let edge = if cos_inner > cos_outer {
+        ((cos_angle - cos_outer) / (cos_inner - cos_outer)).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    edge * edge * (3.0 - 2.0 * edge)
+}
+
 /// The density per solid angle of directions uniform in a cone of half-angle acos(`cos_max`):
 /// 1 / (2π(1 − cos)).
 pub(super) fn disk_pdf(cos_max: f32) -> f32 {
@@ -352,12 +366,7 @@ impl Light {
                 if cos_angle <= cos_outer {
                     return None;
                 }
-                let edge = if cos_inner > cos_outer {
-                    ((cos_angle - cos_outer) / (cos_inner - cos_outer)).clamp(0.0, 1.0)
-                } else {
-                    1.0
-                };
-                let smooth = edge * edge * (3.0 - 2.0 * edge);
+                let smooth = spot_falloff(cos_angle, cos_outer, cos_inner);
                 Some(Incoming {
                     to_light,
                     distance,
