@@ -204,8 +204,9 @@ fn direct_light(
 
 /// The share of the ambient light that reaches `point` on a surface of unit `normal`: one
 /// ray, drawn in proportion to the cosine (as a diffuse surface gathers uniform light), that
-/// either leaves unoccluded within the renderer's `ambientOcclusionDistance` (1) or does not
-/// (0), so the mean over samples is the cosine-weighted unoccluded fraction of the hemisphere.
+/// either leaves unoccluded within the renderer's `ambientOcclusionDistance` (1) or meets an
+/// opaque surface (0), so the mean over samples is the cosine-weighted unoccluded fraction of
+/// the hemisphere.
 fn ambient_visibility(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
@@ -226,9 +227,31 @@ fn ambient_visibility(
         + bitangent * (radius * angle.sin())
         + normal * (1.0 - u.x).max(0.0).sqrt())
     .normalize_or(normal);
-    let occluded = scene.bvh.occluded(&offset_ray(point, direction, reach));
-    if occluded { 0.0 } else { 1.0 }
+    let mut ray = offset_ray(point, direction, reach);
+    if !scene.see_through {
+        return if scene.bvh.occluded(&ray) { 0.0 } else { 1.0 };
+    }
+    // Surfaces that let light through do not hide the ambient light (it stands for light
+    // from everywhere, which fills what they enclose).
+    for _ in 0..MAX_SEE_THROUGH {
+        let Some(hit) = scene.bvh.intersect(&ray) else {
+            return 1.0;
+        };
+        let instance = &scene.instances[hit.instance as usize];
+        if !instance.surfaces[hit.geometry as usize]
+            .material
+            .lets_light_through()
+        {
+            return 0.0;
+        }
+        let at = ray.origin + ray.direction * hit.t;
+        ray.t_min = hit.t + surface_epsilon(at);
+    }
+    1.0
 }
+
+/// Most surfaces that let light through an ambient-occlusion ray looks past.
+const MAX_SEE_THROUGH: u32 = 16;
 
 /// A glossy lobe that drew a reflection: GGX of `alpha` around `normal`, seen from
 /// `to_viewer`, whose draws are distributed as D·V·(n·l) / E (see
