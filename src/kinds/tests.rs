@@ -97,6 +97,7 @@ fn commit_reports_bad_values_and_build_ignores_them() {
             position: Vec3::ZERO,
             intensity: Vec3::ONE,
             radius: 0.0,
+            visible: true,
         })
     );
     device.release("anariRelease", handle);

@@ -15,7 +15,7 @@ use crate::render::surface_model::{HitInputs, SurfaceModel, evaluate_input};
 use crate::render::volume_lighting::{lit_volumes, shadow_transmittance};
 use crate::scene::attributes::{ATTRIBUTE_DEFAULT, Interpolation};
 use crate::scene::geometry::Geometry;
-use crate::scene::light::LightSampling;
+use crate::scene::light::{Light, LightSampling};
 use crate::scene::material::{Input, Material, MaterialKind};
 use crate::scene::volume::{VolumeIntegral, integrate};
 use crate::scene::world::{InstanceData, SceneSnapshot};
@@ -163,14 +163,15 @@ fn offset_ray(origin: Vec3, direction: Vec3, t_max: f32) -> Ray {
 
 /// Direct irradiance from the scene's lights at `point` on a surface of unit `normal`; lights
 /// with extent are sampled at `sampling`'s point (one shadow ray each), so their soft shadows
-/// converge over samples. `each` sees every unshadowed light's direction and irradiance.
+/// converge over samples. `each` sees every unshadowed light's direction and irradiance, and
+/// for an environment the density its sample was drawn with (see [`Lobe`]).
 fn direct_light(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
     point: Vec3,
     normal: Vec3,
     sampling: &LightSampling,
-    mut each: impl FnMut(Vec3, Vec3),
+    mut each: impl FnMut(Vec3, Vec3, Option<f32>),
 ) -> Vec3 {
     let mut sum = Vec3::ZERO;
     for light in &scene.lights {
@@ -199,14 +200,177 @@ fn direct_light(
             visibility = shadow_transmittance(scene, point, direction, t_min, t_max, sampling);
         }
         let irradiance = incoming.radiance * cos * visibility;
-        each(incoming.to_light, irradiance);
+        each(incoming.to_light, irradiance, incoming.pdf);
         sum += irradiance;
     }
     sum
 }
 
+/// The share of the ambient light that reaches `point` on a surface of unit `normal`: one
+/// ray, drawn in proportion to the cosine (as a diffuse surface gathers uniform light), that
+/// either leaves unoccluded within the renderer's `ambientOcclusionDistance` (1) or meets an
+/// opaque surface (0), so the mean over samples is the cosine-weighted unoccluded fraction of
+/// the hemisphere.
+fn ambient_visibility(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    point: Vec3,
+    normal: Vec3,
+    depth: u32,
+    sampling: &LightSampling,
+) -> f32 {
+    let reach = settings.ambient_occlusion_distance;
+    if settings.ambient == Vec3::ZERO || reach <= 0.0 {
+        return 1.0;
+    }
+    let u = sampling.ambient_point(depth);
+    let radius = u.x.sqrt();
+    let angle = std::f32::consts::TAU * u.y;
+    let (tangent, bitangent) = normal.any_orthonormal_pair();
+    let direction = (tangent * (radius * angle.cos())
+        + bitangent * (radius * angle.sin())
+        + normal * (1.0 - u.x).max(0.0).sqrt())
+    .normalize_or(normal);
+    let mut ray = offset_ray(point, direction, reach);
+    if !scene.see_through {
+        return if scene.bvh.occluded(&ray) { 0.0 } else { 1.0 };
+    }
+    // Surfaces that let light through do not hide the ambient light (it stands for light
+    // from everywhere, which fills what they enclose).
+    for _ in 0..MAX_SEE_THROUGH {
+        let Some(hit) = scene.bvh.intersect(&ray) else {
+            return 1.0;
+        };
+        let instance = &scene.instances[hit.instance as usize];
+        if !instance.surfaces[hit.geometry as usize]
+            .material
+            .lets_light_through()
+        {
+            return 0.0;
+        }
+        let at = ray.origin + ray.direction * hit.t;
+        ray.t_min = hit.t + surface_epsilon(at);
+    }
+    1.0
+}
+
+/// Most surfaces that let light through an ambient-occlusion ray looks past.
+const MAX_SEE_THROUGH: u32 = 16;
+
+/// A glossy lobe that drew a reflection: GGX of `alpha` around `normal`, seen from
+/// `to_viewer`, whose draws are distributed as D·V·(n·l) / E (see
+/// [`crate::render::bsdf::sample_glossy`]). An environment is reached both by its light
+/// samples and by such reflections; each estimate is weighed by the power heuristic
+/// (multiple importance sampling), so a near-mirror (whose lobe finds the light better) and a
+/// rough surface (whose light samples do) both converge without fireflies.
+#[derive(Clone, Copy)]
+struct Lobe {
+    normal: Vec3,
+    to_viewer: Vec3,
+    alpha: f32,
+    albedo: f32,
+}
+
+impl Lobe {
+    /// The density per solid angle of a reflection towards unit `to_light`.
+    fn pdf(&self, to_light: Vec3) -> f32 {
+        let cos_light = to_light.dot(self.normal);
+        // As the lobe is sampled: a view below the horizon is seen from just above.
+        let cos_view = self.to_viewer.dot(self.normal).max(1e-4);
+        if cos_light <= 0.0 {
+            return 0.0;
+        }
+        let half = (to_light + self.to_viewer).normalize_or(self.normal);
+        ggx_distribution(self.alpha, half.dot(self.normal))
+            * smith_visibility(self.alpha, cos_light, cos_view)
+            * cos_light
+            / self.albedo.max(1e-3)
+    }
+
+    /// The weight of a light sample of density `light_pdf` (None: a light no reflection can
+    /// reach) towards `to_light`, against this lobe.
+    fn light_weight(lobe: Option<&Lobe>, to_light: Vec3, light_pdf: Option<f32>) -> f32 {
+        match (lobe, light_pdf) {
+            (Some(lobe), Some(pdf)) => power_heuristic(pdf, lobe.pdf(to_light)),
+            _ => 1.0,
+        }
+    }
+}
+
+/// The power heuristic (β = 2): the weight of an estimate of density `a` combined with one of
+/// density `b`.
+fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2.is_infinite() {
+        1.0
+    } else if a2 + b2 > 0.0 {
+        a2 / (a2 + b2)
+    } else {
+        0.0
+    }
+}
+
+/// How a ray started, which decides what it sees where it leaves the scene.
+#[derive(Clone, Copy)]
+enum Leaving {
+    /// A camera ray, or one that continues it straight through a transparent surface: the
+    /// environment lights that are `visible`, in the background's place.
+    Camera,
+    /// A mirror reflection or a refraction: every environment light, in the background's
+    /// place.
+    Mirror,
+    /// A reflection drawn from a glossy lobe: as a mirror's, each environment light weighed
+    /// against its light samples.
+    Lobe(Lobe),
+}
+
+/// What a ray along unit `direction` sees where it leaves the scene: the environment lights,
+/// or where none is there (no hdri light, no disk in that direction) the background (through
+/// `beyond`).
+fn leaving_scene(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    direction: Vec3,
+    screen: Option<Vec2>,
+    leaving: Leaving,
+    beyond: impl FnOnce(Vec4) -> Vec4,
+) -> Vec4 {
+    let seen = |light: &Light| !matches!(leaving, Leaving::Camera) || light.visible();
+    let mut radiance = Vec3::ZERO;
+    let mut replaced = false;
+    for light in scene.lights.iter().filter(|light| seen(light)) {
+        replaced |= light.is_hdri();
+        if let Some(environment) = light.environment(direction) {
+            replaced = true;
+            let weight = match &leaving {
+                Leaving::Lobe(lobe) => power_heuristic(lobe.pdf(direction), environment.pdf),
+                _ => 1.0,
+            };
+            radiance += environment.radiance * weight;
+        }
+    }
+    if replaced {
+        radiance.extend(1.0)
+    } else {
+        beyond(settings.background_for(screen))
+    }
+}
+
+/// The radiance of the nearest visible light with extent in the scene (a sphere, quad or ring
+/// light) that a camera ray meets before `t_end`.
+fn visible_light_in_front(scene: &SceneSnapshot, ray: &Ray, t_end: f32) -> Option<Vec3> {
+    let mut nearest: Option<(f32, Vec3)> = None;
+    for light in scene.lights.iter().filter(|light| light.visible()) {
+        let t_max = nearest.map_or(t_end, |(t, _)| t);
+        if let Some(found) = light.hit_by(ray.origin, ray.direction, t_max) {
+            nearest = Some(found);
+        }
+    }
+    nearest.map(|(_, radiance)| radiance)
+}
+
 /// Radiance along a ray (the default renderer) of the pixel sample at `screen` (see
-/// [`RendererSettings::background_at`]).
+/// [`RendererSettings::background_at`]), a mirror reflection or refraction.
 pub fn trace(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
@@ -222,11 +386,14 @@ pub fn trace(
         depth,
         screen,
         sampling,
+        Leaving::Mirror,
         |background| background,
     )
 }
 
-/// [`trace`], where a ray that leaves the scene sees `beyond` of the background.
+/// [`trace`] for a ray started as `leaving` says, where a ray that leaves the scene sees
+/// `beyond` of the background.
+#[allow(clippy::too_many_arguments)]
 fn trace_seeing(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
@@ -234,6 +401,7 @@ fn trace_seeing(
     depth: u32,
     screen: Option<Vec2>,
     sampling: &LightSampling,
+    leaving: Leaving,
     beyond: impl FnOnce(Vec4) -> Vec4,
 ) -> Vec4 {
     let hit = scene.bvh.intersect(ray);
@@ -241,9 +409,16 @@ fn trace_seeing(
     if let Some(volume) = volume.filter(|v| v.transmittance == 0.0) {
         return volume.over(Vec4::ZERO);
     }
-    let behind = match hit {
-        None => beyond(settings.background_for(screen)),
-        Some(hit) => {
+    let light = match leaving {
+        Leaving::Camera => {
+            visible_light_in_front(scene, ray, hit.as_ref().map_or(ray.t_max, |h| h.t))
+        }
+        _ => None,
+    };
+    let behind = match (light, hit) {
+        (Some(radiance), _) => radiance.extend(1.0),
+        (None, None) => leaving_scene(scene, settings, ray.direction, screen, leaving, beyond),
+        (None, Some(hit)) => {
             let sp = shading_point(scene, ray, &hit);
             shade(
                 scene,
@@ -254,6 +429,7 @@ fn trace_seeing(
                 depth,
                 screen,
                 sampling,
+                matches!(leaving, Leaving::Camera),
             )
             .extend(1.0)
         }
@@ -286,7 +462,9 @@ fn volumes_in_front(
 /// than arrives. Reflection lobes are GGX microfacet lobes (α = roughness²): F·D·V per light,
 /// and one reflection drawn from the visible normals per sample (a mirror at roughness 0).
 /// `view`: the unit direction view-dependent terms look along (see
-/// [`RendererSettings::view_direction`]).
+/// [`RendererSettings::view_direction`]). `from_camera`: `ray` is a camera ray (or continues
+/// one straight through transparent surfaces), so what it passes on to sees only visible
+/// lights.
 #[allow(clippy::too_many_arguments)]
 fn shade(
     scene: &SceneSnapshot,
@@ -297,6 +475,7 @@ fn shade(
     depth: u32,
     screen: Option<Vec2>,
     sampling: &LightSampling,
+    from_camera: bool,
 ) -> Vec3 {
     let model = sp.surface_model();
     let normal = model.normal;
@@ -304,8 +483,11 @@ fn shade(
     let cos_view = to_viewer.dot(normal).clamp(0.0, 1.0);
     let can_trace = depth < settings.max_ray_depth;
     // Ambient light is radiance from every direction: it arrives as irradiance π·L, where the
-    // occlusion map lets it.
+    // occlusion map lets it. Reflections find it themselves; what gathers it over the
+    // hemisphere (the diffuse base, the sheen) sees it where the scene does not occlude it.
     let ambient = settings.ambient * model.occlusion;
+    let gathered_ambient =
+        ambient * ambient_visibility(scene, settings, sp.point, normal, depth, sampling);
     let sheen_on = model.sheen_color != Vec3::ZERO;
     // Non-metallic: a diffuse base under a reflection, or by `transmission` a clear dielectric.
     let dielectric_share = 1.0 - sp.metallic;
@@ -353,6 +535,21 @@ fn shade(
         1.0
     };
 
+    // The reflections that will be drawn, which environment light samples are weighed
+    // against.
+    let base_lobe = (can_trace && glossy).then_some(Lobe {
+        normal,
+        to_viewer,
+        alpha,
+        albedo,
+    });
+    let coat_lobe = (can_trace && coat_glossy).then_some(Lobe {
+        normal: model.coat_normal,
+        to_viewer,
+        alpha: coat_alpha,
+        albedo: coat_albedo,
+    });
+
     // Direct light, per light: the diffuse base keeps what the dielectric's reflection at that
     // light's half vector leaves, the microfacet lobes add F·D·V·(n·l)·E (glTF Appendix B).
     let mut sheen = Vec3::ZERO;
@@ -366,10 +563,11 @@ fn shade(
         sp.point,
         normal,
         sampling,
-        |to_light, irradiance| {
+        |to_light, irradiance, light_pdf| {
             if !lobes_per_light {
                 return;
             }
+            let base_weight = Lobe::light_weight(base_lobe.as_ref(), to_light, light_pdf);
             let cos_light = to_light.dot(normal);
             let half = (to_light + to_viewer).normalize_or(normal);
             let cos_half = half.dot(normal);
@@ -387,18 +585,19 @@ fn shade(
             if specular_on {
                 let fresnel = dielectric_fresnel(cos_view_half);
                 diffuse_irradiance += irradiance * (1.0 - fresnel.max_element());
-                specular_direct += irradiance * fresnel * microfacet;
+                specular_direct += irradiance * fresnel * (microfacet * base_weight);
             }
             if metal_on && glossy {
                 metal_direct += irradiance
                     * metal_fresnel(cos_view_half)
-                    * (microfacet * albedo)
+                    * (microfacet * albedo * base_weight)
                     * metal_compensation;
             }
             if coat_glossy && coat_shares_normal {
                 coat_direct += irradiance
                     * ggx_distribution(coat_alpha, cos_half)
                     * smith_visibility(coat_alpha, cos_light, cos_view)
+                    * Lobe::light_weight(coat_lobe.as_ref(), to_light, light_pdf)
                     / coat_albedo;
             }
         },
@@ -429,12 +628,12 @@ fn shade(
         if specular_on {
             let fresnel = dielectric_fresnel(cos_sampled);
             let keep = 1.0 - fresnel.max_element();
-            let diffuse =
-                keep * (lambert * (ambient * std::f32::consts::PI)) + lambert * diffuse_irradiance;
+            let diffuse = keep * (lambert * (gathered_ambient * std::f32::consts::PI))
+                + lambert * diffuse_irradiance;
             let reflected = base_reflection.map_or(Vec3::ZERO, |r| fresnel * r.radiance);
             color += opaque * (diffuse + specular_direct + reflected);
         } else {
-            color += opaque * (lambert * (direct + ambient * std::f32::consts::PI));
+            color += opaque * (lambert * (direct + gathered_ambient * std::f32::consts::PI));
         }
     }
     if metal_on {
@@ -447,7 +646,16 @@ fn shade(
     if clear > 0.0 && can_trace {
         color += clear
             * dielectric(
-                scene, settings, ray, view, sp, &model, depth, screen, sampling,
+                scene,
+                settings,
+                ray,
+                view,
+                sp,
+                &model,
+                depth,
+                screen,
+                sampling,
+                from_camera,
             );
     }
     if sheen_on {
@@ -455,7 +663,7 @@ fn shade(
         // max(sheenColor)·E.
         let albedo = sheen_albedo(cos_view, model.sheen_roughness);
         color = color * (1.0 - model.sheen_color.max_element() * albedo)
-            + model.sheen_color * (sheen + albedo * ambient);
+            + model.sheen_color * (sheen + albedo * gathered_ambient);
     }
     color += sp.emissive;
     if coat_on {
@@ -473,11 +681,12 @@ fn shade(
                 sp.point,
                 coat_normal,
                 sampling,
-                |to_light, irradiance| {
+                |to_light, irradiance, light_pdf| {
                     let half = (to_light + to_viewer).normalize_or(coat_normal);
                     coat_direct += irradiance
                         * ggx_distribution(coat_alpha, half.dot(coat_normal))
                         * smith_visibility(coat_alpha, to_light.dot(coat_normal), cos_coat_view)
+                        * Lobe::light_weight(coat_lobe.as_ref(), to_light, light_pdf)
                         / coat_albedo;
                 },
             );
@@ -512,6 +721,7 @@ fn shade(
             depth,
             screen,
             sampling,
+            straight_on(from_camera),
         );
         color = color * sp.opacity + behind * (1.0 - sp.opacity);
     }
@@ -569,7 +779,14 @@ fn reflection(
         return Some(Reflection {
             half: normal,
             radiance: traced_from(
-                scene, settings, sp.point, reflected, depth, screen, sampling,
+                scene,
+                settings,
+                sp.point,
+                reflected,
+                depth,
+                screen,
+                sampling,
+                Leaving::Mirror,
             ),
         });
     }
@@ -578,14 +795,46 @@ fn reflection(
     let beyond = |background: Vec4| {
         (background.truncate() * (1.0 - roughness) + ambient * roughness).extend(background.w)
     };
-    let radiance = trace_seeing(scene, settings, &ray, depth + 1, screen, sampling, beyond);
+    let lobe = Lobe {
+        normal,
+        to_viewer: -view,
+        alpha,
+        albedo: microfacet_albedo(to_viewer_cos(view, normal), roughness),
+    };
+    let radiance = trace_seeing(
+        scene,
+        settings,
+        &ray,
+        depth + 1,
+        screen,
+        sampling,
+        Leaving::Lobe(lobe),
+        beyond,
+    );
     Some(Reflection {
         half: sample.half,
         radiance: radiance.truncate(),
     })
 }
 
-/// Radiance arriving at `point` from `direction` (a secondary ray one bounce deeper).
+/// cos between the viewer and `normal` for a view along `view`, as the lobe sees it.
+fn to_viewer_cos(view: Vec3, normal: Vec3) -> f32 {
+    (-view).dot(normal).clamp(0.0, 1.0)
+}
+
+/// How a ray that goes on straight from one started as a camera ray (`from_camera`) or not
+/// leaves the scene.
+fn straight_on(from_camera: bool) -> Leaving {
+    if from_camera {
+        Leaving::Camera
+    } else {
+        Leaving::Mirror
+    }
+}
+
+/// Radiance arriving at `point` from `direction` (a secondary ray one bounce deeper, started
+/// as `leaving` says).
+#[allow(clippy::too_many_arguments)]
 fn traced_from(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
@@ -594,9 +843,20 @@ fn traced_from(
     depth: u32,
     screen: Option<Vec2>,
     sampling: &LightSampling,
+    leaving: Leaving,
 ) -> Vec3 {
     let ray = offset_ray(point, direction, f32::INFINITY);
-    trace(scene, settings, &ray, depth + 1, screen, sampling).truncate()
+    trace_seeing(
+        scene,
+        settings,
+        &ray,
+        depth + 1,
+        screen,
+        sampling,
+        leaving,
+        |background| background,
+    )
+    .truncate()
 }
 
 /// Radiance from a clear dielectric surface: Fresnel-weighted reflection (along `view`, so
@@ -614,6 +874,7 @@ fn dielectric(
     depth: u32,
     screen: Option<Vec2>,
     sampling: &LightSampling,
+    from_camera: bool,
 ) -> Vec3 {
     // Relative index across the surface, in the direction the ray travels.
     let eta = if model.volume && sp.back_face {
@@ -626,21 +887,22 @@ fn dielectric(
     let (reflectance, refracted) = fresnel_refraction(ray.direction, normal, cos_in, eta);
     let reflected = view - 2.0 * view.dot(normal) * normal;
     let mut color = Vec3::ZERO;
-    let incoming = |direction| {
+    let incoming = |direction, leaving| {
         traced_from(
-            scene, settings, sp.point, direction, depth, screen, sampling,
+            scene, settings, sp.point, direction, depth, screen, sampling, leaving,
         )
     };
     if reflectance > 0.0 {
-        color += reflectance * incoming(reflected);
+        color += reflectance * incoming(reflected, Leaving::Mirror);
     }
     if reflectance < 1.0 {
-        let through = if model.volume {
-            refracted
+        // A thin wall passes the ray on straight: a camera ray stays one.
+        let (through, leaving) = if model.volume {
+            (refracted, Leaving::Mirror)
         } else {
-            ray.direction
+            (ray.direction, straight_on(from_camera))
         };
-        color += (1.0 - reflectance) * sp.base_color * incoming(through);
+        color += (1.0 - reflectance) * sp.base_color * incoming(through, leaving);
     }
     color
 }
@@ -763,18 +1025,38 @@ fn shade_surface_primary(
     cyclopean: Option<Vec3>,
     sampling: &LightSampling,
 ) -> Sample {
-    let Some(hit) = hit else {
+    // A visible light with extent in front of the surface shows instead (no channel
+    // describes it, as none describes the background).
+    if !settings.fast
+        && let Some(radiance) =
+            visible_light_in_front(scene, ray, hit.as_ref().map_or(ray.t_max, |h| h.t))
+    {
         return Sample {
-            color: settings.background_for(screen),
+            color: radiance.extend(1.0),
             hit: None,
         };
+    }
+    let Some(hit) = hit else {
+        let color = if settings.fast {
+            settings.background_for(screen)
+        } else {
+            leaving_scene(
+                scene,
+                settings,
+                ray.direction,
+                screen,
+                Leaving::Camera,
+                |background| background,
+            )
+        };
+        return Sample { color, hit: None };
     };
     let sp = shading_point(scene, ray, &hit);
     let view = settings.view_direction(ray, sp.point, cyclopean);
     let color = if settings.fast {
         eye_light(view, &sp)
     } else {
-        shade(scene, settings, ray, view, &sp, 0, screen, sampling)
+        shade(scene, settings, ray, view, &sp, 0, screen, sampling, true)
     };
     Sample {
         color: color.extend(1.0),

@@ -1,6 +1,6 @@
 //! Renderer objects. "default": direct lighting from directional, point and spot lights with
-//! shadows (soft from lights with extent), ambient light, mirror and glossy reflections and
-//! transparency. "fast": primary rays only with eye-light shading, for head-tracked
+//! shadows (soft from lights with extent), ambient light occluded by the scene, an environment
+//! seen and reflected, mirror and glossy reflections and transparency. "fast": primary rays only with eye-light shading, for head-tracked
 //! interactivity. This file holds their parameters and committed settings; the shading itself
 //! is [`crate::render::integrator`].
 
@@ -37,6 +37,14 @@ const AMBIENT_RADIANCE: ParamSpec = ParamSpec::new(
     "radiance of the ambient light",
 )
 .default(SpecValue::Float(0.0));
+const AMBIENT_OCCLUSION_DISTANCE: ParamSpec = ParamSpec::new(
+    "ambientOcclusionDistance",
+    &[ANARI_FLOAT32],
+    "how far surfaces shadow the ambient light: a point's ambient light is occluded only by \
+     surfaces nearer than this (infinite: every surface; 0: no ambient occlusion)",
+)
+.default(SpecValue::Float(f32::INFINITY))
+.range(SpecValue::Float(0.0), SpecValue::None);
 const PIXEL_SAMPLES: ParamSpec = ParamSpec::new(
     "pixelSamples",
     &[ANARI_INT32, ANARI_UINT32],
@@ -59,12 +67,14 @@ const STEREO_LIGHTING: ParamSpec = ParamSpec::new(
 pub const DEFAULT: ObjectSpec = ObjectSpec::new(
     ANARI_RENDERER,
     "default",
-    "direct lighting with shadows (soft from lights with extent), ambient light, mirror \
-     reflections and transparency",
+    "direct lighting with shadows (soft from lights with extent), ambient light with ambient \
+     occlusion, an environment seen, reflected and refracted, mirror and glossy reflections \
+     and transparency",
     &[
         BACKGROUND,
         AMBIENT_COLOR,
         AMBIENT_RADIANCE,
+        AMBIENT_OCCLUSION_DISTANCE,
         PIXEL_SAMPLES,
         ParamSpec::new(
             "maxRayDepth",
@@ -102,6 +112,8 @@ pub struct RendererSettings {
     /// Background image stretched over the frame (KHR_RENDERER_BACKGROUND_IMAGE).
     pub background_image: Option<Arc<Image>>,
     pub ambient: Vec3,
+    /// Surfaces farther than this from a point do not occlude its ambient light.
+    pub ambient_occlusion_distance: f32,
     pub pixel_samples: u32,
     pub max_ray_depth: u32,
     pub shadows: bool,
@@ -117,6 +129,7 @@ impl Default for RendererSettings {
             background: Vec4::new(0.0, 0.0, 0.0, 1.0),
             background_image: None,
             ambient: Vec3::ZERO,
+            ambient_occlusion_distance: f32::INFINITY,
             pixel_samples: 1,
             max_ray_depth: 5,
             shadows: true,
@@ -142,6 +155,10 @@ impl RendererSettings {
             background_image: background_image(object),
             ambient: p.get_vec3("ambientColor").unwrap_or(Vec3::ONE)
                 * p.get_f32("ambientRadiance").unwrap_or(0.0),
+            ambient_occlusion_distance: p
+                .get_f32("ambientOcclusionDistance")
+                .filter(|d| *d >= 0.0)
+                .unwrap_or(f32::INFINITY),
             pixel_samples: int("pixelSamples", 1).clamp(1, 1024),
             max_ray_depth: int("maxRayDepth", 5).min(64),
             shadows: p.get_bool("shadows").unwrap_or(true),
@@ -164,6 +181,19 @@ pub fn commit(device: &Device, object: &Object) -> RendererSettings {
                  background is black",
                 object.describe(),
                 array.describe()
+            ),
+        );
+    }
+    if let Some(distance) = object.committed().get_f32("ambientOcclusionDistance")
+        && (distance.is_nan() || distance < 0.0)
+    {
+        device.error(
+            ANARI_STATUS_INVALID_ARGUMENT,
+            Some(object),
+            format!(
+                "anariCommitParameters: {} parameter 'ambientOcclusionDistance': expected a \
+                 distance ≥ 0, got {distance}; using infinity (every surface occludes)",
+                object.describe()
             ),
         );
     }

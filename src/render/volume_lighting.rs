@@ -320,6 +320,7 @@ mod tests {
             direction: Vec3::new(-0.3, -1.0, -0.5).normalize(),
             irradiance: Vec3::splat(3.0),
             cos_half_angle: 1.0,
+            visible: true,
         });
         scene
     }

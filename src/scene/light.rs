@@ -4,6 +4,7 @@
 //! sampled per pixel sample (see `LightSampling`). This file builds a committed light; its
 //! parameter specs, commit checks and sampling live in the submodules.
 
+mod emission;
 mod sampling;
 mod specs;
 mod validate;
@@ -18,6 +19,7 @@ use crate::device::params::ParamSet;
 use crate::scene::attributes::read_values;
 use crate::scene::environment::EnvironmentMap;
 
+pub use emission::Seen;
 pub use sampling::{Incoming, LightSampling, radical_inverse};
 pub use specs::{DIRECTIONAL, HDRI, POINT, QUAD, RING, SPOT};
 pub use validate::commit;
@@ -39,12 +41,15 @@ pub enum Light {
         direction: Vec3,
         irradiance: Vec3,
         cos_half_angle: f32,
+        /// KHR_LIGHT_PRIMARY_VISIBILITY: whether camera rays see the disk.
+        visible: bool,
     },
     /// `radius` > 0 makes it a sphere light of the same intensity seen from afar.
     Point {
         position: Vec3,
         intensity: Vec3,
         radius: f32,
+        visible: bool,
     },
     Spot {
         position: Vec3,
@@ -61,6 +66,7 @@ pub enum Light {
         edge2: Vec3,
         radiance: Vec3,
         side: QuadSide,
+        visible: bool,
     },
     /// A spot light spread evenly over the annulus of radii `inner`..`outer` around
     /// `position` in the plane perpendicular to `direction` (radius 0: the spot light).
@@ -72,6 +78,7 @@ pub enum Light {
         cos_inner: f32,
         inner: f32,
         outer: f32,
+        visible: bool,
     },
     /// An environment map (colour and scale included) with its frame's axes in world space:
     /// `forward` (the image centre), `up` (its first row), `right` = forward × up.
@@ -80,6 +87,7 @@ pub enum Light {
         forward: Vec3,
         up: Vec3,
         right: Vec3,
+        visible: bool,
     },
 }
 
@@ -118,6 +126,7 @@ impl Light {
             .unwrap_or(Vec3::NEG_Z);
         let position = p.get_vec3("position").unwrap_or(Vec3::ZERO);
         let intensity = valid("intensity").unwrap_or(1.0);
+        let visible = p.get_bool("visible").unwrap_or(true);
         Some(match subtype {
             "directional" => {
                 let half_angle = 0.5 * valid("angularDiameter").unwrap_or(0.0);
@@ -136,6 +145,7 @@ impl Light {
                     } else {
                         1.0
                     },
+                    visible,
                 }
             }
             "point" => {
@@ -150,6 +160,7 @@ impl Light {
                     position,
                     intensity: color * intensity,
                     radius,
+                    visible,
                 }
             }
             "spot" => {
@@ -186,6 +197,7 @@ impl Light {
                     cos_inner,
                     inner,
                     outer,
+                    visible,
                 }
             }
             "quad" => {
@@ -214,6 +226,7 @@ impl Light {
                     edge2,
                     radiance: color * radiance,
                     side,
+                    visible,
                 }
             }
             "hdri" => {
@@ -234,6 +247,7 @@ impl Light {
                     forward,
                     up,
                     right,
+                    visible,
                 }
             }
             _ => return None,
@@ -248,21 +262,25 @@ impl Light {
                 direction,
                 irradiance,
                 cos_half_angle,
+                visible,
             } => Light::Directional {
                 direction: transform
                     .transform_vector3(direction)
                     .normalize_or(direction),
                 irradiance,
                 cos_half_angle,
+                visible,
             },
             Light::Point {
                 position,
                 intensity,
                 radius,
+                visible,
             } => Light::Point {
                 position: transform.transform_point3(position),
                 intensity,
                 radius,
+                visible,
             },
             Light::Spot {
                 position,
@@ -286,12 +304,14 @@ impl Light {
                 edge2,
                 radiance,
                 side,
+                visible,
             } => Light::Quad {
                 position: transform.transform_point3(position),
                 edge1: transform.transform_vector3(edge1),
                 edge2: transform.transform_vector3(edge2),
                 radiance,
                 side,
+                visible,
             },
             Light::Ring {
                 position,
@@ -301,6 +321,7 @@ impl Light {
                 cos_inner,
                 inner,
                 outer,
+                visible,
             } => Light::Ring {
                 position: transform.transform_point3(position),
                 direction: transform
@@ -311,12 +332,14 @@ impl Light {
                 cos_inner,
                 inner,
                 outer,
+                visible,
             },
             // The environment turns with the instance (a degenerate transform leaves it).
             Light::Hdri {
                 ref map,
                 forward,
                 up,
+                visible,
                 ..
             } => {
                 let turned = environment_axes(
@@ -329,6 +352,7 @@ impl Light {
                     forward,
                     up,
                     right,
+                    visible,
                 }
             }
         }

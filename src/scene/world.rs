@@ -78,6 +78,9 @@ pub struct SceneSnapshot {
     pub instances: Vec<InstanceData>,
     pub lights: Vec<Light>,
     pub volumes: Vec<PlacedVolume>,
+    /// Whether any surface's material lets light through (see
+    /// [`crate::scene::material::Material::lets_light_through`]).
+    pub see_through: bool,
 }
 
 impl SceneSnapshot {
@@ -87,6 +90,7 @@ impl SceneSnapshot {
             instances: Vec::new(),
             lights: Vec::new(),
             volumes: Vec::new(),
+            see_through: false,
         }
     }
 
@@ -269,11 +273,16 @@ pub fn snapshot(device: &Device, world: &Object) -> SceneSnapshot {
                 .collect(),
         })
         .collect();
+    let see_through = instances
+        .iter()
+        .flat_map(|i| &i.surfaces)
+        .any(|s| s.material.lets_light_through());
     SceneSnapshot {
         bvh: with_build_pool(device.requested_thread_count(), || SceneBvh::build(descs)),
         instances,
         lights,
         volumes,
+        see_through,
     }
 }
 

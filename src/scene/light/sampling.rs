@@ -14,6 +14,10 @@ pub struct Incoming {
     pub to_light: Vec3,
     pub distance: f32,
     pub radiance: Vec3,
+    /// For a light that rays leaving the scene also reach (an environment: an hdri light, a
+    /// directional disk), the density per solid angle this sample was drawn with, so that it
+    /// can be weighed against a reflection drawn towards the same light.
+    pub pdf: Option<f32>,
 }
 
 /// Which point of a light with extent one shading sample uses: a 2D Halton point (bases 11
@@ -88,6 +92,28 @@ impl LightSampling {
     }
 }
 
+impl LightSampling {
+    /// The point in [0,1)² that picks the ambient-occlusion ray at bounce `depth`. At the
+    /// camera ray's hit: Roberts' R2 sequence by sample index, shifted by a per-pixel offset
+    /// (hashed from the light's, so the two are independent), so that pixelSamples and
+    /// accumulated frames cover the hemisphere evenly while neighbouring pixels do not share a
+    /// pattern. Deeper bounces hash the index, the pixel and the depth.
+    pub fn ambient_point(&self, depth: u32) -> Vec2 {
+        let unit = |bits: u32| (bits >> 8) as f32 * (1.0 / (1u32 << 24) as f32);
+        if depth == 0 {
+            let hash = mix(self.scramble.x.to_bits() ^ mix(self.scramble.y.to_bits() ^ 0xA0761D65));
+            let shift = Vec2::new(unit(hash), unit(mix(hash)));
+            let r2 = Vec2::new(
+                unit(self.index.wrapping_mul(3_242_174_889)),
+                unit(self.index.wrapping_mul(2_447_445_414)),
+            );
+            return (r2 + shift).fract().min(Vec2::splat(1.0 - f32::EPSILON));
+        }
+        let mut more = self.reflection_numbers(depth.wrapping_add(0x8000_0000));
+        Vec2::new(more(), more())
+    }
+}
+
 impl Default for LightSampling {
     /// Sample 0 with no scramble: the centre-weighted first Halton point.
     fn default() -> LightSampling {
@@ -119,6 +145,26 @@ pub fn radical_inverse(mut i: u32, base: u32) -> f32 {
     value as f32
 }
 
+/// A spot's share of its intensity at cos `cos_angle` off its axis: 1 inside the inner cone,
+/// 0 outside the outer, smoothstep in cos between.
+pub(super) fn spot_falloff(cos_angle: f32, cos_outer: f32, cos_inner: f32) -> f32 {
+    if cos_angle <= cos_outer {
+        return 0.0;
+    }
+    let edge = if cos_inner > cos_outer {
+        ((cos_angle - cos_outer) / (cos_inner - cos_outer)).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    edge * edge * (3.0 - 2.0 * edge)
+}
+
+/// The density per solid angle of directions uniform in a cone of half-angle acos(`cos_max`):
+/// 1 / (2π(1 − cos)).
+pub(super) fn disk_pdf(cos_max: f32) -> f32 {
+    1.0 / (TAU * (1.0 - cos_max))
+}
+
 /// A direction in the cone of half-angle acos(`cos_max`) around unit `axis`, uniform in solid
 /// angle, for `u` in [0,1)².
 fn sample_cone(axis: Vec3, cos_max: f32, u: Vec2) -> Vec3 {
@@ -139,18 +185,21 @@ impl Light {
                 direction,
                 irradiance,
                 cos_half_angle,
+                ..
             } if cos_half_angle < 1.0 => {
                 // Radiance E/(π sin²θ) over the pdf 1/(2π(1−cos θ)) is 2E/(1+cos θ).
                 Some(Incoming {
                     to_light: sample_cone(-direction, cos_half_angle, sampling.point()),
                     distance: f32::INFINITY,
                     radiance: irradiance * (2.0 / (1.0 + cos_half_angle)),
+                    pdf: Some(disk_pdf(cos_half_angle)),
                 })
             }
             Light::Point {
                 position,
                 intensity,
                 radius,
+                ..
             } if radius > 0.0 => {
                 let axis = position - point;
                 let centre_distance = axis.length();
@@ -173,6 +222,7 @@ impl Light {
                     to_light,
                     distance: distance.max(0.0),
                     radiance: sphere_radiance * solid_angle,
+                    pdf: None,
                 })
             }
             Light::Quad { .. } => self.quad_incoming(point, sampling.point()),
@@ -196,6 +246,7 @@ impl Light {
                 forward,
                 up,
                 right,
+                ..
             } => {
                 let sample = map.sample(sampling.point())?;
                 let d = sample.direction;
@@ -203,6 +254,7 @@ impl Light {
                     to_light: (forward * d.x + up * d.y + right * d.z).normalize(),
                     distance: f32::INFINITY,
                     radiance: sample.radiance,
+                    pdf: Some(map.pdf(d)),
                 })
             }
             _ => self.incoming(point),
@@ -241,6 +293,7 @@ impl Light {
             edge2,
             radiance,
             side,
+            ..
         } = *self
         else {
             return None;
@@ -265,6 +318,7 @@ impl Light {
             to_light,
             distance,
             radiance: radiance * (projected / (distance * distance)),
+            pdf: None,
         })
     }
 
@@ -279,6 +333,7 @@ impl Light {
                 to_light: -direction,
                 distance: f32::INFINITY,
                 radiance: irradiance,
+                pdf: None,
             }),
             Light::Point {
                 position,
@@ -291,6 +346,7 @@ impl Light {
                     to_light: d / distance,
                     distance,
                     radiance: intensity / (distance * distance),
+                    pdf: None,
                 })
             }
             Light::Spot {
@@ -310,16 +366,12 @@ impl Light {
                 if cos_angle <= cos_outer {
                     return None;
                 }
-                let edge = if cos_inner > cos_outer {
-                    ((cos_angle - cos_outer) / (cos_inner - cos_outer)).clamp(0.0, 1.0)
-                } else {
-                    1.0
-                };
-                let smooth = edge * edge * (3.0 - 2.0 * edge);
+                let smooth = spot_falloff(cos_angle, cos_outer, cos_inner);
                 Some(Incoming {
                     to_light,
                     distance,
                     radiance: intensity * smooth / (distance * distance),
+                    pdf: None,
                 })
             }
             // From its centre.
@@ -341,6 +393,7 @@ mod tests {
             position: Vec3::new(0.0, 2.0, 0.0),
             intensity: Vec3::splat(4.0),
             radius: 0.0,
+            visible: true,
         };
         let i = light.incoming(Vec3::ZERO).unwrap();
         assert_eq!(i.to_light, Vec3::Y);
@@ -383,6 +436,7 @@ mod tests {
             direction: Vec3::NEG_Z,
             irradiance: Vec3::splat(2.0),
             cos_half_angle: 0.3f32.cos(),
+            visible: true,
         };
         let e = mean_irradiance(&light, Vec3::ZERO, Vec3::Z, 4096);
         assert!((e - 2.0).abs() < 2e-3, "{e}");
@@ -398,6 +452,7 @@ mod tests {
             position: Vec3::new(0.0, 0.0, 2.0),
             intensity: Vec3::splat(4.0),
             radius: 0.5,
+            visible: true,
         };
         let e = mean_irradiance(&light, Vec3::ZERO, Vec3::Z, 4096);
         assert!((e - 1.0).abs() < 1e-3, "{e}");

@@ -31,6 +31,15 @@ const RADIANCE: ParamSpec = ParamSpec::new(
 )
 .range(SpecValue::Float(0.0), SpecValue::None);
 
+/// KHR_LIGHT_PRIMARY_VISIBILITY's parameter, on every light subtype.
+const VISIBLE: ParamSpec = ParamSpec::new(
+    "visible",
+    &[ANARI_BOOL],
+    "whether camera rays see the light (where it has extent: a disk, a sphere, a quad, a ring, \
+     an environment; a point or spot light is never seen)",
+)
+.default(SpecValue::Bool(true));
+
 // The emission cone of spot and ring lights.
 const OPENING_ANGLE: ParamSpec = ParamSpec::new(
     "openingAngle",
@@ -72,9 +81,13 @@ pub const DIRECTIONAL: ObjectSpec = ObjectSpec::new(
         .default(SpecValue::Float(0.0))
         .range(SpecValue::Float(0.0), SpecValue::Float(PI)),
         RADIANCE,
+        VISIBLE,
     ],
 )
-.extensions(&["ANARI_KHR_LIGHT_DIRECTIONAL"]);
+.extensions(&[
+    "ANARI_KHR_LIGHT_DIRECTIONAL",
+    "ANARI_KHR_LIGHT_PRIMARY_VISIBILITY",
+]);
 
 pub const POINT: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
@@ -90,9 +103,13 @@ pub const POINT: ObjectSpec = ObjectSpec::new(
             .default(SpecValue::Float(0.0))
             .range(SpecValue::Float(0.0), SpecValue::None),
         RADIANCE,
+        VISIBLE,
     ],
 )
-.extensions(&["ANARI_KHR_LIGHT_POINT"]);
+.extensions(&[
+    "ANARI_KHR_LIGHT_POINT",
+    "ANARI_KHR_LIGHT_PRIMARY_VISIBILITY",
+]);
 
 pub const SPOT: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
@@ -112,9 +129,10 @@ pub const SPOT: ObjectSpec = ObjectSpec::new(
         FALLOFF_ANGLE,
         INTENSITY,
         POWER,
+        VISIBLE,
     ],
 )
-.extensions(&["ANARI_KHR_LIGHT_SPOT"]);
+.extensions(&["ANARI_KHR_LIGHT_SPOT", "ANARI_KHR_LIGHT_PRIMARY_VISIBILITY"]);
 
 pub const QUAD: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
@@ -145,9 +163,10 @@ pub const QUAD: ObjectSpec = ObjectSpec::new(
         )
         .default(SpecValue::Str("front"))
         .values(&["front", "back", "both"]),
+        VISIBLE,
     ],
 )
-.extensions(&["ANARI_KHR_LIGHT_QUAD"])
+.extensions(&["ANARI_KHR_LIGHT_QUAD", "ANARI_KHR_LIGHT_PRIMARY_VISIBILITY"])
 .unsupported(&["intensityDistribution"]);
 
 pub const RING: ObjectSpec = ObjectSpec::new(
@@ -188,16 +207,18 @@ pub const RING: ObjectSpec = ObjectSpec::new(
              overrides the other strengths when the ring has area",
         )
         .range(SpecValue::Float(0.0), SpecValue::None),
+        VISIBLE,
     ],
 )
-.extensions(&["ANARI_KHR_LIGHT_RING"])
+.extensions(&["ANARI_KHR_LIGHT_RING", "ANARI_KHR_LIGHT_PRIMARY_VISIBILITY"])
 .unsupported(&["intensityDistribution", "c0"]);
 
 pub const HDRI: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
     "hdri",
     "light from an environment image around the scene (equirectangular), sampled by \
-     luminance; not seen by camera rays",
+     luminance and combined with reflections that reach it; seen by camera rays (in the \
+     background's place) unless not visible, and by reflections and refractions",
     &[
         COLOR,
         ParamSpec::new(
@@ -226,6 +247,7 @@ pub const HDRI: ObjectSpec = ObjectSpec::new(
         ParamSpec::new("scale", &[ANARI_FLOAT32], "factor on the radiance")
             .default(SpecValue::Float(1.0))
             .range(SpecValue::Float(0.0), SpecValue::None),
+        VISIBLE,
     ],
 )
-.extensions(&["ANARI_KHR_LIGHT_HDRI"]);
+.extensions(&["ANARI_KHR_LIGHT_HDRI", "ANARI_KHR_LIGHT_PRIMARY_VISIBILITY"]);
