@@ -54,24 +54,29 @@ fn renderer(dev: ANARIDevice) -> ANARIRenderer {
 
 /// f = |x|² on a grid of spacing H over [−1, 1]³.
 fn radial_field(dev: ANARIDevice) -> ANARISpatialField {
+    let field = anariNewSpatialField(dev, c("structuredRegular").as_ptr());
+    set_radial_data(dev, field, 1.0);
+    set(dev, field, "origin", ANARI_FLOAT32_VEC3, &[-1.0f32; 3]);
+    set(dev, field, "spacing", ANARI_FLOAT32_VEC3, &[H; 3]);
+    commit(dev, field);
+    field
+}
+
+/// Gives `field` the data f = scale · |x|² on a grid of spacing H over [−1, 1]³ (uncommitted).
+fn set_radial_data(dev: ANARIDevice, field: ANARISpatialField, scale: f32) {
     let n = 21usize;
     let mut values = Vec::new();
     for k in 0..n {
         for j in 0..n {
             for i in 0..n {
                 let p = [i, j, k].map(|v| v as f32 * H - 1.0);
-                values.push(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]);
+                values.push(scale * (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]));
             }
         }
     }
     let data = array3d(dev, ANARI_FLOAT32, &values, [n as u64; 3]);
-    let field = anariNewSpatialField(dev, c("structuredRegular").as_ptr());
     set_object(dev, field, "data", ANARI_ARRAY3D, data);
-    set(dev, field, "origin", ANARI_FLOAT32_VEC3, &[-1.0f32; 3]);
-    set(dev, field, "spacing", ANARI_FLOAT32_VEC3, &[H; 3]);
-    commit(dev, field);
     anariRelease(dev, data);
-    field
 }
 
 fn isosurface(dev: ANARIDevice, field: ANARISpatialField, isovalues: &[f32]) -> ANARIGeometry {
@@ -164,6 +169,88 @@ fn isosurfaces_of_a_radial_field_render_their_shells_with_isovalue_ids_and_colou
     assert!(out.color[centre][0] > 0.05 && out.color[centre][2] == 0.0);
     let z = (0.25f32 - 2.0 * 0.125 * 0.125).sqrt();
     assert!((out.depth[centre] - (5.0 - z)).abs() < 0.75 * H * H / (z - 0.01));
+    release_all(dev, &[world, r, surface, material, geometry, field]);
+    release_device(lib, dev);
+}
+
+/// The BVH the device holds for a committed geometry (to tell a rebuild from a reuse).
+fn geometry_bvh(dev: ANARIDevice, geometry: ANARIGeometry) -> Option<usize> {
+    let device = cavetrace::device::registry::device(dev as usize)?;
+    let object = device.lookup(geometry as usize)?;
+    cavetrace::scene::geometry::current(&device, &object)
+        .map(|g| std::sync::Arc::as_ptr(&g.bvh) as usize)
+}
+
+#[test]
+fn an_isosurface_follows_its_field_recommitted_with_new_data() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let field = radial_field(dev);
+    // The shell f = 0.25: radius 0.5 for f = |x|², radius 0.7 for f = (0.25 / 0.49)|x|².
+    let geometry = isosurface(dev, field, &[0.25]);
+    let material = matte_colored_by(dev, "color");
+    let surface = surface_of(dev, geometry, material);
+    set(dev, surface, "id", ANARI_UINT32, &9u32);
+    commit(dev, surface);
+    let world = world_of(dev, &[surface]);
+    let r = renderer(dev);
+    let (centre, between) = (pixel(8, 8), pixel(10, 8));
+    // Pixel (10, 8) looks down x = 0.625, y = 0.125: outside radius 0.5, inside radius 0.7.
+    let depth_at = |radius: f32, i: u32| {
+        let (x, y) = (coordinate(i), coordinate(8));
+        5.0 - (radius * radius - x * x - y * y).sqrt()
+    };
+    let first = render(dev, world, r);
+    assert_eq!(first.object[centre], 9);
+    assert!((first.depth[centre] - depth_at(0.5, 8)).abs() < 0.01);
+    assert_eq!(first.primitive[between], u32::MAX);
+    let built = geometry_bvh(dev, geometry);
+    assert!(built.is_some());
+    // Nothing changed: the next frame renders the same build.
+    render(dev, world, r);
+    assert_eq!(geometry_bvh(dev, geometry), built);
+
+    // A new time step: only the field is committed.
+    set_radial_data(dev, field, 0.25 / 0.49);
+    commit(dev, field);
+    let second = render(dev, world, r);
+    assert!(complaints(&log).is_empty());
+    assert_eq!(second.object[centre], 9);
+    assert!(
+        (second.depth[centre] - depth_at(0.7, 8)).abs() < 0.01,
+        "{} vs {}",
+        second.depth[centre],
+        depth_at(0.7, 8)
+    );
+    assert_eq!(second.primitive[between], 0);
+    assert_eq!(second.object[between], 9);
+    assert!((second.depth[between] - depth_at(0.7, 10)).abs() < 0.01);
+    let rebuilt = geometry_bvh(dev, geometry);
+    assert_ne!(rebuilt, built);
+    render(dev, world, r);
+    assert_eq!(geometry_bvh(dev, geometry), rebuilt);
+
+    // A field whose recommit fails leaves nothing to isosurface: the frame says why, and the
+    // surface comes back with the next good commit.
+    anariUnsetParameter(dev, field, c("data").as_ptr());
+    commit(dev, field);
+    log.take();
+    let broken = render(dev, world, r);
+    assert_eq!(broken.object[centre], u32::MAX);
+    let refused = messages_with(&log, "not a usable committed spatial field");
+    assert_eq!(refused.len(), 1, "{refused:?}");
+    assert!(
+        refused[0].2.contains("anariRenderFrame"),
+        "{}",
+        refused[0].2
+    );
+    render(dev, world, r);
+    assert!(messages_with(&log, "spatial field").is_empty());
+    set_radial_data(dev, field, 1.0);
+    commit(dev, field);
+    let restored = render(dev, world, r);
+    assert!((restored.depth[centre] - depth_at(0.5, 8)).abs() < 0.01);
+    assert!(complaints(&log).is_empty());
     release_all(dev, &[world, r, surface, material, geometry, field]);
     release_device(lib, dev);
 }

@@ -199,6 +199,15 @@ impl Object {
         *self.derived.write().unwrap_or_else(|e| e.into_inner()) = derived;
     }
 
+    /// Replaces the derived state only if it is still `expected`: a rebuild made while
+    /// rendering must not overwrite what a commit made meanwhile.
+    pub fn replace_derived_if_unchanged(&self, expected: &Derived, derived: Derived) {
+        let mut slot = self.derived.write().unwrap_or_else(|e| e.into_inner());
+        if slot.as_ref().is_some_and(|d| Arc::ptr_eq(d, expected)) {
+            *slot = Some(derived);
+        }
+    }
+
     /// Drops every reference this object holds to others (parameters, derived state, array
     /// elements): the device's release uses it to free objects that refer to each other.
     pub fn break_references(&self) {

@@ -22,7 +22,8 @@ use crate::device::property::PropertyValue;
 use crate::device::spec::ObjectSpec;
 use crate::render::frame::FrameState;
 use crate::scene::{
-    geometry, light, material, sampler, spatial_field, unstructured_field, volume, world,
+    geometry, isosurface, light, material, sampler, spatial_field, unstructured_field, volume,
+    world,
 };
 
 /// The kinds cavetrace implements.
@@ -49,6 +50,9 @@ impl Kinds for AllKinds {
             return;
         }
         match object.kind {
+            ANARI_GEOMETRY if object.subtype == isosurface::ISOSURFACE.subtype => {
+                object.set_derived(Some(Arc::new(isosurface::commit(device, object))));
+            }
             ANARI_GEOMETRY => {
                 let geometry = geometry::commit(device, object);
                 object.set_derived(geometry.map(|g| Arc::new(g) as _));

@@ -521,7 +521,17 @@ pub(crate) fn read_attributes(params: &ParamSet, has_corners: bool) -> [Attribut
     })
 }
 
+/// The geometry the next frame renders: the committed build, or for an isosurface whose field
+/// was committed since its build, the rebuild (made here, once per field commit).
+pub fn current(device: &Device, object: &Object) -> Option<Arc<Geometry>> {
+    if object.subtype == crate::scene::isosurface::ISOSURFACE.subtype {
+        return crate::scene::isosurface::current(device, object);
+    }
+    object.derived_as::<Geometry>()
+}
+
 /// Validates a geometry and builds its BVH. Returns None when there is nothing to render.
+/// (Isosurfaces are built by `scene::isosurface`.)
 pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
     let params = object.committed();
     let problems = Problems { device, object };
@@ -532,7 +542,6 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
         "cylinder" => Shape::Cylinder,
         "cone" => Shape::Cone,
         "curve" => Shape::Curve,
-        "isosurface" => return crate::scene::isosurface::commit(device, object),
         _ => return None,
     };
     if let Err(refusal) = crate::scene::limits::check_geometry(&params) {

@@ -42,8 +42,8 @@ pub const ISOSURFACE: ObjectSpec = ObjectSpec::new(
         ParamSpec::new(
             "field",
             &[ANARI_SPATIAL_FIELD],
-            "spatial field to be isosurfaced (structuredRegular or unstructured; read when \
-             the isosurface is committed)",
+            "spatial field to be isosurfaced (structuredRegular or unstructured; a new \
+             commit of the field rebuilds the isosurface at the next render)",
         )
         .required(),
     ],
@@ -439,10 +439,62 @@ fn build(field: Field, isovalues: Vec<f32>) -> (GeometryBvh, Vec<u32>) {
     )
 }
 
+/// An isosurface's derived state: its geometry (`None` when it cannot be rendered) and the
+/// commit count its field had when it was built, so that a later commit of the field rebuilds
+/// it at the next render.
+#[derive(Debug)]
+pub struct IsosurfaceBuild {
+    field_commit: Option<u64>,
+    geometry: Option<Arc<Geometry>>,
+}
+
+/// Builds the isosurface at its commit.
+pub fn commit(device: &Device, object: &Object) -> IsosurfaceBuild {
+    build_from_field(
+        device,
+        object,
+        "anariCommitParameters: geometry 'isosurface'",
+    )
+}
+
+/// The isosurface as the next frame renders it: rebuilt when its field was committed since
+/// the last build (each time step of a simulation), reused otherwise.
+pub fn current(device: &Device, object: &Object) -> Option<Arc<Geometry>> {
+    let derived = object.derived()?;
+    let built = Arc::clone(&derived).downcast::<IsosurfaceBuild>().ok()?;
+    let field_commit = field_commit(object);
+    if field_commit == built.field_commit {
+        return built.geometry.clone();
+    }
+    let rebuilt = Arc::new(build_from_field(
+        device,
+        object,
+        "anariRenderFrame: geometry 'isosurface' (rebuilt for its field's new commit)",
+    ));
+    let geometry = rebuilt.geometry.clone();
+    object.replace_derived_if_unchanged(&derived, rebuilt);
+    geometry
+}
+
+fn field_commit(object: &Object) -> Option<u64> {
+    object
+        .committed()
+        .get_object("field")
+        .map(|field| field.commit_count())
+}
+
+/// The isosurface of the field's current build, stamped with the field's commit count (read
+/// first, so that a commit of the field during the build is seen at the next render).
+fn build_from_field(device: &Device, object: &Object, what: &str) -> IsosurfaceBuild {
+    IsosurfaceBuild {
+        field_commit: field_commit(object),
+        geometry: build_geometry(device, object, what).map(Arc::new),
+    }
+}
+
 /// Builds the isosurface geometry; reports and returns `None` when it cannot be rendered.
-pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
+fn build_geometry(device: &Device, object: &Object, what: &str) -> Option<Geometry> {
     let params = object.committed();
-    let what = "anariCommitParameters: geometry 'isosurface'";
     let fail = |text: String| {
         device.error(
             ANARI_STATUS_INVALID_ARGUMENT,

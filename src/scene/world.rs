@@ -123,7 +123,7 @@ fn surface_data(device: &Device, surface: &Object) -> Option<SurfaceData> {
         return None;
     }
     let geometry_object = params.get_object("geometry")?;
-    let geometry = geometry_object.derived_as::<Geometry>()?;
+    let geometry = crate::scene::geometry::current(device, geometry_object)?;
     let material = params
         .get_object("material")
         .and_then(|m| crate::scene::material::build(m))
