@@ -103,7 +103,11 @@ fn metal(dev: ANARIDevice, roughness: f32) -> ANARIMaterial {
     material
 }
 
-fn world_with_lights(dev: ANARIDevice, surfaces: &[ANARISurface], lights: &[ANARILight]) -> ANARIWorld {
+fn world_with_lights(
+    dev: ANARIDevice,
+    surfaces: &[ANARISurface],
+    lights: &[ANARILight],
+) -> ANARIWorld {
     let world = world_of(dev, surfaces);
     let array = object_array(dev, ANARI_LIGHT, lights);
     set_object(dev, world, "light", ANARI_ARRAY1D, array);
@@ -167,7 +171,10 @@ fn mirror_view(i: u32, j: u32, size: u32) -> Option<(V, bool)> {
     let p = d.map(|x| x * t);
     let n = [p[0] - centre[0], p[1] - centre[1], p[2] - centre[2]];
     let k = 2.0 * dot(d, n);
-    Some((normalize([d[0] - k * n[0], d[1] - k * n[1], d[2] - k * n[2]]), true))
+    Some((
+        normalize([d[0] - k * n[0], d[1] - k * n[1], d[2] - k * n[2]]),
+        true,
+    ))
 }
 
 #[test]
@@ -180,7 +187,12 @@ fn a_mirror_sphere_shows_the_environment_where_its_reflections_point() {
     let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], (PI / 3.0) as f32);
     let size = 64;
     for visible in [None, Some(true), Some(false)] {
-        let light = hdri(dev, &environment_texels(), [WIDTH as u64, HEIGHT as u64], visible);
+        let light = hdri(
+            dev,
+            &environment_texels(),
+            [WIDTH as u64, HEIGHT as u64],
+            visible,
+        );
         let world = world_with_lights(dev, &[surface], &[light]);
         let image = render(dev, world, camera, size, 1, 1, BACKGROUND, &[]);
         let shows_map = visible != Some(false);
@@ -200,7 +212,9 @@ fn a_mirror_sphere_shows_the_environment_where_its_reflections_point() {
                 // where the direction lies within f32 rounding of their edge.
                 let candidates = texels_towards(direction, 1e-3);
                 assert!(
-                    candidates.iter().any(|&(col, row)| texel(col, row) == pixel),
+                    candidates
+                        .iter()
+                        .any(|&(col, row)| texel(col, row) == pixel),
                     "{visible:?}: pixel ({i}, {j}) {pixel:?}, expected texel {:?} = {:?}",
                     candidates[0],
                     texel(candidates[0].0, candidates[0].1)
@@ -260,7 +274,13 @@ fn rough_and_near_mirror_metals_converge_under_a_small_sun_without_fireflies() {
         );
         let light = anariNewLight(dev, c("hdri").as_ptr());
         set_object(dev, light, "radiance", ANARI_ARRAY2D, image);
-        set(dev, light, "direction", ANARI_FLOAT32_VEC3, &[0.0f32, 0.0, 1.0]);
+        set(
+            dev,
+            light,
+            "direction",
+            ANARI_FLOAT32_VEC3,
+            &[0.0f32, 0.0, 1.0],
+        );
         set(dev, light, "up", ANARI_FLOAT32_VEC3, &UP);
         set(dev, light, "visible", ANARI_BOOL, &0u8);
         commit(dev, light);
@@ -273,7 +293,16 @@ fn rough_and_near_mirror_metals_converge_under_a_small_sun_without_fireflies() {
         let surface = surface_of(dev, ball, material);
         let world = world_with_lights(dev, &[surface], &[light]);
         let at = |samples: i32, frames: u32| {
-            render(dev, world, camera, size, samples, frames, [0.0, 0.0, 0.0, 1.0], &[])
+            render(
+                dev,
+                world,
+                camera,
+                size,
+                samples,
+                frames,
+                [0.0, 0.0, 0.0, 1.0],
+                &[],
+            )
         };
         let mean = |image: &[[f32; 4]]| {
             image.iter().map(|p| f64::from(p[0])).sum::<f64>() / image.len() as f64
@@ -282,7 +311,10 @@ fn rough_and_near_mirror_metals_converge_under_a_small_sun_without_fireflies() {
         let reference_mean = mean(&reference);
         // The sun shows in the sphere: its highlight lifts the mean well above the sky's.
         let sky_only = 0.2 * 0.1;
-        assert!(reference_mean > 1.2 * sky_only, "{roughness}: {reference_mean}");
+        assert!(
+            reference_mean > 1.2 * sky_only,
+            "{roughness}: {reference_mean}"
+        );
         let mut errors = Vec::new();
         for samples in [1, 4, 16, 64] {
             let image = at(samples, 1);
@@ -300,7 +332,10 @@ fn rough_and_near_mirror_metals_converge_under_a_small_sun_without_fireflies() {
         }
         // The mean over the frame approaches the reference as samples grow.
         assert!(errors[3] < 0.03, "roughness {roughness}: {errors:?}");
-        assert!(errors[3] < errors[0].max(0.01), "roughness {roughness}: {errors:?}");
+        assert!(
+            errors[3] < errors[0].max(0.01),
+            "roughness {roughness}: {errors:?}"
+        );
         release_all(dev, &[material, surface, world]);
     }
     release_all(dev, &[ball, camera, light]);
@@ -331,7 +366,11 @@ fn unoccluded_share_by_quadrature(d: f64, r: f64) -> f64 {
         for b in 0..n {
             let (u1, u2) = ((a as f64 + 0.5) / n as f64, (b as f64 + 0.5) / n as f64);
             let (radius, angle) = (u1.sqrt(), 2.0 * PI * u2);
-            let dir = [radius * angle.cos(), (1.0 - u1).sqrt(), radius * angle.sin()];
+            let dir = [
+                radius * angle.cos(),
+                (1.0 - u1).sqrt(),
+                radius * angle.sin(),
+            ];
             let along = dot(dir, centre);
             let blocked = along > 0.0 && dot(centre, centre) - along * along < r * r;
             open += usize::from(!blocked);
@@ -343,8 +382,14 @@ fn unoccluded_share_by_quadrature(d: f64, r: f64) -> f64 {
 #[test]
 fn the_closed_form_of_a_sphere_occluding_a_plane_matches_quadrature() {
     for d in [1.0, 1.3, 2.0, 4.0] {
-        let (closed, numeric) = (unoccluded_share(d, 1.0), unoccluded_share_by_quadrature(d, 1.0));
-        assert!((closed - numeric).abs() < 2e-3, "d {d}: {closed} vs {numeric}");
+        let (closed, numeric) = (
+            unoccluded_share(d, 1.0),
+            unoccluded_share_by_quadrature(d, 1.0),
+        );
+        assert!(
+            (closed - numeric).abs() < 2e-3,
+            "d {d}: {closed} vs {numeric}"
+        );
     }
 }
 
@@ -377,8 +422,20 @@ fn floor_and_sphere(dev: ANARIDevice) -> FloorScene {
     let ball_surface = matte_surface(dev, ball, [1.0; 3]);
     let world = world_of(dev, &[floor_surface, ball_surface]);
     let camera = anariNewCamera(dev, c("orthographic").as_ptr());
-    set(dev, camera, "position", ANARI_FLOAT32_VEC3, &[0.0f32, 5.0, 0.0]);
-    set(dev, camera, "direction", ANARI_FLOAT32_VEC3, &[0.0f32, -1.0, 0.0]);
+    set(
+        dev,
+        camera,
+        "position",
+        ANARI_FLOAT32_VEC3,
+        &[0.0f32, 5.0, 0.0],
+    );
+    set(
+        dev,
+        camera,
+        "direction",
+        ANARI_FLOAT32_VEC3,
+        &[0.0f32, -1.0, 0.0],
+    );
     set(dev, camera, "up", ANARI_FLOAT32_VEC3, &[0.0f32, 0.0, -1.0]);
     set(dev, camera, "height", ANARI_FLOAT32, &(VIEW as f32));
     set(dev, camera, "aspect", ANARI_FLOAT32, &1.0f32);
@@ -406,7 +463,16 @@ fn a_sphere_on_a_plane_under_ambient_light_matches_the_closed_form_occlusion() {
     let scene = floor_and_sphere(dev);
     let size = 48;
     let ambient = [("ambientRadiance", 1.0f32)];
-    let image = render(dev, scene.world, scene.camera, size, 64, 8, [0.0, 0.0, 0.0, 1.0], &ambient);
+    let image = render(
+        dev,
+        scene.world,
+        scene.camera,
+        size,
+        64,
+        8,
+        [0.0, 0.0, 0.0, 1.0],
+        &ambient,
+    );
     let step = VIEW / f64::from(size);
     let (mut checked, mut worst) = (0, 0.0f64);
     for j in 0..size {
@@ -420,7 +486,10 @@ fn a_sphere_on_a_plane_under_ambient_light_matches_the_closed_form_occlusion() {
             let expected = (0..n * n)
                 .map(|k| {
                     let (fx, fy) = ((k % n) as f64 + 0.5, (k / n) as f64 + 0.5);
-                    unoccluded_share(floor_distance(i, j, fx / n as f64, fy / n as f64, size), 1.0)
+                    unoccluded_share(
+                        floor_distance(i, j, fx / n as f64, fy / n as f64, size),
+                        1.0,
+                    )
                 })
                 .sum::<f64>()
                 / (n * n) as f64;
@@ -439,7 +508,10 @@ fn a_sphere_on_a_plane_under_ambient_light_matches_the_closed_form_occlusion() {
     // Contact shading is there: next to the sphere the floor is visibly darker.
     let near = (1.0 - unoccluded_share(1.0 + step, 1.0)) > 0.25;
     assert!(near, "the test's floor pixels include the dark ring");
-    eprintln!("ambient occlusion: worst pixel error {:.4} over {checked} pixels", worst);
+    eprintln!(
+        "ambient occlusion: worst pixel error {:.4} over {checked} pixels",
+        worst
+    );
     release_all(dev, &scene.objects);
     release_all(dev, &[scene.world, scene.camera]);
     let errors = log.errors();
@@ -456,7 +528,16 @@ fn ambient_occlusion_distance_bounds_what_occludes() {
     let render_with = |floats: &[(&str, f32)]| {
         let mut all = vec![("ambientRadiance", 1.0f32)];
         all.extend_from_slice(floats);
-        render(dev, scene.world, scene.camera, size, 16, 1, [0.0, 0.0, 0.0, 1.0], &all)
+        render(
+            dev,
+            scene.world,
+            scene.camera,
+            size,
+            16,
+            1,
+            [0.0, 0.0, 0.0, 1.0],
+            &all,
+        )
     };
     let step = VIEW / f64::from(size);
     let bounded = render_with(&[("ambientOcclusionDistance", 1.0)]);
@@ -483,9 +564,15 @@ fn ambient_occlusion_distance_bounds_what_occludes() {
     }
     assert!(far > 300 && near_count > 20, "{far} {near_count}");
     // Nearer, the part of the sphere within reach still shades the floor, less than all of it.
-    let (near_bounded, near_unbounded) = (near_bounded / near_count as f32, near_unbounded / near_count as f32);
+    let (near_bounded, near_unbounded) = (
+        near_bounded / near_count as f32,
+        near_unbounded / near_count as f32,
+    );
     assert!(near_bounded < 0.97, "{near_bounded}");
-    assert!(near_unbounded < near_bounded, "{near_unbounded} vs {near_bounded}");
+    assert!(
+        near_unbounded < near_bounded,
+        "{near_unbounded} vs {near_bounded}"
+    );
     // Distance 0: no occlusion at all, every floor and sphere point as under an open sky.
     let open = render_with(&[("ambientOcclusionDistance", 0.0)]);
     for (k, p) in open.iter().enumerate() {
@@ -496,9 +583,11 @@ fn ambient_occlusion_distance_bounds_what_occludes() {
     let reported = render_with(&[("ambientOcclusionDistance", -1.0)]);
     let errors = log.errors();
     assert!(
-        errors.iter().any(|(code, text)| *code == ANARI_STATUS_INVALID_ARGUMENT
-            && text.contains("'ambientOcclusionDistance'")
-            && text.contains("-1")),
+        errors
+            .iter()
+            .any(|(code, text)| *code == ANARI_STATUS_INVALID_ARGUMENT
+                && text.contains("'ambientOcclusionDistance'")
+                && text.contains("-1")),
         "{errors:?}"
     );
     assert_eq!(reported, unbounded);
@@ -574,7 +663,10 @@ fn visible_lights_with_extent_are_seen_by_camera_rays_with_their_radiance() {
                     ("innerRadius", ring_inner as f32),
                     ("intensity", ring_intensity as f32),
                 ],
-                &[("position", [1.5, -1.2, -5.0]), ("direction", [0.0, 0.0, 1.0])],
+                &[
+                    ("position", [1.5, -1.2, -5.0]),
+                    ("direction", [0.0, 0.0, 1.0]),
+                ],
                 visible,
             ),
             light_with(
@@ -585,12 +677,21 @@ fn visible_lights_with_extent_are_seen_by_camera_rays_with_their_radiance() {
                 visible,
             ),
             // Without extent: never seen.
-            light_with(dev, "point", &[], &[("position", [0.0, 0.0, -3.0])], visible),
+            light_with(
+                dev,
+                "point",
+                &[],
+                &[("position", [0.0, 0.0, -3.0])],
+                visible,
+            ),
             light_with(
                 dev,
                 "spot",
                 &[],
-                &[("position", [0.0, 0.0, -3.0]), ("direction", [0.0, 0.0, 1.0])],
+                &[
+                    ("position", [0.0, 0.0, -3.0]),
+                    ("direction", [0.0, 0.0, 1.0]),
+                ],
                 visible,
             ),
         ]
@@ -611,7 +712,10 @@ fn visible_lights_with_extent_are_seen_by_camera_rays_with_their_radiance() {
                 let p = d.map(|x| x * 5.0 / -d[2]);
                 let m = 0.05;
                 let quad = classify(
-                    (p[0] + 2.5).min(-1.5 - p[0]).min(p[1] + 0.5).min(0.5 - p[1]),
+                    (p[0] + 2.5)
+                        .min(-1.5 - p[0])
+                        .min(p[1] + 0.5)
+                        .min(0.5 - p[1]),
                     m,
                 );
                 let centre = [1.5, 1.0, -5.0];

@@ -184,7 +184,11 @@ mod tests {
             assert!((estimate - sample.radiance).abs().max_element() < 1e-4 * estimate.x);
         }
         // Outside the disk, nothing.
-        assert!(light.environment(Vec3::new(0.3, 0.0, 1.0).normalize()).is_none());
+        assert!(
+            light
+                .environment(Vec3::new(0.3, 0.0, 1.0).normalize())
+                .is_none()
+        );
         assert!(light.environment(Vec3::NEG_Z).is_none());
     }
 }

@@ -106,7 +106,10 @@ pub const POINT: ObjectSpec = ObjectSpec::new(
         VISIBLE,
     ],
 )
-.extensions(&["ANARI_KHR_LIGHT_POINT", "ANARI_KHR_LIGHT_PRIMARY_VISIBILITY"]);
+.extensions(&[
+    "ANARI_KHR_LIGHT_POINT",
+    "ANARI_KHR_LIGHT_PRIMARY_VISIBILITY",
+]);
 
 pub const SPOT: ObjectSpec = ObjectSpec::new(
     ANARI_LIGHT,
