@@ -629,6 +629,14 @@ fn classify(inside_by: f64, margin: f64) -> Option<bool> {
 fn visible_lights_with_extent_are_seen_by_camera_rays_with_their_radiance() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
+    // Every light takes `visible`, so the extension is advertised.
+    let extensions = device_extensions(dev);
+    assert!(
+        extensions
+            .iter()
+            .any(|e| e == "ANARI_KHR_LIGHT_PRIMARY_VISIBILITY"),
+        "{extensions:?}"
+    );
     let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], (PI / 3.0) as f32);
     let sun = normalize([-0.3, 0.35, -1.0]);
     let (ring_inner, ring_outer, ring_intensity) = (0.3f64, 0.6f64, 2.0f64);
