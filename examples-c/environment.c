@@ -153,7 +153,7 @@ static int render(ANARIDevice device, ANARIWorld world, ANARIRenderer renderer, 
   ANARIFrame frame = anariNewFrame(device);
   uint32_t size[] = {800, 450};
   ANARIDataType color_type = ANARI_UFIXED8_RGBA_SRGB;
-  bool accumulate = true;
+  uint8_t accumulate = 1; /* ANARI_BOOL is one byte */
   anariSetParameter(device, frame, "size", ANARI_UINT32_VEC2, size);
   anariSetParameter(device, frame, "channel.color", ANARI_DATA_TYPE, &color_type);
   anariSetParameter(device, frame, "accumulation", ANARI_BOOL, &accumulate);

@@ -116,18 +116,18 @@ fn world_with_lights(
     world
 }
 
-/// Renders `frames` accumulated frames of `samples` pixel samples with the default renderer
-/// (background `background`, `ambient` radiance and any further float parameters).
+/// Renders `frames` accumulated frames of `samples` pixel samples (`passes`) with the default
+/// renderer (background `background` and float parameters `renderer_floats`).
 fn render(
     dev: ANARIDevice,
     world: ANARIWorld,
     camera: ANARICamera,
     size: u32,
-    samples: i32,
-    frames: u32,
+    passes: (i32, u32),
     background: [f32; 4],
     renderer_floats: &[(&str, f32)],
 ) -> Vec<[f32; 4]> {
+    let (samples, frames) = passes;
     let renderer = anariNewRenderer(dev, c("default").as_ptr());
     set(dev, renderer, "background", ANARI_FLOAT32_VEC4, &background);
     set(dev, renderer, "pixelSamples", ANARI_INT32, &samples);
@@ -194,7 +194,7 @@ fn a_mirror_sphere_shows_the_environment_where_its_reflections_point() {
             visible,
         );
         let world = world_with_lights(dev, &[surface], &[light]);
-        let image = render(dev, world, camera, size, 1, 1, BACKGROUND, &[]);
+        let image = render(dev, world, camera, size, (1, 1), BACKGROUND, &[]);
         let shows_map = visible != Some(false);
         let (mut mirrored, mut seen_directly) = (0, 0);
         for j in 0..size {
@@ -298,8 +298,7 @@ fn rough_and_near_mirror_metals_converge_under_a_small_sun_without_fireflies() {
                 world,
                 camera,
                 size,
-                samples,
-                frames,
+                (samples, frames),
                 [0.0, 0.0, 0.0, 1.0],
                 &[],
             )
@@ -468,8 +467,7 @@ fn a_sphere_on_a_plane_under_ambient_light_matches_the_closed_form_occlusion() {
         scene.world,
         scene.camera,
         size,
-        64,
-        8,
+        (64, 8),
         [0.0, 0.0, 0.0, 1.0],
         &ambient,
     );
@@ -533,8 +531,7 @@ fn ambient_occlusion_distance_bounds_what_occludes() {
             scene.world,
             scene.camera,
             size,
-            16,
-            1,
+            (16, 1),
             [0.0, 0.0, 0.0, 1.0],
             &all,
         )
@@ -632,6 +629,14 @@ fn classify(inside_by: f64, margin: f64) -> Option<bool> {
 fn visible_lights_with_extent_are_seen_by_camera_rays_with_their_radiance() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
+    // Every light takes `visible`, so the extension is advertised.
+    let extensions = device_extensions(dev);
+    assert!(
+        extensions
+            .iter()
+            .any(|e| e == "ANARI_KHR_LIGHT_PRIMARY_VISIBILITY"),
+        "{extensions:?}"
+    );
     let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], (PI / 3.0) as f32);
     let sun = normalize([-0.3, 0.35, -1.0]);
     let (ring_inner, ring_outer, ring_intensity) = (0.3f64, 0.6f64, 2.0f64);
@@ -700,7 +705,7 @@ fn visible_lights_with_extent_are_seen_by_camera_rays_with_their_radiance() {
     for visible in [true, false] {
         let lights = lights(visible);
         let world = world_with_lights(dev, &[], &lights);
-        let image = render(dev, world, camera, size, 1, 1, BACKGROUND, &[]);
+        let image = render(dev, world, camera, size, (1, 1), BACKGROUND, &[]);
         let mut seen = [0; 4];
         for j in 0..size {
             for i in 0..size {
