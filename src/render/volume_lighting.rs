@@ -21,7 +21,7 @@ use crate::scene::world::SceneSnapshot;
 
 /// Points per ray where the scene's lights are gathered. They split the light the ray's
 /// volumes scatter into equal parts (see [`lit_volumes_with`]).
-pub const LIGHTING_POINTS: u32 = 8;
+pub(crate) const LIGHTING_POINTS: u32 = 8;
 
 /// The isotropic phase function: 1 / 4π per steradian.
 const ISOTROPIC_PHASE: f32 = 1.0 / (4.0 * PI);

@@ -6,7 +6,7 @@
 use glam::Vec3;
 
 /// Grid cells per macrocell side for structured fields.
-pub const CELLS_PER_MACROCELL: usize = 8;
+pub(crate) const CELLS_PER_MACROCELL: usize = 8;
 /// Most macrocells along one axis.
 const MAX_MACROCELLS_PER_AXIS: usize = 64;
 
