@@ -6,6 +6,8 @@
 mod anaglyph;
 mod budget;
 mod channels;
+mod pixel_work;
+mod records;
 mod samples;
 mod tile;
 
@@ -32,6 +34,9 @@ pub use channels::CHANNELS;
 use channels::{
     Channel, ChannelFormat, ChannelKind, allocate_channels, new_buffer_bytes, value_range,
 };
+#[doc(hidden)]
+pub use pixel_work::PLAIN_PER_PIXEL_PATH;
+use pixel_work::PixelWork;
 use tile::{TileScratch, render_tile};
 
 /// Side of the square tiles the threads share out.
@@ -88,8 +93,8 @@ struct Job {
     channels: Mutex<Vec<Channel>>,
     /// The formats of `channels`, in the same order, readable without the lock.
     formats: Vec<ChannelFormat>,
-    /// Whether a channel other than colour needs each pixel's first hit.
-    keeps_hits: bool,
+    /// What every pixel needs done, decided when the render starts.
+    pixel_work: PixelWork,
     /// Accumulation pass number (0 = first).
     pass: u32,
     /// Running colour sum over the accumulated passes (accumulation only).
@@ -251,7 +256,10 @@ impl FrameState {
         let tiles_x = lattice_width.div_ceil(TILE_SIZE);
         let tiles_y = lattice_height.div_ceil(TILE_SIZE);
         let workers = threads;
+        let formats: Vec<ChannelFormat> = channels.iter().map(|c| c.format).collect();
+        let pixel_work = PixelWork::of(&setup, &formats);
         let job = Arc::new(Job {
+            pixel_work,
             setup,
             cancel: AtomicBool::new(false),
             next_tile: AtomicUsize::new(0),
@@ -260,8 +268,7 @@ impl FrameState {
             interleave,
             workers_left: AtomicUsize::new(workers),
             workers,
-            keeps_hits: channels.iter().any(|c| c.format.kind != ChannelKind::Color),
-            formats: channels.iter().map(|c| c.format).collect(),
+            formats,
             channels: Mutex::new(channels),
             pass,
             color_sum: color_sum.map(Mutex::new),
