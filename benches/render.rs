@@ -750,7 +750,10 @@ fn depth_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: u
             track_head(&setups[k], round + 1)
         });
         println!("{label}, fast renderer, {size}x{size}, {frames} frames each (medians):");
-        for (k, name) in ["colour", "colour + depth", "every channel"].iter().enumerate() {
+        for (k, name) in ["colour", "colour + depth", "every channel"]
+            .iter()
+            .enumerate()
+        {
             let (wall, cpu) = medians[k];
             println!(
                 "  {name}: {wall:.1} ms ({cpu:.0} ms CPU), {:.3}x colour alone ({:.3}x in CPU time)",
