@@ -167,3 +167,82 @@ fn fill<B: Blend>(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::StereoMode;
+
+    const WIDTH: u32 = 90;
+    const HEIGHT: u32 = 70;
+
+    /// A side-by-side frame's colours (one byte per channel, all four equal) with only the
+    /// stride-16 lattice of each eye set, from `value(eye, x)`; 0 elsewhere.
+    fn lattice_frame(value: impl Fn(usize, u32) -> u8) -> (Vec<EyeViewport>, Vec<u8>) {
+        let viewports = StereoMode::SideBySide.viewports(WIDTH, HEIGHT).to_vec();
+        let mut bytes = vec![0u8; (WIDTH * HEIGHT * 4) as usize];
+        for (eye, v) in viewports.iter().enumerate() {
+            for y in (v.y..v.y + v.height).step_by(16) {
+                for x in (v.x..v.x + v.width).step_by(16) {
+                    let at = ((y * WIDTH + x) * 4) as usize;
+                    bytes[at..at + 4].fill(value(eye, x - v.x));
+                }
+            }
+        }
+        (viewports, bytes)
+    }
+
+    #[test]
+    fn colour_is_bilinear_within_each_eye_and_never_crosses_a_surface() {
+        // A gradient across the left eye, a flat right eye: the left eye's pixels between
+        // lattice columns get the gradient's exact values, beyond the last column its value
+        // there; the right eye's stay flat (nothing comes from the other eye).
+        let (viewports, mut bytes) =
+            lattice_frame(|eye, x| if eye == 0 { 10 + x as u8 } else { 200 });
+        for v in &viewports {
+            fill_viewport(
+                v,
+                WIDTH,
+                16,
+                ColorPixels::Unorm8,
+                &mut bytes,
+                &SurfaceGuide::default(),
+            );
+        }
+        for y in 0..HEIGHT {
+            for x in 0..WIDTH {
+                let value = bytes[((y * WIDTH + x) * 4) as usize];
+                let expected = if x < 45 { 10 + x.min(32) as u8 } else { 200 };
+                assert_eq!(value, expected, "({x}, {y})");
+            }
+        }
+        // Two objects in the left eye (columns below 20 and the rest): each pixel takes the
+        // colour of its nearest traced pixel's object, never a blend of both.
+        let object = |x: u32| if x < 20 { 1u32 } else { 2 };
+        let ids: Vec<u8> = (0..WIDTH * HEIGHT)
+            .flat_map(|k| object(k % WIDTH).to_ne_bytes())
+            .collect();
+        let guide = SurfaceGuide {
+            object_id: Some(&ids),
+            ..SurfaceGuide::default()
+        };
+        let (viewports, mut bytes) = lattice_frame(|_, x| if x < 20 { 50 } else { 150 });
+        fill_viewport(
+            &viewports[0],
+            WIDTH,
+            16,
+            ColorPixels::Unorm8,
+            &mut bytes,
+            &guide,
+        );
+        for y in 0..HEIGHT {
+            for x in 0..45 {
+                let value = bytes[((y * WIDTH + x) * 4) as usize];
+                // The nearest lattice column: 0, 16 or 32 (the lower one on ties).
+                let nearest = (x + 7) / 16 * 16;
+                let expected = if object(nearest) == 1 { 50 } else { 150 };
+                assert_eq!(value, expected, "({x}, {y})");
+            }
+        }
+    }
+}
