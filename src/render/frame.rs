@@ -6,6 +6,8 @@
 mod anaglyph;
 mod budget;
 mod channels;
+mod pixel_work;
+mod records;
 mod samples;
 mod tile;
 
@@ -24,7 +26,7 @@ use crate::device::frame::Frame;
 use crate::device::memory::{self, TooBig};
 use crate::device::property::PropertyValue;
 use crate::render::interleave::lattice_size;
-use crate::render::progressive::Throughput;
+use crate::render::progressive::{ColorPixels, Plan, SurfaceGuide, Throughput};
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
 
@@ -34,6 +36,9 @@ pub use channels::CHANNELS;
 use channels::{
     Channel, ChannelFormat, ChannelKind, allocate_channels, new_buffer_bytes, value_range,
 };
+#[doc(hidden)]
+pub use pixel_work::PLAIN_PER_PIXEL_PATH;
+use pixel_work::PixelWork;
 use tile::{TileScratch, render_tile};
 
 /// Side of the square tiles the threads share out.
@@ -90,8 +95,8 @@ struct Job {
     channels: Mutex<Vec<Channel>>,
     /// The formats of `channels`, in the same order, readable without the lock.
     formats: Vec<ChannelFormat>,
-    /// Whether a channel other than colour needs each pixel's first hit.
-    keeps_hits: bool,
+    /// What every pixel needs done, decided when the render starts.
+    pixel_work: PixelWork,
     /// Accumulation pass number (0 = first).
     pass: u32,
     /// Running colour sum over the accumulated passes (accumulation only).
@@ -221,7 +226,10 @@ impl FrameState {
         let tiles_x = lattice_width.div_ceil(TILE_SIZE);
         let tiles_y = lattice_height.div_ceil(TILE_SIZE);
         let workers = threads;
+        let formats: Vec<ChannelFormat> = channels.iter().map(|c| c.format).collect();
+        let pixel_work = PixelWork::of(&setup, &formats);
         let job = Arc::new(Job {
+            pixel_work,
             setup,
             cancel: AtomicBool::new(false),
             next_tile: AtomicUsize::new(0),
@@ -230,8 +238,7 @@ impl FrameState {
             interleave,
             workers_left: AtomicUsize::new(workers),
             workers,
-            keeps_hits: channels.iter().any(|c| c.format.kind != ChannelKind::Color),
-            formats: channels.iter().map(|c| c.format).collect(),
+            formats,
             channels: Mutex::new(channels),
             pass,
             color_sum: color_sum.map(Mutex::new),
@@ -286,11 +293,7 @@ impl FrameState {
         // How far a budgeted render got, and the untraced pixels filled.
         let refined = job.budgeted.as_ref().map(|run| {
             let done = run.first_declined.load(Ordering::Acquire);
-            for channel in channels.iter_mut() {
-                let bytes = channel.format.pixel_bytes;
-                run.plan
-                    .fill(setup.width, run.start, done, bytes, &mut channel.bytes);
-            }
+            fill_untraced(&run.plan, setup.width, (run.start, done), &mut channels);
             (run, done)
         });
         let parallax_range = channels
@@ -476,4 +479,43 @@ fn prepare_eyes(setup: &RenderSetup) -> Vec<(crate::camera::EyeViewport, EyeRays
             .collect(),
         None => Vec::new(),
     }
+}
+
+/// Fills the pixels a budgeted render left untraced: colour blended from traced neighbours of
+/// the same surface (told apart by the depth and id channels when requested), every other
+/// channel copied from the nearest traced pixel.
+fn fill_untraced(plan: &Plan, width: u32, units: (usize, usize), channels: &mut [Channel]) {
+    let color_pixels = |format: &ChannelFormat| match (format.kind, format.data_type) {
+        (ChannelKind::Color, ANARI_FLOAT32_VEC4) => Some(ColorPixels::Float32),
+        (ChannelKind::Color, _) if format.pixel_bytes == 4 => Some(ColorPixels::Unorm8),
+        _ => None,
+    };
+    for channel in channels.iter_mut() {
+        if color_pixels(&channel.format).is_none() {
+            let bytes = channel.format.pixel_bytes;
+            plan.fill(width, units.0, units.1, bytes, &mut channel.bytes);
+        }
+    }
+    let Some(index) = channels
+        .iter()
+        .position(|c| color_pixels(&c.format).is_some())
+    else {
+        return;
+    };
+    let mut color = std::mem::take(&mut channels[index].bytes);
+    let of_kind = |kind: ChannelKind| {
+        channels
+            .iter()
+            .find(|c| c.format.kind == kind)
+            .map(|c| c.bytes.as_slice())
+    };
+    let guide = SurfaceGuide {
+        depth: of_kind(ChannelKind::Depth),
+        object_id: of_kind(ChannelKind::ObjectId),
+        instance_id: of_kind(ChannelKind::InstanceId),
+    };
+    if let Some(pixels) = color_pixels(&channels[index].format) {
+        plan.fill_color(width, units, pixels, &mut color, &guide);
+    }
+    channels[index].bytes = color;
 }

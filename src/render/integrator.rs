@@ -1015,6 +1015,47 @@ pub fn fast_surface_color(
     }
 }
 
+/// [`fast_surface_color`] with the hit's details for the channels other than colour: what
+/// [`shade_primary_at`] gives the fast renderer in a scene without volumes.
+pub fn fast_surface_sample(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    ray: &Ray,
+    hit: Option<&SceneHit>,
+    screen: impl FnOnce() -> Vec2,
+    cyclopean: Option<Vec3>,
+) -> Sample {
+    debug_assert!(settings.fast && scene.volumes.is_empty());
+    match hit {
+        Some(hit) => {
+            let sp = shading_point(scene, ray, hit);
+            let view = settings.view_direction(ray, sp.point, cyclopean);
+            Sample {
+                color: eye_light(view, &sp).extend(1.0),
+                hit: Some(primary_hit(hit, &sp)),
+            }
+        }
+        None => Sample {
+            color: settings.background_for(Some(screen())),
+            hit: None,
+        },
+    }
+}
+
+/// What the channels other than colour keep of a surface hit.
+#[inline(always)]
+fn primary_hit(hit: &SceneHit, sp: &ShadingPoint) -> PrimaryHit {
+    PrimaryHit {
+        t: hit.t,
+        point: sp.point,
+        primitive_id: sp.primitive_id,
+        object_id: sp.object_id,
+        instance_id: sp.instance_id,
+        albedo: sp.base_color,
+        normal: sp.normal,
+    }
+}
+
 /// The surface (or background) part of a primary sample.
 fn shade_surface_primary(
     scene: &SceneSnapshot,
@@ -1060,14 +1101,6 @@ fn shade_surface_primary(
     };
     Sample {
         color: color.extend(1.0),
-        hit: Some(PrimaryHit {
-            t: hit.t,
-            point: sp.point,
-            primitive_id: sp.primitive_id,
-            object_id: sp.object_id,
-            instance_id: sp.instance_id,
-            albedo: sp.base_color,
-            normal: sp.normal,
-        }),
+        hit: Some(primary_hit(&hit, &sp)),
     }
 }

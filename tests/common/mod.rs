@@ -1,6 +1,9 @@
 //! Shared helpers for integration tests that drive the C API in-process.
 #![allow(dead_code, unused_imports)]
 
+mod scenes;
+pub use scenes::*;
+
 use std::ffi::{CString, c_char, c_void};
 use std::sync::Mutex;
 

@@ -5,12 +5,11 @@ use glam::{Vec3, Vec4};
 
 use std::collections::HashMap;
 
-use crate::camera::{CameraRay, EyeRays};
 use crate::device::datatype::*;
 use crate::render::color::{srgb8_encoder, srgb8_rgba_encoder, to_snorm16, to_unorm8};
-use crate::render::integrator::PrimaryHit;
 use crate::render::progressive::TileMap;
 
+use super::records::TileRecords;
 use super::{Inner, Output, RenderSetup, StartError};
 
 /// The channels a frame can produce and the types each may be mapped as.
@@ -79,10 +78,6 @@ pub(super) struct ChannelFormat {
     pub(super) pixel_bytes: usize,
 }
 
-/// What the channels other than colour read for a pixel: its first sample's hit with the
-/// camera ray and eye, `None` where nothing was hit.
-pub(super) type PixelHit<'a> = Option<(&'a PrimaryHit, &'a CameraRay, &'a EyeRays)>;
-
 /// `values` as native-endian bytes (`B` = 4·`N`).
 #[inline(always)]
 pub(super) fn f32_bytes<const N: usize, const B: usize>(values: [f32; N]) -> [u8; B] {
@@ -108,19 +103,17 @@ impl ChannelFormat {
     }
 
     /// Encodes the pixels of a tile into `out` (`pixel_bytes` each, in the order of `colors`):
-    /// `colors` are their final colours, `hit(k)` pixel `k`'s first hit. The match on the type
-    /// is made once per tile, not per pixel.
-    pub(super) fn encode<'a>(
-        &self,
-        colors: &[Vec4],
-        hit: impl Fn(usize) -> PixelHit<'a>,
-        out: &mut [u8],
-    ) {
+    /// `colors` are their final colours, `records` the other channels' values. The match on
+    /// the type is made once per tile, not per pixel.
+    pub(super) fn encode(&self, colors: &[Vec4], records: &TileRecords, out: &mut [u8]) {
         let out = &mut out[..colors.len() * self.pixel_bytes];
         let color = |k: usize| colors[k];
-        let id = |k: usize, of: fn(&PrimaryHit) -> u32| {
-            hit(k).map_or(u32::MAX, |(h, _, _)| of(h)).to_ne_bytes()
+        let float = |values: &[f32], k: usize, nothing: f32| {
+            f32_bytes::<1, 4>([values.get(k).copied().unwrap_or(nothing)])
         };
+        let id = |values: &[u32], k: usize| values.get(k).map_or(u32::MAX, |v| *v).to_ne_bytes();
+        let vector =
+            |values: &[Vec3], k: usize| values.get(k).map_or(Vec3::ZERO, |v| *v).to_array();
         match (self.kind, self.data_type) {
             (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB) => {
                 let srgba = srgb8_rgba_encoder();
@@ -132,26 +125,24 @@ impl ChannelFormat {
             (ChannelKind::Color, _) => {
                 self.encode_pixels(out, |k| f32_bytes::<4, 16>(color(k).to_array()))
             }
-            (ChannelKind::Depth, _) => self.encode_pixels(out, |k| {
-                f32_bytes::<1, 4>([
-                    hit(k).map_or(f32::INFINITY, |(h, ray, eye)| eye.depth(ray, h.t))
-                ])
-            }),
-            (ChannelKind::WindowDepth, _) => self.encode_pixels(out, |k| {
-                f32_bytes::<1, 4>([
-                    hit(k).map_or(1.0, |(h, ray, eye)| eye.window_depth(ray, h.point))
-                ])
-            }),
-            (ChannelKind::Parallax, _) => self.encode_pixels(out, |k| {
-                f32_bytes::<1, 4>([
-                    hit(k).map_or(f32::NAN, |(h, ray, eye)| eye.parallax(ray, h.point))
-                ])
-            }),
-            (ChannelKind::PrimitiveId, _) => self.encode_pixels(out, |k| id(k, |h| h.primitive_id)),
-            (ChannelKind::ObjectId, _) => self.encode_pixels(out, |k| id(k, |h| h.object_id)),
-            (ChannelKind::InstanceId, _) => self.encode_pixels(out, |k| id(k, |h| h.instance_id)),
+            (ChannelKind::Depth, _) => {
+                self.encode_pixels(out, |k| float(&records.depth, k, f32::INFINITY))
+            }
+            (ChannelKind::WindowDepth, _) => {
+                self.encode_pixels(out, |k| float(&records.window_depth, k, 1.0))
+            }
+            (ChannelKind::Parallax, _) => {
+                self.encode_pixels(out, |k| float(&records.parallax, k, f32::NAN))
+            }
+            (ChannelKind::PrimitiveId, _) => {
+                self.encode_pixels(out, |k| id(&records.primitive_id, k))
+            }
+            (ChannelKind::ObjectId, _) => self.encode_pixels(out, |k| id(&records.object_id, k)),
+            (ChannelKind::InstanceId, _) => {
+                self.encode_pixels(out, |k| id(&records.instance_id, k))
+            }
             (ChannelKind::Albedo, data_type) => {
-                let albedo = |k: usize| hit(k).map_or(Vec3::ZERO, |(h, _, _)| h.albedo).to_array();
+                let albedo = |k: usize| vector(&records.albedo, k);
                 match data_type {
                     ANARI_UFIXED8_RGB_SRGB => {
                         let srgb = srgb8_encoder();
@@ -162,7 +153,7 @@ impl ChannelFormat {
                 }
             }
             (ChannelKind::Normal, data_type) => {
-                let normal = |k: usize| hit(k).map_or(Vec3::ZERO, |(h, _, _)| h.normal).to_array();
+                let normal = |k: usize| vector(&records.normal, k);
                 match data_type {
                     ANARI_FIXED16_VEC3 => self.encode_pixels(out, |k| {
                         let [x, y, z] = normal(k).map(|v| to_snorm16(v).to_ne_bytes());

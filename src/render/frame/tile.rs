@@ -5,12 +5,13 @@ use glam::{Vec2, Vec3, Vec4};
 
 use crate::accel::{PacketScratch, Ray};
 use crate::camera::{BLOCK_RAYS, BlockRays, CameraRay, EyeRays, PixelSet};
-use crate::render::integrator::{PrimaryHit, fast_surface_color, shade_primary_at};
+use crate::render::integrator::{fast_surface_color, fast_surface_sample, shade_primary_at};
 use crate::render::interleave::{InterleavedTile, lattice_size};
 use crate::render::progressive::{FrameTile, TileMap};
 use crate::scene::light::LightSampling;
 
 use super::anaglyph::{anaglyph, anaglyph_eyes};
+use super::records::TileRecords;
 use super::samples::{jitter, lens_sample};
 use super::{Job, TILE_SIZE, lock};
 
@@ -79,10 +80,6 @@ pub(super) const NO_RAY: Ray = Ray {
 /// Pixels in a full tile.
 pub(super) const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
 
-/// A pixel's first sample's hit with the camera ray and eye that saw it, kept for the channels
-/// other than colour.
-pub(super) type FirstHit<'a> = (PrimaryHit, CameraRay, &'a EyeRays);
-
 /// The ray to trace for a camera ray.
 #[inline]
 pub(super) fn traced(camera_ray: &CameraRay) -> Ray {
@@ -96,10 +93,10 @@ pub(super) fn traced(camera_ray: &CameraRay) -> Ray {
 
 /// A worker's working memory, kept from one tile to the next.
 #[derive(Default)]
-pub(super) struct TileScratch<'a> {
+pub(super) struct TileScratch {
     packets: PacketScratch,
-    /// Per pixel of a tile, its first hit (only when a channel other than colour needs it).
-    first_hits: Vec<Option<FirstHit<'a>>>,
+    /// Per pixel of a tile, the requested channels' values from its first hit.
+    records: TileRecords,
     /// One channel's pixels of a tile, encoded.
     encoded: Vec<u8>,
 }
@@ -109,11 +106,11 @@ pub(super) struct TileScratch<'a> {
 /// better at stride 2).
 pub(super) const SINGLE_RAY_STRIDE: u32 = 4;
 
-pub(super) fn render_tile<'a>(
+pub(super) fn render_tile(
     job: &Job,
-    eyes: &'a [(crate::camera::EyeViewport, EyeRays)],
+    eyes: &[(crate::camera::EyeViewport, EyeRays)],
     map: impl TileMap,
-    scratch: &mut TileScratch<'a>,
+    scratch: &mut TileScratch,
 ) {
     let setup = &job.setup;
     // The tile's pixels are lattice points (sx, sy) of [s0, s1) × [t0, t1); for a tile
@@ -124,10 +121,9 @@ pub(super) fn render_tile<'a>(
     // Colour summed over the samples, and whether any eye covers the pixel.
     let mut colors = [Vec4::ZERO; TILE_PIXELS];
     let mut covered = [false; TILE_PIXELS];
-    scratch.first_hits.clear();
-    if job.keeps_hits {
-        scratch.first_hits.resize(pixel_count, None);
-    }
+    scratch
+        .records
+        .reset(&job.pixel_work.hit_channels, pixel_count);
     let subpixel_channels = eyes.first().and_then(|(_, rays)| rays.subpixel_channels());
     match (anaglyph_eyes(eyes), subpixel_channels) {
         (Some((left, right)), _) => {
@@ -189,7 +185,6 @@ pub(super) fn render_tile<'a>(
             );
         }
     }
-    let first_hits = &scratch.first_hits;
     let passes = (job.pass + 1) as f32;
     // Final colours: the samples' mean (the background where no eye looks), then the running
     // mean over the passes when accumulating.
@@ -227,17 +222,11 @@ pub(super) fn render_tile<'a>(
         }
     }
     drop(color_sum);
-    let hit = |k: usize| {
-        first_hits
-            .get(k)
-            .and_then(Option::as_ref)
-            .map(|(hit, camera_ray, eye_rays)| (hit, camera_ray, *eye_rays))
-    };
     // Encoded outside the lock; the lock is held only to copy the rows in.
     for (index, format) in job.formats.iter().enumerate() {
         let encoded = &mut scratch.encoded;
         encoded.resize(pixel_count * format.pixel_bytes, 0);
-        format.encode(&colors[..pixel_count], hit, encoded);
+        format.encode(&colors[..pixel_count], &scratch.records, encoded);
         if let Some(channel) = lock(&job.channels).get_mut(index) {
             channel.write_area(&map, setup.width, encoded);
         }
@@ -257,13 +246,13 @@ pub(super) type PreparedEye = (crate::camera::EyeViewport, EyeRays);
 
 /// Traces the tile's pixels from `eyes`, summing each pixel's samples into `colors` and
 /// marking it `covered`; with `record_hits` (and a frame that keeps hits), each pixel's first
-/// hit goes into `scratch.first_hits`.
+/// hit's channel values go into `scratch.records`.
 #[allow(clippy::too_many_arguments)]
-pub(super) fn trace_blocks<'a>(
+pub(super) fn trace_blocks(
     job: &Job,
-    eyes: &'a [(crate::camera::EyeViewport, EyeRays)],
+    eyes: &[(crate::camera::EyeViewport, EyeRays)],
     map: impl TileMap,
-    scratch: &mut TileScratch<'a>,
+    scratch: &mut TileScratch,
     colors: &mut [Vec4; TILE_PIXELS],
     covered: &mut [bool; TILE_PIXELS],
     record_hits: bool,
@@ -274,10 +263,9 @@ pub(super) fn trace_blocks<'a>(
     let (tx, ty, x_end, y_end) = (area.s0, area.t0, area.s1, area.t1);
     let tile_width = x_end - tx;
     let samples = setup.settings.pixel_samples;
-    // The fast renderer's lean path: nothing but colour to compute.
-    let colour_only_fast = setup.settings.fast && !job.keeps_hits && setup.scene.volumes.is_empty();
-    let keeps_hits = job.keeps_hits && record_hits;
-    let first_hits = &mut scratch.first_hits;
+    let work = &job.pixel_work;
+    let keeps_hits = work.hit_channels.any() && record_hits;
+    let records = &mut scratch.records;
     let mut rays = [NO_RAY; 64];
     // Viewport coordinates of a block's rays, for cameras that make them four at a time.
     let mut batch: [Option<(f32, f32)>; 64] = [None; 64];
@@ -294,13 +282,15 @@ pub(super) fn trace_blocks<'a>(
                 .iter()
                 .find(|(viewport, _)| viewport.holds_block(x0, y0, x1 + 1, y1 + 1, map.pixels()));
             // Cameras that blend several viewers make their rays four at a time.
-            let batched = block_eye.filter(|(_, eye_rays)| eye_rays.batches_rays());
+            let batched =
+                block_eye.filter(|(_, eye_rays)| !work.plain_pixels && eye_rays.batches_rays());
             if batched.is_some() {
                 batch = [None; 64];
             }
             // A whole block of pixels seen from one lensless pinhole (or from several viewers'
             // blended positions): its rays are made together, lane by lane.
-            let whole_block = matches!(pixel_rays, PixelRays::All)
+            let whole_block = !work.plain_pixels
+                && matches!(pixel_rays, PixelRays::All)
                 && bx_end - bx == PACKET_SIDE
                 && by_end - by == PACKET_SIDE;
             let block_maker =
@@ -393,7 +383,7 @@ pub(super) fn trace_blocks<'a>(
                     }
                 }
                 let subpixels = matches!(pixel_rays, PixelRays::Subpixel(_));
-                if map.stride() >= SINGLE_RAY_STRIDE || subpixels {
+                if map.stride() >= SINGLE_RAY_STRIDE || subpixels || work.plain_pixels {
                     // Sparse lattices make incoherent packets, and a light field's neighbouring
                     // subpixels look from eyes centimetres apart: ray by ray is cheaper there.
                     for (hit, ray) in hits.iter_mut().zip(&rays) {
@@ -424,15 +414,30 @@ pub(super) fn trace_blocks<'a>(
                     };
                     let k = ((sy - ty) * tile_width + sx - tx) as usize;
                     covered[k] = true;
-                    if colour_only_fast {
-                        colors[k] += fast_surface_color(
-                            &setup.scene,
-                            &setup.settings,
-                            &rays[lane],
-                            hits[lane].as_ref(),
-                            screen,
-                            camera_ray.cyclopean,
-                        );
+                    if work.fast_surfaces {
+                        let (scene, settings) = (&setup.scene, &setup.settings);
+                        let (ray, hit) = (&rays[lane], hits[lane].as_ref());
+                        if s == 0 && keeps_hits {
+                            let sample = fast_surface_sample(
+                                scene,
+                                settings,
+                                ray,
+                                hit,
+                                screen,
+                                camera_ray.cyclopean,
+                            );
+                            colors[k] += sample.color;
+                            records.record(k, sample.hit.as_ref(), &camera_ray, eye_rays);
+                        } else {
+                            colors[k] += fast_surface_color(
+                                scene,
+                                settings,
+                                ray,
+                                hit,
+                                screen,
+                                camera_ray.cyclopean,
+                            );
+                        }
                         continue;
                     }
                     let sample = shade_primary_at(
@@ -446,7 +451,7 @@ pub(super) fn trace_blocks<'a>(
                     );
                     colors[k] += sample.color;
                     if s == 0 && keeps_hits {
-                        first_hits[k] = sample.hit.map(|hit| (hit, camera_ray, eye_rays));
+                        records.record(k, sample.hit.as_ref(), &camera_ray, eye_rays);
                     }
                 }
             }
