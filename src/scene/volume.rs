@@ -1,7 +1,10 @@
-//! Volumes: `transferFunction1D` maps a spatial field through a colour and opacity table and is
-//! rendered as emission–absorption by ray marching (the informative algorithm of the ANARI
-//! specification): samples start on the entry face, one every half cell, and a sample of opacity
-//! `o` over a step of world length `s` passes `(1 − o)^(s / unitDistance)` of the light behind it.
+//! Volumes: `transferFunction1D` maps a spatial field through a colour and opacity table. This
+//! file holds the committed volume and the ray march (the informative algorithm of the ANARI
+//! specification): samples one every half cell, and a sample of opacity `o` over a step of
+//! world length `s` passes `(1 − o)^(s / unitDistance)` of the light behind it. Stretches over
+//! macrocells the transfer function makes transparent are skipped. The fast renderer draws the
+//! march as emission–absorption ([`integrate`]); the default renderer lights it
+//! ([`crate::render::volume_lighting`]).
 
 use std::sync::Arc;
 
