@@ -13,6 +13,9 @@
 #                                          a tilted planetarium dome (fisheye, centred and tracked)
 #   out/fields.png                         examples-c/fields.c: isosurfaces of a structured field
 #                                          beside an unstructured (tetrahedra) volume
+#   out/environment/                       examples-c/environment.c: an HDRI seen behind and in a
+#                                          mirror, a rough gold and a glass sphere; ambient occlusion
+#   out/lit_volume.png                     examples-c/lit_volume.c: a lit cloud casting its shadow
 # Usage: scripts/demo.sh [wall resolution (default 256)] [head positions (default 4)]
 set -euo pipefail
 
@@ -33,14 +36,14 @@ ln -sf "$target_dir/release/libcavetrace.so" "$bin/lib/libcavetrace.so"
 ln -sf "$target_dir/release/libcavetrace.so" "$bin/lib/libcavetrace.so.0"
 cflags=(-std=c99 -O2 -Wall -Wextra -I"$root/include")
 echo "== building examples-c"
-for example in tutorial matrix_camera cave fields; do
+for example in tutorial matrix_camera cave fields environment lit_volume; do
   "${CC:-cc}" "${cflags[@]}" "examples-c/$example.c" -o "$bin/$example" \
     -L"$bin/lib" -lcavetrace -Wl,-rpath,"$bin/lib" -lm
 done
 
 # Only the demo's own outputs are replaced, so the list below is exactly what this run wrote.
-rm -rf out/tutorial.png out/matrix_camera out/cave out/fields.png
-mkdir -p out/matrix_camera out/cave
+rm -rf out/tutorial.png out/matrix_camera out/cave out/fields.png out/environment out/lit_volume.png
+mkdir -p out/matrix_camera out/cave out/environment
 echo "== tutorial"
 "$bin/tutorial" out/tutorial.png
 echo "== matrix camera (a headset's two eyes from OpenGL matrices)"
@@ -49,11 +52,16 @@ echo "== CAVE: 5 walls × 2 eyes × offAxis and matrix cameras, $steps head posi
 "$bin/cave" out/cave "$resolution" "$steps"
 echo "== isosurfaces and an unstructured volume"
 "$bin/fields" out/fields.png
+echo "== environment (hdri seen and reflected, glass, ambient occlusion)"
+"$bin/environment" out/environment
+echo "== lit volume"
+"$bin/lit_volume" out/lit_volume.png
 
 # Every folder and file written, folders with the same files on one line.
 echo "== outputs in $root/out/"
 echo "out/tutorial.png"
 echo "out/fields.png"
+echo "out/lit_volume.png"
 declare -A folders_of
 order=()
 while IFS= read -r folder; do
@@ -61,7 +69,7 @@ while IFS= read -r folder; do
   [ -n "$files" ] || continue
   [ -n "${folders_of[$files]+set}" ] || order+=("$files")
   folders_of[$files]+="$folder/ "
-done < <(find out/matrix_camera out/cave -type d | sort -V)
+done < <(find out/matrix_camera out/cave out/environment -type d | sort -V)
 for files in "${order[@]}"; do
   count=$(wc -w <<<"$files")
   echo "${folders_of[$files]}($count files): $files" | fold -s -w 100 | sed '2,$s/^/    /'
