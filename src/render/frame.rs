@@ -70,6 +70,8 @@ pub struct RenderSetup {
     pub completion: Option<(ANARIFrameCompletionCallback, usize, usize, usize)>,
     /// Frame-time budget (`ANARI_CAVETRACE_FRAME_BUDGET`); `None` renders every pixel.
     pub budget: Option<Budget>,
+    /// Cluster hook: the tiles this rank traces of a frame shared out among MPI ranks.
+    pub tile_split: Option<Arc<crate::render::cluster::TileSplit>>,
 }
 
 /// A budgeted render traces a subset of the pixels (see [`crate::render::progressive`]).
@@ -485,6 +487,8 @@ impl Inner {
 pub struct FrameState {
     inner: Mutex<Inner>,
     finished: Condvar,
+    /// Cluster hook: what this rank's last render across MPI ranks traced and exchanged.
+    pub cluster: crate::render::cluster::FrameTraffic,
 }
 
 impl FrameState {
@@ -520,6 +524,10 @@ impl FrameState {
             "duration" => Some(PropertyValue::Float32(self.lock().duration)),
             "progress" => Some(PropertyValue::Float32(self.lock().progress)),
             "parallaxRange" => Some(PropertyValue::Float32Vec2(self.lock().parallax_range)),
+            // Cluster hook: the properties of renders across MPI ranks.
+            #[cfg(feature = "mpi")]
+            _ => self.cluster.property(name),
+            #[cfg(not(feature = "mpi"))]
             _ => None,
         }
     }
@@ -624,12 +632,20 @@ impl FrameState {
             let next = job.next_tile.fetch_add(1, Ordering::AcqRel);
             match &job.budgeted {
                 None if next >= job.tile_count => break,
-                None => match job.interleave {
-                    Some(sets) => {
-                        render_tile(job, &eyes, job.interleaved_tile(next, sets), &mut scratch)
+                // Cluster hook: another rank's tile is skipped; this rank's are timed.
+                None if job.setup.tile_split.as_ref().is_some_and(|s| !s.owns(next)) => {}
+                None => {
+                    let started = Instant::now();
+                    match job.interleave {
+                        Some(sets) => {
+                            render_tile(job, &eyes, job.interleaved_tile(next, sets), &mut scratch)
+                        }
+                        None => render_tile(job, &eyes, job.frame_tile(next), &mut scratch),
                     }
-                    None => render_tile(job, &eyes, job.frame_tile(next), &mut scratch),
-                },
+                    if let Some(split) = &job.setup.tile_split {
+                        split.record(next, started.elapsed());
+                    }
+                }
                 Some(run) => {
                     let index = run.start + next;
                     if run.declines(index) {
@@ -748,6 +764,25 @@ impl FrameState {
         self.finished.notify_all();
     }
 
+    /// Cluster hook: changes the last render's channels in place (ranks' parts assembled),
+    /// copying them first if the application has them mapped.
+    pub(crate) fn edit_output(&self, edit: impl FnOnce(&mut Output)) {
+        self.wait();
+        let mut inner = self.lock();
+        if let Some(output) = inner.output.as_mut() {
+            if Arc::get_mut(output).is_none() {
+                *output = Arc::new(Output {
+                    width: output.width,
+                    height: output.height,
+                    channels: output.channels.clone(),
+                });
+            }
+            if let Some(output) = Arc::get_mut(output) {
+                edit(output);
+            }
+        }
+    }
+
     /// Waits for the render and returns the channel's pixels (kept alive until unmap).
     pub fn map(&self, channel: &str) -> Option<(*const c_void, u32, u32, ANARIDataType)> {
         self.wait();
@@ -845,7 +880,7 @@ fn budgeted_run(setup: &RenderSetup, inner: &mut Inner, threads: usize) -> Optio
 }
 
 /// The two eyes' pixel sets of an interleaved stereo frame.
-fn interleaved_sets(setup: &RenderSetup) -> Option<[PixelSet; 2]> {
+pub(crate) fn interleaved_sets(setup: &RenderSetup) -> Option<[PixelSet; 2]> {
     let viewports = setup.camera.as_ref()?.viewports(setup.width, setup.height);
     match viewports.as_slice() {
         [left, right] => match (left.pixels, right.pixels) {

@@ -408,10 +408,8 @@ fn direct_light(
             } else {
                 f32::INFINITY
             };
-            if scene
-                .bvh
-                .occluded(&offset_ray(point, incoming.to_light, t_max))
-            {
+            // Cluster hook: shadow rays are tested on every rank.
+            if crate::render::cluster::occluded(scene, &offset_ray(point, incoming.to_light, t_max)) {
                 continue;
             }
         }
@@ -453,7 +451,11 @@ fn trace_seeing(
     sampling: &LightSampling,
     beyond: impl FnOnce(Vec4) -> Vec4,
 ) -> Vec4 {
-    let hit = scene.bvh.intersect(ray);
+    // Cluster hook: the closest hit of every rank; another rank's hit is shaded there.
+    let hit = match crate::render::cluster::closest(scene, ray, depth, screen, sampling) {
+        Ok(hit) => hit,
+        Err(radiance) => return radiance,
+    };
     let volume = volumes_in_front(scene, ray, hit.as_ref());
     if let Some(volume) = volume.filter(|v| v.transmittance == 0.0) {
         return volume.over(Vec4::ZERO);
@@ -906,6 +908,10 @@ pub fn shade_primary_at(
     cyclopean: Option<Vec3>,
     sampling: &LightSampling,
 ) -> Sample {
+    // Cluster hook: a primary sample of a render across MPI ranks is shaded by its hit's rank.
+    if let Some(sample) = crate::render::cluster::primary(scene, ray, hit.as_ref(), screen, cyclopean, sampling) {
+        return sample;
+    }
     let Some(volume) = volumes_in_front(scene, ray, hit.as_ref()) else {
         return shade_surface_primary(scene, settings, ray, hit, screen, cyclopean, sampling);
     };
@@ -954,6 +960,11 @@ pub fn fast_surface_color(
     cyclopean: Option<Vec3>,
 ) -> Vec4 {
     debug_assert!(settings.fast && scene.volumes.is_empty());
+    // Cluster hook: as in `shade_primary_at`.
+    let screen = match crate::render::cluster::fast_primary(scene, ray, hit, screen, cyclopean) {
+        Ok(screen) => screen,
+        Err(color) => return color,
+    };
     match hit {
         Some(hit) => {
             let sp = shading_point(scene, ray, hit);

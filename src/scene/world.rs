@@ -78,6 +78,8 @@ pub struct SceneSnapshot {
     pub instances: Vec<InstanceData>,
     pub lights: Vec<Light>,
     pub volumes: Vec<PlacedVolume>,
+    /// Cluster hook: the ray exchange of a render across MPI ranks (render::cluster), if any.
+    pub cluster: Option<std::sync::Arc<dyn std::any::Any + Send + Sync>>,
 }
 
 impl SceneSnapshot {
@@ -87,6 +89,7 @@ impl SceneSnapshot {
             instances: Vec::new(),
             lights: Vec::new(),
             volumes: Vec::new(),
+            cluster: None,
         }
     }
 
@@ -276,6 +279,7 @@ pub fn snapshot(device: &Device, world: &Object) -> SceneSnapshot {
         instances,
         lights,
         volumes,
+        cluster: None,
     }
 }
 
