@@ -766,6 +766,7 @@ impl FrameState {
 
     /// Cluster hook: changes the last render's channels in place (ranks' parts assembled),
     /// copying them first if the application has them mapped.
+    #[cfg_attr(not(feature = "mpi"), allow(dead_code))]
     pub(crate) fn edit_output(&self, edit: impl FnOnce(&mut Output)) {
         self.wait();
         let mut inner = self.lock();
