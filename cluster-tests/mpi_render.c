@@ -3,6 +3,7 @@
  *
  *   mpirun -np 4 cluster-tests/build/mpi_render          the image tests
  *   mpirun -np 4 cluster-tests/build/mpi_render kill     the last rank dies mid-frame
+ *   mpirun -np 4 cluster-tests/build/mpi_render bench 1600    costs per frame (docs/cluster.md)
  *
  * The scene: a floor (a mesh), a sphere casting its shadow on the floor, a mirror, an instanced
  * mesh, a few spheres in one geometry and a half-transparent pane, under one directional light.
@@ -419,6 +420,67 @@ static int kill_test(ANARIDevice d, const int *mine) {
   _exit(ok ? 0 : 1);
 }
 
+/* Figures for docs/cluster.md: a size×size frame of the test scene, median of 3 renders after
+ * one to warm up; the exchange time is the slowest rank's, the bytes all ranks' together. */
+static int bench(ANARIDevice d, const int *mine, const int *all, uint32_t size) {
+  const char *modes[] = {"dataParallel", "replicated"};
+  const char *renderers[] = {"default", "fast"};
+  for (int m = 0; m < 2; m++) {
+    for (int r = 0; r < 2; r++) {
+      ANARIWorld world = world_of(d, m == 1 ? all : mine);
+      ANARICamera camera = camera_of(d, PERSPECTIVE);
+      ANARIRenderer renderer = renderer_of(d, renderers[r]);
+      ANARIFrame frame = anariNewFrame(d);
+      const uint32_t dims[2] = {size, size};
+      anariSetParameter(d, frame, "size", ANARI_UINT32_VEC2, dims);
+      anariSetParameter(d, frame, "world", ANARI_WORLD, &world);
+      anariSetParameter(d, frame, "camera", ANARI_CAMERA, &camera);
+      anariSetParameter(d, frame, "renderer", ANARI_RENDERER, &renderer);
+      for (int c = 0; c < 2; c++)
+        anariSetParameter(d, frame, CHANNEL[c], ANARI_DATA_TYPE, &CHANNEL_TYPE[c]);
+      anariSetParameter(d, frame, "mpiMode", ANARI_STRING, modes[m]);
+      anariCommitParameters(d, frame);
+      double seconds[4];
+      float exchange = 0;
+      uint64_t bytes = 0;
+      for (int i = 0; i < 4; i++) {
+        MPI_Barrier(MPI_COMM_WORLD);
+        double started = MPI_Wtime();
+        anariRenderFrame(d, frame);
+        anariFrameReady(d, frame, ANARI_WAIT);
+        MPI_Barrier(MPI_COMM_WORLD);
+        seconds[i] = MPI_Wtime() - started;
+        anariGetProperty(d, frame, "mpiExchangeTime", ANARI_FLOAT32, &exchange, sizeof exchange,
+                         ANARI_WAIT);
+        anariGetProperty(d, frame, "mpiBytesSent", ANARI_UINT64, &bytes, sizeof bytes,
+                         ANARI_WAIT);
+      }
+      for (int i = 1; i < 4; i++) /* sort the timed three */
+        for (int j = i + 1; j < 4; j++)
+          if (seconds[j] < seconds[i]) {
+            double t = seconds[i];
+            seconds[i] = seconds[j];
+            seconds[j] = t;
+          }
+      float slowest = 0;
+      uint64_t total = 0;
+      MPI_Reduce(&exchange, &slowest, 1, MPI_FLOAT, MPI_MAX, 0, MPI_COMM_WORLD);
+      MPI_Reduce(&bytes, &total, 1, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
+      if (rank == 0)
+        printf("%-12s %-7s %u×%u, %d ranks: %.1f ms per frame, exchange %.1f ms (slowest rank), "
+               "%.2f MB sent by all ranks\n",
+               modes[m], renderers[r], size, size, ranks, 1e3 * seconds[2], 1e3 * slowest,
+               total / 1e6);
+      fflush(stdout);
+      anariRelease(d, frame);
+      anariRelease(d, renderer);
+      anariRelease(d, camera);
+      anariRelease(d, world);
+    }
+  }
+  return 0;
+}
+
 int main(int argc, char **argv) {
   int provided = 0;
   MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided);
@@ -436,6 +498,12 @@ int main(int argc, char **argv) {
   }
   if (argc > 1 && strcmp(argv[1], "kill") == 0)
     return kill_test(d, mine);
+  if (argc > 2 && strcmp(argv[1], "bench") == 0) {
+    bench(d, mine, all, (uint32_t)atoi(argv[2]));
+    anariRelease(d, d);
+    MPI_Finalize();
+    return 0;
+  }
   const char *renderers[] = {"default", "fast"};
   for (int r = 0; r < 2; r++)
     for (int c = PERSPECTIVE; c <= MATRIX; c++)
