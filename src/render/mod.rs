@@ -125,6 +125,8 @@ pub const FRAME: ObjectSpec = ObjectSpec::new(
         cluster::MPI_MODE,
         #[cfg(feature = "mpi")]
         cluster::MPI_TIMEOUT,
+        #[cfg(feature = "mpi")]
+        cluster::MPI_IMAGE_ON_EVERY_RANK,
     ],
 )
 .channels(&[

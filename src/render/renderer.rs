@@ -409,7 +409,8 @@ fn direct_light(
                 f32::INFINITY
             };
             // Cluster hook: shadow rays are tested on every rank.
-            if crate::render::cluster::occluded(scene, &offset_ray(point, incoming.to_light, t_max)) {
+            if crate::render::cluster::occluded(scene, &offset_ray(point, incoming.to_light, t_max))
+            {
                 continue;
             }
         }
@@ -909,7 +910,9 @@ pub fn shade_primary_at(
     sampling: &LightSampling,
 ) -> Sample {
     // Cluster hook: a primary sample of a render across MPI ranks is shaded by its hit's rank.
-    if let Some(sample) = crate::render::cluster::primary(scene, ray, hit.as_ref(), screen, cyclopean, sampling) {
+    if let Some(sample) =
+        crate::render::cluster::primary(scene, ray, hit.as_ref(), screen, cyclopean, sampling)
+    {
         return sample;
     }
     let Some(volume) = volumes_in_front(scene, ray, hit.as_ref()) else {

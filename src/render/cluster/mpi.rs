@@ -42,6 +42,14 @@ pub const MPI_MODE: ParamSpec = ParamSpec::new(
 .default(SpecValue::Str("dataParallel"))
 .values(&["dataParallel", "replicated"]);
 
+pub const MPI_IMAGE_ON_EVERY_RANK: ParamSpec = ParamSpec::new(
+    "mpiImageOnEveryRank",
+    &[ANARI_BOOL],
+    "whether every rank's frame holds the whole image (else rank 0's only; the others hold \
+     what they rendered themselves)",
+)
+.default(SpecValue::Bool(false));
+
 pub const MPI_TIMEOUT: ParamSpec = ParamSpec::new(
     "mpiTimeout",
     &[ANARI_FLOAT32],
@@ -159,7 +167,11 @@ pub fn commit_frame(device: &Device, frame: &Object) {
     let result = if code != 0 {
         Err(ClusterError::Mpi(mpi_error(code)))
     } else {
-        wait(&mut request, timeout, "duplicating the frame's communicator")
+        wait(
+            &mut request,
+            timeout,
+            "duplicating the frame's communicator",
+        )
     };
     if let Err(error) = result {
         device.error(
@@ -233,14 +245,16 @@ fn timeout_of(params: &crate::device::params::ParamSet) -> Duration {
     Duration::from_secs_f32(seconds.clamp(0.01, 86400.0))
 }
 
-/// Polls a non-blocking MPI operation until it completes, fails or times out.
+/// Polls a non-blocking MPI operation until it completes, fails or times out. Open MPI moves
+/// a large collective on only inside MPI calls, so polls follow each other closely: without
+/// sleeping for the first 20 ms, then 50 µs apart (so that a rank waiting long for the others
+/// leaves the cores to ranks sharing its node).
 fn wait(
     request: &mut ffi::MPI_Request,
     timeout: Duration,
     what: &'static str,
 ) -> Result<(), ClusterError> {
     let started = Instant::now();
-    let mut pause = Duration::from_micros(2);
     loop {
         let mut done = 0;
         // SAFETY: `request` is an active request of this thread; MPI_STATUS_IGNORE is valid.
@@ -257,8 +271,11 @@ fn wait(
                 seconds: timeout.as_secs_f32(),
             });
         }
-        std::thread::sleep(pause);
-        pause = (pause * 2).min(Duration::from_micros(500));
+        if started.elapsed() < Duration::from_millis(20) {
+            std::thread::yield_now();
+        } else {
+            std::thread::sleep(Duration::from_micros(50));
+        }
     }
 }
 
@@ -369,8 +386,12 @@ impl Exchange for MpiExchange {
                 &mut request,
             )
         };
-        let (_, all, counts, _) =
-            self.finish(code, &mut request, "exchanging rays", (send, all, counts, displs))?;
+        let (_, all, counts, _) = self.finish(
+            code,
+            &mut request,
+            "exchanging rays",
+            (send, all, counts, displs),
+        )?;
         Ok(split(all, &counts))
     }
 
@@ -390,8 +411,12 @@ impl Exchange for MpiExchange {
                 &mut request,
             )
         };
-        let (_, reduced) =
-            self.finish(code, &mut request, "reducing hits over the ranks", (send, reduced))?;
+        let (_, reduced) = self.finish(
+            code,
+            &mut request,
+            "reducing hits over the ranks",
+            (send, reduced),
+        )?;
         values.copy_from_slice(&reduced);
         Ok(())
     }
@@ -419,8 +444,12 @@ impl Exchange for MpiExchange {
                 &mut request,
             )
         };
-        let (_, all, counts, _) =
-            self.finish(code, &mut request, "gathering the image", (send, all, counts, displs))?;
+        let (_, all, counts, _) = self.finish(
+            code,
+            &mut request,
+            "gathering the image",
+            (send, all, counts, displs),
+        )?;
         Ok((self.rank == 0).then(|| split(all, &counts)))
     }
 }
@@ -477,10 +506,11 @@ pub fn render(
         );
     }
     let replicated = params.get_string("mpiMode") == Some("replicated");
+    let everywhere = params.get_bool("mpiImageOnEveryRank").unwrap_or(false);
     let result = if replicated {
-        render_replicated(device, frame, state, setup, &exchange, costs)
+        render_replicated(device, frame, state, setup, &exchange, costs, everywhere)
     } else {
-        render_data_parallel(device, frame, state, setup, &exchange)
+        render_data_parallel(device, frame, state, setup, &exchange, everywhere)
     };
     if let Err(error) = result {
         device.error(
@@ -521,7 +551,11 @@ fn pass_of(setup: &RenderSetup) -> RenderSetup {
 
 /// Every rank learns whether every rank's local part of the render went well.
 fn agree(exchange: &dyn Exchange, ok: bool) -> Result<(), ClusterError> {
-    let mut failed_rank = [if ok { u64::MAX } else { u64::from(exchange.rank()) }];
+    let mut failed_rank = [if ok {
+        u64::MAX
+    } else {
+        u64::from(exchange.rank())
+    }];
     exchange.all_min(&mut failed_rank)?;
     match failed_rank[0] {
         u64::MAX => Ok(()),
@@ -553,6 +587,7 @@ fn render_data_parallel(
     state: &Arc<FrameState>,
     mut setup: RenderSetup,
     exchange: &dyn Exchange,
+    everywhere: bool,
 ) -> Result<(), ClusterError> {
     if setup.accumulate {
         say_once(
@@ -581,10 +616,13 @@ fn render_data_parallel(
         None => return Err(ClusterError::Mismatch("the frame's scene is shared".into())),
     }
     // First pass: the frame's own render records every primary sample and this rank's hit.
+    let t0 = Instant::now();
     let ok = start(device, frame, state, pass_of(&setup));
     state.wait();
+    let t1 = Instant::now();
     agree(exchange, ok)?;
     let records = pass.take_sorted();
+    let t2 = Instant::now();
     let max_rounds = 4 * (setup.settings.max_ray_depth + 2) + 16;
     let (samples, traffic) = resolve(
         exchange,
@@ -592,11 +630,23 @@ fn render_data_parallel(
         &setup.settings,
         &records,
         max_rounds,
+        everywhere,
     )?;
+    let t3 = Instant::now();
     pass.set_replay(Replay {
         keys: records.iter().map(|r| r.key).collect(),
         samples,
     });
+    if std::env::var_os("CAVETRACE_MPI_PROFILE").is_some() {
+        eprintln!(
+            "PROFILE rank {}: collect {:?} agree+sort {:?} resolve {:?} ({:?})",
+            exchange.rank(),
+            t1 - t0,
+            t2 - t1,
+            t3 - t2,
+            traffic
+        );
+    }
     let samples = u64::from(setup.settings.pixel_samples.max(1));
     state.cluster.set(
         traffic.shaded.div_ceil(samples),
@@ -615,6 +665,7 @@ fn render_replicated(
     mut setup: RenderSetup,
     exchange: &MpiExchange,
     costs: Vec<f64>,
+    everywhere: bool,
 ) -> Result<(), ClusterError> {
     let (width, height) = (setup.width, setup.height);
     if frame::interleaved_sets(&setup).is_some() {
@@ -628,7 +679,9 @@ fn render_replicated(
         );
         let ok = start(device, frame, state, setup);
         state.wait();
-        state.cluster.set(u64::from(width) * u64::from(height), 0, 0.0);
+        state
+            .cluster
+            .set(u64::from(width) * u64::from(height), 0, 0.0);
         return agree(exchange, ok);
     }
     let tiles_x = width.div_ceil(TILE_SIZE);
@@ -651,7 +704,12 @@ fn render_replicated(
             (tile as u32 % tiles_x) * TILE_SIZE,
             (tile as u32 / tiles_x) * TILE_SIZE,
         );
-        (x0, y0, (x0 + TILE_SIZE).min(width), (y0 + TILE_SIZE).min(height))
+        (
+            x0,
+            y0,
+            (x0 + TILE_SIZE).min(width),
+            (y0 + TILE_SIZE).min(height),
+        )
     };
     let mut mine: Vec<u8> = Vec::new();
     let mut traced = 0u64;
@@ -679,12 +737,13 @@ fn render_replicated(
             .map(|c| u32::from_ne_bytes(std::array::from_fn(|i| c.get(i).copied().unwrap_or(0)))),
     );
     let sent_bytes = words.len() as u64 * 4;
-    let gathered = exchange.gather_to_root(&words)?;
+    let gathered = exchange.gather(&words, everywhere)?;
     if let Some(parts) = gathered {
         state.edit_output(|output| {
             let mut names: Vec<_> = output.channels.keys().copied().collect();
             names.sort_unstable();
-            for (rank, part) in parts.iter().enumerate().filter(|(r, _)| *r != 0) {
+            let me = exchange.rank as usize;
+            for (rank, part) in parts.iter().enumerate().filter(|(r, _)| *r != me) {
                 let length = part.first().copied().unwrap_or(0) as usize;
                 let bytes: Vec<u8> = part
                     .iter()
@@ -723,11 +782,9 @@ fn render_replicated(
             c.tile_costs = costs;
         }
     });
-    state.cluster.set(
-        traced,
-        sent_bytes,
-        exchange_started.elapsed().as_secs_f64(),
-    );
+    state
+        .cluster
+        .set(traced, sent_bytes, exchange_started.elapsed().as_secs_f64());
     if let Some((Some(callback), user, device, frame)) = completion {
         // SAFETY: the application registered this callback for this frame; it is called once
         // per completed render with the values it was registered with.

@@ -62,11 +62,26 @@ fn samples_and_trace_keys_survive_their_encoding() {
     );
     assert_eq!(words.len(), 2 * SAMPLE_WORDS);
     let back = decode_sample(&words[..SAMPLE_WORDS]);
-    assert_eq!(back.color.to_array().map(f32::to_bits), sample.color.to_array().map(f32::to_bits));
+    assert_eq!(
+        back.color.to_array().map(f32::to_bits),
+        sample.color.to_array().map(f32::to_bits)
+    );
     let (hit, want) = (back.hit.unwrap(), sample.hit.unwrap());
     assert_eq!(
-        (hit.t, hit.point, hit.primitive_id, hit.object_id, hit.instance_id),
-        (want.t, want.point, want.primitive_id, want.object_id, want.instance_id)
+        (
+            hit.t,
+            hit.point,
+            hit.primitive_id,
+            hit.object_id,
+            hit.instance_id
+        ),
+        (
+            want.t,
+            want.point,
+            want.primitive_id,
+            want.object_id,
+            want.instance_id
+        )
     );
     assert_eq!((hit.albedo, hit.normal), (want.albedo, want.normal));
     assert!(decode_sample(&words[SAMPLE_WORDS..]).hit.is_none());
@@ -81,7 +96,8 @@ fn samples_and_trace_keys_survive_their_encoding() {
         index: 3,
         scramble: Vec2::new(0.125, 0.75),
     };
-    let (r, depth, screen, s) = trace_inputs(&trace_key(&ray, 2, Some(Vec2::new(0.3, 0.7)), &sampling));
+    let (r, depth, screen, s) =
+        trace_inputs(&trace_key(&ray, 2, Some(Vec2::new(0.3, 0.7)), &sampling));
     assert_eq!(ray_key(&r), ray_key(&ray));
     assert_eq!((depth, screen), (2, Some(Vec2::new(0.3, 0.7))));
     assert_eq!((s.index, s.scramble), (3, sampling.scramble));

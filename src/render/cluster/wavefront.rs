@@ -1,7 +1,6 @@
 //! The data-parallel ray exchange: which rank shades each primary sample, and the rounds that
 //! answer every rank's shadow and secondary rays from every rank's part.
 
-use std::collections::HashSet;
 use std::fmt;
 use std::sync::Arc;
 use std::time::Instant;
@@ -10,8 +9,8 @@ use glam::Vec4;
 use rayon::prelude::*;
 
 use super::{
-    Answers, NO_RANK, Pending, PrimaryRecord, RayKey, SAMPLE_WORDS, TraceKey, decode_sample,
-    encode_sample, evaluate, key_ray, trace_inputs,
+    Answers, KeySet, NO_RANK, Pending, PrimaryRecord, RayKey, SAMPLE_WORDS, TraceKey,
+    decode_sample, encode_sample, evaluate, key_ray, trace_inputs,
 };
 use crate::render::renderer::{self, RendererSettings, Sample};
 use crate::scene::world::SceneSnapshot;
@@ -26,6 +25,18 @@ pub trait Exchange {
     fn all_min(&self, values: &mut [u64]) -> Result<(), ClusterError>;
     /// Every rank's words on rank 0 (`None` on the others).
     fn gather_to_root(&self, mine: &[u32]) -> Result<Option<Vec<Vec<u32>>>, ClusterError>;
+    /// Every rank's words on rank 0, or with `everywhere` on every rank.
+    fn gather(
+        &self,
+        mine: &[u32],
+        everywhere: bool,
+    ) -> Result<Option<Vec<Vec<u32>>>, ClusterError> {
+        if everywhere {
+            self.all_gather(mine).map(Some)
+        } else {
+            self.gather_to_root(mine)
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -80,13 +91,14 @@ enum Outcome {
 }
 
 /// The results of a data-parallel render: per record (sorted primary samples), what the ranks
-/// shaded — every sample on rank 0, this rank's own elsewhere.
+/// shaded — every sample on rank 0 (on every rank with `everywhere`), this rank's own elsewhere.
 pub fn resolve(
     exchange: &dyn Exchange,
     scene: &SceneSnapshot,
     settings: &RendererSettings,
     records: &[PrimaryRecord],
     max_rounds: u32,
+    everywhere: bool,
 ) -> Result<(Vec<Option<Sample>>, Traffic), ClusterError> {
     let me = exchange.rank();
     let mut traffic = Traffic::default();
@@ -136,8 +148,8 @@ pub fn resolve(
         rank: me,
         ..Answers::default()
     };
-    let mut requested: HashSet<TraceKey> = HashSet::new();
-    let mut children: HashSet<(u32, TraceKey)> = HashSet::new();
+    let mut requested: KeySet<TraceKey> = KeySet::default();
+    let mut children: KeySet<(u32, TraceKey)> = KeySet::default();
     let mut quiet_rounds = 0;
     loop {
         // Shade what can progress: new tasks, and tasks whose every missing answer has come.
@@ -164,8 +176,8 @@ pub fn resolve(
         let mut results: Vec<u32> = Vec::new();
         let mut done = Vec::new();
         {
-            let mut seen_rays: HashSet<RayKey> = HashSet::new();
-            let mut seen_traces: HashSet<TraceKey> = HashSet::new();
+            let mut seen_rays: KeySet<RayKey> = KeySet::default();
+            let mut seen_traces: KeySet<TraceKey> = KeySet::default();
             for (i, outcome, mut pending) in evaluated {
                 if !pending.incomplete {
                     match (&tasks[i].0, outcome) {
@@ -249,7 +261,11 @@ pub fn resolve(
         let queries: Vec<(&[u32], bool)> = messages
             .iter()
             .flat_map(|m| m.occlusion().map(|k| (k, true)))
-            .chain(messages.iter().flat_map(|m| m.closest().map(|k| (k, false))))
+            .chain(
+                messages
+                    .iter()
+                    .flat_map(|m| m.closest().map(|k| (k, false))),
+            )
             .collect();
         let mut values: Vec<u64> = queries
             .par_iter()
@@ -258,10 +274,9 @@ pub fn resolve(
                 if *shadow {
                     u64::from(!scene.bvh.occluded(&ray))
                 } else {
-                    scene
-                        .bvh
-                        .intersect(&ray)
-                        .map_or(u64::MAX, |h| (u64::from(h.t.max(0.0).to_bits()) << 32) | u64::from(me))
+                    scene.bvh.intersect(&ray).map_or(u64::MAX, |h| {
+                        (u64::from(h.t.max(0.0).to_bits()) << 32) | u64::from(me)
+                    })
                 }
             })
             .collect();
@@ -280,7 +295,11 @@ pub fn resolve(
             let rank = rank as u32;
             for key in m.closest() {
                 let winner = value.next().unwrap_or(u64::MAX);
-                let hit_rank = if winner == u64::MAX { NO_RANK } else { winner as u32 };
+                let hit_rank = if winner == u64::MAX {
+                    NO_RANK
+                } else {
+                    winner as u32
+                };
                 let trace = trace_of(key);
                 if rank == me {
                     answers.closest.insert(ray_of(key), hit_rank);
@@ -292,7 +311,13 @@ pub fn resolve(
                 if hit_rank == me {
                     answers.closest.insert(ray_of(key), me);
                     if rank != me && children.insert((rank, trace)) {
-                        tasks.push((Task::Child { requester: rank, key: trace }, None));
+                        tasks.push((
+                            Task::Child {
+                                requester: rank,
+                                key: trace,
+                            },
+                            None,
+                        ));
                     }
                 }
             }
@@ -301,7 +326,13 @@ pub fn resolve(
                     answers.closest.insert(ray_of(key), me);
                     let trace = trace_of(key);
                     if children.insert((rank, trace)) {
-                        tasks.push((Task::Child { requester: rank, key: trace }, None));
+                        tasks.push((
+                            Task::Child {
+                                requester: rank,
+                                key: trace,
+                            },
+                            None,
+                        ));
                     }
                 }
             }
@@ -316,7 +347,7 @@ pub fn resolve(
         }
         traffic.exchange_seconds += exchange_started.elapsed().as_secs_f64();
     }
-    // The shaded samples go to rank 0.
+    // The shaded samples go to rank 0 (or every rank).
     let gather_started = Instant::now();
     let mut mine = Vec::new();
     for (index, sample) in samples.iter().enumerate() {
@@ -326,7 +357,7 @@ pub fn resolve(
         }
     }
     traffic.words_sent += mine.len() as u64;
-    if let Some(all) = exchange.gather_to_root(&mine)? {
+    if let Some(all) = exchange.gather(&mine, everywhere)? {
         for words in all {
             for entry in words.chunks_exact(1 + SAMPLE_WORDS) {
                 if let Some(slot) = samples.get_mut(entry[0] as usize) {
@@ -352,7 +383,10 @@ fn trace_of(words: &[u32]) -> TraceKey {
 
 /// Whether every answer an evaluation lacked has come.
 fn answered(pending: &Pending, answers: &Answers) -> bool {
-    pending.occlusion.iter().all(|k| answers.occluded.contains_key(k))
+    pending
+        .occlusion
+        .iter()
+        .all(|k| answers.occluded.contains_key(k))
         && pending
             .closest
             .iter()
