@@ -174,7 +174,7 @@ impl PrimaryPass {
     pub fn take_sorted(&self) -> Vec<PrimaryRecord> {
         let mut records =
             std::mem::take(&mut *self.collected.lock().unwrap_or_else(|e| e.into_inner()));
-        records.sort_unstable_by(|a, b| a.key.cmp(&b.key));
+        records.sort_unstable_by_key(|r| r.key);
         records.dedup_by(|a, b| a.key == b.key);
         records
     }

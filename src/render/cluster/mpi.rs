@@ -616,13 +616,10 @@ fn render_data_parallel(
         None => return Err(ClusterError::Mismatch("the frame's scene is shared".into())),
     }
     // First pass: the frame's own render records every primary sample and this rank's hit.
-    let t0 = Instant::now();
     let ok = start(device, frame, state, pass_of(&setup));
     state.wait();
-    let t1 = Instant::now();
     agree(exchange, ok)?;
     let records = pass.take_sorted();
-    let t2 = Instant::now();
     let max_rounds = 4 * (setup.settings.max_ray_depth + 2) + 16;
     let (samples, traffic) = resolve(
         exchange,
@@ -632,21 +629,10 @@ fn render_data_parallel(
         max_rounds,
         everywhere,
     )?;
-    let t3 = Instant::now();
     pass.set_replay(Replay {
         keys: records.iter().map(|r| r.key).collect(),
         samples,
     });
-    if std::env::var_os("CAVETRACE_MPI_PROFILE").is_some() {
-        eprintln!(
-            "PROFILE rank {}: collect {:?} agree+sort {:?} resolve {:?} ({:?})",
-            exchange.rank(),
-            t1 - t0,
-            t2 - t1,
-            t3 - t2,
-            traffic
-        );
-    }
     let samples = u64::from(setup.settings.pixel_samples.max(1));
     state.cluster.set(
         traffic.shaded.div_ceil(samples),
