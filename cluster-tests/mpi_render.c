@@ -3,7 +3,7 @@
  *
  *   mpirun -np 4 cluster-tests/build/mpi_render          the image tests
  *   mpirun -np 4 cluster-tests/build/mpi_render kill     the last rank dies mid-frame
- *   mpirun -np 4 cluster-tests/build/mpi_render bench 1600    costs per frame (docs/cluster.md)
+ *   mpirun -np 4 cluster-tests/build/mpi_render bench 1600 [mode]   costs per frame (docs/cluster.md)
  *
  * The scene: a floor (a mesh), a sphere casting its shadow on the floor, a mirror, an instanced
  * mesh, a few spheres in one geometry and a half-transparent pane, under one directional light.
@@ -430,10 +430,13 @@ static int kill_test(ANARIDevice d, const int *mine) {
 
 /* Figures for docs/cluster.md: a size×size frame of the test scene, median of 3 renders after
  * one to warm up; the exchange time is the slowest rank's, the bytes all ranks' together. */
-static int bench(ANARIDevice d, const int *mine, const int *all, uint32_t size) {
+static int bench(ANARIDevice d, const int *mine, const int *all, uint32_t size,
+                 const char *only_mode) {
   const char *modes[] = {"dataParallel", "replicated"};
   const char *renderers[] = {"default", "fast"};
   for (int m = 0; m < 2; m++) {
+    if (only_mode && strcmp(only_mode, modes[m]) != 0)
+      continue;
     for (int r = 0; r < 2; r++) {
       ANARIWorld world = world_of(d, m == 1 ? all : mine);
       ANARICamera camera = camera_of(d, PERSPECTIVE);
@@ -507,7 +510,7 @@ int main(int argc, char **argv) {
   if (argc > 1 && strcmp(argv[1], "kill") == 0)
     return kill_test(d, mine);
   if (argc > 2 && strcmp(argv[1], "bench") == 0) {
-    bench(d, mine, all, (uint32_t)atoi(argv[2]));
+    bench(d, mine, all, (uint32_t)atoi(argv[2]), argc > 3 ? argv[3] : NULL);
     anariRelease(d, d);
     MPI_Finalize();
     return 0;
