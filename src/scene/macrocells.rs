@@ -55,7 +55,7 @@ impl MacrocellGrid {
                     // A vertex on a block boundary belongs to the blocks on both sides.
                     let owners = |v: usize, n: usize| {
                         let hi = (v / CELLS_PER_MACROCELL).min(n - 1);
-                        let lo = if v % CELLS_PER_MACROCELL == 0 && v > 0 {
+                        let lo = if v.is_multiple_of(CELLS_PER_MACROCELL) && v > 0 {
                             hi.min(v / CELLS_PER_MACROCELL - 1)
                         } else {
                             hi
