@@ -611,6 +611,20 @@ fn render_data_parallel(
                 .into(),
         );
     }
+    let settings = &setup.settings;
+    let ambient_occlusion =
+        settings.ambient != glam::Vec3::ZERO && settings.ambient_occlusion_distance > 0.0;
+    if ambient_occlusion && setup.scene.see_through {
+        say_once(
+            device,
+            frame,
+            "ambient occlusion",
+            "anariRenderFrame: this rank's world has surfaces that let light through: in \
+             'dataParallel' mode its ambient-occlusion rays then see only this rank's part of \
+             the scene"
+                .into(),
+        );
+    }
     let pass = Arc::new(PrimaryPass::default());
     match Arc::get_mut(&mut setup.scene) {
         Some(scene) => scene.cluster = Some(Arc::clone(&pass) as _),
