@@ -118,6 +118,7 @@ fn world_with_lights(
 
 /// Renders `frames` accumulated frames of `samples` pixel samples with the default renderer
 /// (background `background`, `ambient` radiance and any further float parameters).
+#[allow(clippy::too_many_arguments)]
 fn render(
     dev: ANARIDevice,
     world: ANARIWorld,
