@@ -194,6 +194,10 @@ int main(int argc, char **argv) {
   float background[] = {0.08f, 0.08f, 0.1f, 1}, ambient = 0.4f;
   anariSetParameter(device, renderer, "background", ANARI_FLOAT32_VEC4, background);
   anariSetParameter(device, renderer, "ambientRadiance", ANARI_FLOAT32, &ambient);
+  /* Ambient occlusion takes one ray per pixel sample: enough samples that the shadows between
+   * the sheets settle instead of speckling (more samples, smoother; each costs a pass). */
+  int32_t samples = 4;
+  anariSetParameter(device, renderer, "pixelSamples", ANARI_INT32, &samples);
   anariCommitParameters(device, renderer);
 
   ANARIFrame frame = anariNewFrame(device);

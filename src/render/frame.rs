@@ -63,6 +63,8 @@ pub struct RenderSetup {
     pub completion: Option<(ANARIFrameCompletionCallback, usize, usize, usize)>,
     /// Frame-time budget (`ANARI_CAVETRACE_FRAME_BUDGET`); `None` renders every pixel.
     pub budget: Option<Budget>,
+    /// Cluster hook: the tiles this rank traces of a frame shared out among MPI ranks.
+    pub tile_split: Option<Arc<crate::render::cluster::TileSplit>>,
 }
 
 /// Why a render could not start.
@@ -146,6 +148,8 @@ pub struct FrameState {
     /// Whether the last render was reported as unlit (see
     /// [`crate::render::diagnostics::report_unlit`]).
     reported_unlit: AtomicBool,
+    /// Cluster hook: what this rank's last render across MPI ranks traced and exchanged.
+    pub cluster: crate::render::cluster::FrameTraffic,
 }
 
 impl FrameState {
@@ -262,12 +266,20 @@ impl FrameState {
             let next = job.next_tile.fetch_add(1, Ordering::AcqRel);
             match &job.budgeted {
                 None if next >= job.tile_count => break,
-                None => match job.interleave {
-                    Some(sets) => {
-                        render_tile(job, &eyes, job.interleaved_tile(next, sets), &mut scratch)
+                // Cluster hook: another rank's tile is skipped; this rank's are timed.
+                None if job.setup.tile_split.as_ref().is_some_and(|s| !s.owns(next)) => {}
+                None => {
+                    let started = Instant::now();
+                    match job.interleave {
+                        Some(sets) => {
+                            render_tile(job, &eyes, job.interleaved_tile(next, sets), &mut scratch)
+                        }
+                        None => render_tile(job, &eyes, job.frame_tile(next), &mut scratch),
                     }
-                    None => render_tile(job, &eyes, job.frame_tile(next), &mut scratch),
-                },
+                    if let Some(split) = &job.setup.tile_split {
+                        split.record(next, started.elapsed());
+                    }
+                }
                 Some(run) => {
                     let index = run.start + next;
                     if run.declines(index) {
@@ -383,6 +395,28 @@ impl FrameState {
     }
 }
 
+impl FrameState {
+    /// Cluster hook: changes the last render's channels in place (ranks' parts assembled),
+    /// copying them first if the application has them mapped.
+    #[cfg_attr(not(feature = "mpi"), allow(dead_code))]
+    pub(crate) fn edit_output(&self, edit: impl FnOnce(&mut Output)) {
+        self.wait();
+        let mut inner = self.lock();
+        if let Some(output) = inner.output.as_mut() {
+            if Arc::get_mut(output).is_none() {
+                *output = Arc::new(Output {
+                    width: output.width,
+                    height: output.height,
+                    channels: output.channels.clone(),
+                });
+            }
+            if let Some(output) = Arc::get_mut(output) {
+                edit(output);
+            }
+        }
+    }
+}
+
 impl Frame for FrameState {
     fn is_ready(&self) -> bool {
         let inner = self.lock();
@@ -412,6 +446,10 @@ impl Frame for FrameState {
             "duration" => Some(PropertyValue::Float32(self.lock().duration)),
             "progress" => Some(PropertyValue::Float32(self.lock().progress)),
             "parallaxRange" => Some(PropertyValue::Float32Vec2(self.lock().parallax_range)),
+            // Cluster hook: the properties of renders across MPI ranks.
+            #[cfg(feature = "mpi")]
+            _ => self.cluster.property(name),
+            #[cfg(not(feature = "mpi"))]
             _ => None,
         }
     }
@@ -457,7 +495,7 @@ impl Frame for FrameState {
 }
 
 /// The two eyes' pixel sets of an interleaved stereo frame.
-fn interleaved_sets(setup: &RenderSetup) -> Option<[PixelSet; 2]> {
+pub(crate) fn interleaved_sets(setup: &RenderSetup) -> Option<[PixelSet; 2]> {
     let viewports = setup.camera.as_ref()?.viewports(setup.width, setup.height);
     match viewports.as_slice() {
         [left, right] => match (left.pixels, right.pixels) {

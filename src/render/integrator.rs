@@ -10,6 +10,7 @@ use crate::render::bsdf::{
     microfacet_alpha, multiple_scattering, sample_glossy, schlick, sheen_albedo, sheen_brdf,
     smith_visibility, thin_film_fresnel,
 };
+use crate::render::cluster;
 use crate::render::renderer::RendererSettings;
 use crate::render::surface_model::{HitInputs, SurfaceModel, evaluate_input};
 use crate::render::volume_lighting::{lit_volumes, shadow_transmittance};
@@ -190,10 +191,8 @@ fn direct_light(
             } else {
                 f32::INFINITY
             };
-            if scene
-                .bvh
-                .occluded(&offset_ray(point, incoming.to_light, t_max))
-            {
+            // Cluster hook: shadow rays are tested on every rank; volumes are then marched here.
+            if cluster::occluded(scene, &offset_ray(point, incoming.to_light, t_max)) {
                 continue;
             }
             let (t_min, direction) = (surface_epsilon(point), incoming.to_light);
@@ -233,7 +232,12 @@ fn ambient_visibility(
     .normalize_or(normal);
     let mut ray = offset_ray(point, direction, reach);
     if !scene.see_through {
-        return if scene.bvh.occluded(&ray) { 0.0 } else { 1.0 };
+        // Cluster hook: ambient-occlusion rays see every rank's surfaces.
+        return if cluster::occluded(scene, &ray) {
+            0.0
+        } else {
+            1.0
+        };
     }
     // Surfaces that let light through do not hide the ambient light (it stands for light
     // from everywhere, which fills what they enclose).
@@ -391,6 +395,35 @@ pub fn trace(
     )
 }
 
+/// [`trace`] of a ray that goes on straight from a camera ray (`from_camera`) or not: what
+/// another rank asks of a closest hit of this rank (render::cluster).
+#[cfg_attr(not(feature = "mpi"), allow(dead_code))]
+pub(crate) fn trace_continuing(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    ray: &Ray,
+    depth: u32,
+    from_camera: bool,
+    screen: Option<Vec2>,
+    sampling: &LightSampling,
+) -> Vec4 {
+    let leaving = if from_camera {
+        Leaving::Camera
+    } else {
+        Leaving::Mirror
+    };
+    trace_seeing(
+        scene,
+        settings,
+        ray,
+        depth,
+        screen,
+        sampling,
+        leaving,
+        |background| background,
+    )
+}
+
 /// [`trace`] for a ray started as `leaving` says, where a ray that leaves the scene sees
 /// `beyond` of the background.
 #[allow(clippy::too_many_arguments)]
@@ -404,7 +437,12 @@ fn trace_seeing(
     leaving: Leaving,
     beyond: impl FnOnce(Vec4) -> Vec4,
 ) -> Vec4 {
-    let hit = scene.bvh.intersect(ray);
+    // Cluster hook: the closest hit of every rank; another rank's hit is shaded there.
+    let from_camera = matches!(leaving, Leaving::Camera);
+    let hit = match cluster::closest(scene, ray, depth, from_camera, screen, sampling) {
+        Ok(hit) => hit,
+        Err(radiance) => return radiance,
+    };
     let volume = volumes_in_front(scene, settings, ray, hit.as_ref(), sampling);
     if let Some(volume) = volume.filter(|v| v.transmittance == 0.0) {
         return volume.over(Vec4::ZERO);
@@ -429,7 +467,7 @@ fn trace_seeing(
                 depth,
                 screen,
                 sampling,
-                matches!(leaving, Leaving::Camera),
+                from_camera,
             )
             .extend(1.0)
         }
@@ -958,6 +996,10 @@ pub fn shade_primary_at(
     cyclopean: Option<Vec3>,
     sampling: &LightSampling,
 ) -> Sample {
+    // Cluster hook: a primary sample of a render across MPI ranks is shaded by its hit's rank.
+    if let Some(sample) = cluster::primary(scene, ray, hit.as_ref(), screen, cyclopean, sampling) {
+        return sample;
+    }
     let Some(volume) = volumes_in_front(scene, settings, ray, hit.as_ref(), sampling) else {
         return shade_surface_primary(scene, settings, ray, hit, screen, cyclopean, sampling);
     };
@@ -1006,6 +1048,11 @@ pub fn fast_surface_color(
     cyclopean: Option<Vec3>,
 ) -> Vec4 {
     debug_assert!(settings.fast && scene.volumes.is_empty());
+    // Cluster hook: as in `shade_primary_at`.
+    let screen = match cluster::fast_primary(scene, ray, hit, screen, cyclopean) {
+        Ok(screen) => screen,
+        Err(color) => return color,
+    };
     match hit {
         Some(hit) => {
             let sp = shading_point(scene, ray, hit);
@@ -1026,6 +1073,11 @@ pub fn fast_surface_sample(
     cyclopean: Option<Vec3>,
 ) -> Sample {
     debug_assert!(settings.fast && scene.volumes.is_empty());
+    // Cluster hook: as in `fast_surface_color`, with the hit's details.
+    let screen = match cluster::fast_primary_sample(scene, ray, hit, screen, cyclopean) {
+        Ok(screen) => screen,
+        Err(sample) => return sample,
+    };
     match hit {
         Some(hit) => {
             let sp = shading_point(scene, ray, hit);

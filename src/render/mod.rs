@@ -1,6 +1,7 @@
 //! Rendering: renderers (shading), frames (tiles, threads, channels) and colour encoding.
 
 pub mod bsdf;
+pub mod cluster;
 pub mod color;
 pub mod diagnostics;
 pub mod frame;
@@ -119,6 +120,15 @@ pub const FRAME: ObjectSpec = ObjectSpec::new(
             &[ANARI_VOID_POINTER],
             "first argument of frameCompletionCallback",
         ),
+        // Cluster hook: rendering across MPI ranks (docs/cluster.md).
+        #[cfg(feature = "mpi")]
+        cluster::MPI_COMMUNICATOR,
+        #[cfg(feature = "mpi")]
+        cluster::MPI_MODE,
+        #[cfg(feature = "mpi")]
+        cluster::MPI_TIMEOUT,
+        #[cfg(feature = "mpi")]
+        cluster::MPI_IMAGE_ON_EVERY_RANK,
     ],
 )
 .channels(&[
@@ -141,6 +151,9 @@ pub const FRAME: ObjectSpec = ObjectSpec::new(
     "ANARI_CAVETRACE_FRAME_CHANNEL_WINDOW_DEPTH",
     "ANARI_CAVETRACE_FRAME_BUDGET",
     "ANARI_CAVETRACE_FRAME_CHANNEL_PARALLAX",
+    // Cluster hook: rendering across MPI ranks.
+    #[cfg(feature = "mpi")]
+    "ANARI_KHR_DATA_PARALLEL_MPI",
 ]);
 
 pub const SPECS: &[ObjectSpec] = &[renderer::DEFAULT, renderer::FAST, FRAME];
@@ -201,6 +214,11 @@ pub fn commit(device: &Device, object: &Object) {
             }
         }
         _ => {}
+    }
+    // Cluster hook: the frame's MPI communicator is duplicated at its commit.
+    #[cfg(feature = "mpi")]
+    if object.kind == ANARI_FRAME {
+        cluster::commit_frame(device, object);
     }
 }
 
@@ -312,6 +330,12 @@ pub fn render_frame(device: &Device, frame: &Object) {
         scene_version: device.commit_epoch(),
         completion,
         budget: budget(&params),
+        tile_split: None,
+    };
+    // Cluster hook: a frame rendered across MPI ranks renders here, collectively.
+    #[cfg(feature = "mpi")]
+    let Some(setup) = cluster::render(device, frame, &state, setup) else {
+        return;
     };
     match state.start(setup, &device.pool()) {
         Ok(()) => {}

@@ -101,7 +101,8 @@ fn in_scattered(
                 t_min: surface_epsilon(point),
                 t_max: shadow_ray_end(point, &incoming),
             };
-            if scene.bvh.occluded(&ray) {
+            // Cluster hook: shadow rays are tested on every rank.
+            if crate::render::cluster::occluded(scene, &ray) {
                 continue;
             }
             let (through, taken) = transmittance(

@@ -81,6 +81,8 @@ pub struct SceneSnapshot {
     /// Whether any surface's material lets light through (see
     /// [`crate::scene::material::Material::lets_light_through`]).
     pub see_through: bool,
+    /// Cluster hook: the ray exchange of a render across MPI ranks (render::cluster), if any.
+    pub cluster: Option<std::sync::Arc<dyn std::any::Any + Send + Sync>>,
 }
 
 impl SceneSnapshot {
@@ -91,6 +93,7 @@ impl SceneSnapshot {
             lights: Vec::new(),
             volumes: Vec::new(),
             see_through: false,
+            cluster: None,
         }
     }
 
@@ -283,6 +286,7 @@ pub fn snapshot(device: &Device, world: &Object) -> SceneSnapshot {
         lights,
         volumes,
         see_through,
+        cluster: None,
     }
 }
 
