@@ -315,7 +315,7 @@ pub struct Answers {
 }
 
 /// No rank: a ray that misses every part.
-pub const NO_RANK: u32 = u32::MAX;
+pub(crate) const NO_RANK: u32 = u32::MAX;
 
 /// What one evaluation of a shading lacked.
 #[derive(Default, Debug)]
@@ -521,7 +521,7 @@ impl FrameTraffic {
 }
 
 /// A sample as 18 words: colour, then (hit flag, t, point, ids, albedo, normal).
-pub const SAMPLE_WORDS: usize = 18;
+pub(crate) const SAMPLE_WORDS: usize = 18;
 
 pub fn encode_sample(sample: &Sample, out: &mut Vec<u32>) {
     out.extend(sample.color.to_array().map(f32::to_bits));
