@@ -1047,19 +1047,7 @@ pub fn fast_surface_color(
     screen: impl FnOnce() -> Vec2,
     cyclopean: Option<Vec3>,
 ) -> Vec4 {
-    debug_assert!(settings.fast && scene.volumes.is_empty());
-    // Cluster hook: as in `shade_primary_at`.
-    let screen = match cluster::fast_primary(scene, ray, hit, screen, cyclopean) {
-        Ok(screen) => screen,
-        Err(color) => return color,
-    };
-    match hit {
-        Some(hit) => {
-            let sp = shading_point(scene, ray, hit);
-            eye_light(settings.view_direction(ray, sp.point, cyclopean), &sp).extend(1.0)
-        }
-        None => settings.background_for(Some(screen())),
-    }
+    fast_surface::<false>(scene, settings, ray, hit, screen, cyclopean).color
 }
 
 /// [`fast_surface_color`] with the hit's details for the channels other than colour: what
@@ -1072,8 +1060,22 @@ pub fn fast_surface_sample(
     screen: impl FnOnce() -> Vec2,
     cyclopean: Option<Vec3>,
 ) -> Sample {
+    fast_surface::<true>(scene, settings, ray, hit, screen, cyclopean)
+}
+
+/// The fast renderer's primary sample; the hit's details only when `DETAILS` (the colour-only
+/// path skips building them).
+#[inline(always)]
+fn fast_surface<const DETAILS: bool>(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    ray: &Ray,
+    hit: Option<&SceneHit>,
+    screen: impl FnOnce() -> Vec2,
+    cyclopean: Option<Vec3>,
+) -> Sample {
     debug_assert!(settings.fast && scene.volumes.is_empty());
-    // Cluster hook: as in `fast_surface_color`, with the hit's details.
+    // Cluster hook: a primary sample of a render across MPI ranks is shaded by its hit's rank.
     let screen = match cluster::fast_primary_sample(scene, ray, hit, screen, cyclopean) {
         Ok(screen) => screen,
         Err(sample) => return sample,
@@ -1084,7 +1086,7 @@ pub fn fast_surface_sample(
             let view = settings.view_direction(ray, sp.point, cyclopean);
             Sample {
                 color: eye_light(view, &sp).extend(1.0),
-                hit: Some(primary_hit(hit, &sp)),
+                hit: DETAILS.then(|| primary_hit(hit, &sp)),
             }
         }
         None => Sample {

@@ -234,19 +234,8 @@ pub fn primary(
     })
 }
 
-/// Hook of `fast_surface_color`, as [`primary`]: `Err` holds the colour to use.
-pub fn fast_primary<F: FnOnce() -> Vec2>(
-    scene: &SceneSnapshot,
-    ray: &Ray,
-    hit: Option<&SceneHit>,
-    screen: F,
-    cyclopean: Option<Vec3>,
-) -> Result<F, Vec4> {
-    fast_primary_sample(scene, ray, hit, screen, cyclopean).map_err(|sample| sample.color)
-}
-
-/// Hook of `fast_surface_sample` (the fast renderer's primary sample with the hit's details
-/// for the channels beside colour), as [`primary`]: `Err` holds the sample to use.
+/// Hook of the fast renderer's primary sample (`fast_surface_color` and `fast_surface_sample`),
+/// as [`primary`]: `Err` holds the sample to use.
 pub fn fast_primary_sample<F: FnOnce() -> Vec2>(
     scene: &SceneSnapshot,
     ray: &Ray,

@@ -127,5 +127,5 @@ fn outside_a_render_across_ranks_the_hooks_ask_the_scene_itself() {
     assert!(!occluded(&scene, &ray));
     assert_eq!(closest(&scene, &ray, 0, false, None, &sampling), Ok(None));
     assert!(primary(&scene, &ray, None, None, None, &sampling).is_none());
-    assert!(fast_primary(&scene, &ray, None, || Vec2::ZERO, None).is_ok());
+    assert!(fast_primary_sample(&scene, &ray, None, || Vec2::ZERO, None).is_ok());
 }
