@@ -10,6 +10,8 @@
 //!     cargo bench --bench render -- stereo  (sideBySide, topBottom, interleaved and anaglyph
 //!                                            frames against mono, both renderers, both scenes)
 //!     cargo bench --bench render -- lightfield (lightField frames against a mono frame)
+//!     cargo bench --bench render -- depth (fast frames with colour + depth and with every
+//!                                            channel against colour alone, 968 and 1M triangles)
 //!
 //! Scenes: a height field of ~1M triangles seen by a tracked head (the camera moves every
 //! frame), rendered (a) by the "fast" renderer and (b) by the "default" renderer with one
@@ -711,6 +713,59 @@ fn light_field_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, fra
     setups.into_iter().for_each(release);
 }
 
+/// Channels beside colour (`cargo bench --bench render -- depth`): the `fast` renderer's frame
+/// with colour + depth, and with every channel, against the same frame with colour alone, at
+/// 968 triangles and at the benchmark's height field; frames alternate, medians printed.
+fn depth_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: u32) {
+    let small = height_field(dev, 22).0;
+    commit(dev, small);
+    for (label, scene) in [("968 triangles", small), ("height field", geometry)] {
+        let extra: [&[(&str, ANARIDataType)]; 3] = [
+            &[],
+            &[("channel.depth", ANARI_FLOAT32)],
+            &[
+                ("channel.depth", ANARI_FLOAT32),
+                ("channel.windowDepth", ANARI_FLOAT32),
+                ("channel.primitiveId", ANARI_UINT32),
+                ("channel.objectId", ANARI_UINT32),
+                ("channel.instanceId", ANARI_UINT32),
+                ("channel.normal", ANARI_FLOAT32_VEC3),
+                ("channel.albedo", ANARI_FLOAT32_VEC3),
+            ],
+        ];
+        let setups: Vec<Setup> = extra
+            .iter()
+            .map(|channels| {
+                let s = setup(dev, scene, "fast", size);
+                for (name, data_type) in channels.iter() {
+                    set(dev, s.frame, name, ANARI_DATA_TYPE, data_type);
+                }
+                commit(dev, s.frame);
+                track_head(&s, 0);
+                render_once(&s);
+                s
+            })
+            .collect();
+        let medians = alternating_medians(&setups, frames, |k, round| {
+            track_head(&setups[k], round + 1)
+        });
+        println!("{label}, fast renderer, {size}x{size}, {frames} frames each (medians):");
+        for (k, name) in ["colour", "colour + depth", "every channel"]
+            .iter()
+            .enumerate()
+        {
+            let (wall, cpu) = medians[k];
+            println!(
+                "  {name}: {wall:.1} ms ({cpu:.0} ms CPU), {:.3}x colour alone ({:.3}x in CPU time)",
+                wall / medians[0].0,
+                cpu / medians[0].1
+            );
+        }
+        setups.into_iter().for_each(release);
+    }
+    anariRelease(dev, small);
+}
+
 fn main() {
     if std::env::args().any(|a| a == "--list") {
         return;
@@ -749,6 +804,9 @@ fn main() {
         true
     } else if section("lightfield") {
         light_field_section(dev, geometry, size, if quick { 3 } else { 7 });
+        true
+    } else if section("depth") {
+        depth_section(dev, geometry, size, if quick { 3 } else { 9 });
         true
     } else if section("budget") {
         budget_section(dev, geometry, size, if quick { 10 } else { 60 });

@@ -206,14 +206,17 @@ static const char *const names[] = {
     "color",        "opacity",     "intensity",   "irradiance",    "radius",
     "transform",    "group",       "background",  "ambientRadiance", "pixelSamples",
     "image",        "inAttribute", "filter",      "wrapMode1",     "id",
-    "name",         "numThreads2", "",            "??",            "vertex.position.x",
+    "name",         "numThreads2", "field",       "isovalue",      "data",
+    "index",        "cell.index",  "cell.type",   "vertex.data",   "cell.data",
+    "",             "??",          "vertex.position.x",
     "a very long name that no object has, to see the message quote it in full........"};
 
 static const char *const subtypes[] = {"default", "perspective", "orthographic", "omnidirectional",
                                        "triangle", "quad", "sphere", "cylinder", "cone", "curve",
                                        "matte", "physicallyBased", "directional", "point", "spot",
                                        "image1D", "image2D", "image3D", "transform", "primitive",
-                                       "ambientOcclusion", "debug", "nope", ""};
+                                       "ambientOcclusion", "debug", "isosurface",
+                                       "structuredRegular", "unstructured", "nope", ""};
 
 static const char *const channels[] = {"channel.color", "channel.depth", "channel.primitiveId",
                                        "channel.objectId", "channel.instanceId", "color", "", "x"};

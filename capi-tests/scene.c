@@ -91,10 +91,12 @@ ANARICamera perspective_camera(ANARIDevice device, const float eye[3], const flo
 ANARIRenderer albedo_renderer(ANARIDevice device) {
   ANARIRenderer renderer = anariNewRenderer(device, "default");
   float background[4] = {0, 0, 0, 1};
-  /* Ambient radiance 1 from every direction: a matte surface shows exactly its albedo. */
-  float one = 1.0f;
+  /* Ambient radiance 1 from every direction, unoccluded (ambientOcclusionDistance 0): a matte
+   * surface shows exactly its albedo. */
+  float one = 1.0f, no_occlusion = 0.0f;
   anariSetParameter(device, renderer, "background", ANARI_FLOAT32_VEC4, background);
   anariSetParameter(device, renderer, "ambientRadiance", ANARI_FLOAT32, &one);
+  anariSetParameter(device, renderer, "ambientOcclusionDistance", ANARI_FLOAT32, &no_occlusion);
   anariCommitParameters(device, renderer);
   return renderer;
 }

@@ -7,11 +7,13 @@
  *   - with the "matrix" camera: per eye, the view and projection matrices an OpenGL CAVE
  *     renderer would use, from cavetraceOffAxisMatrices.
  *
- * Both must show the same picture; the program prints their largest difference, and the time
- * each head position took. The scene follows Zellmann and Amstutz's demo: a cloud of 10,000
+ * Both show the same picture up to the last bits of their rays: the program prints, per head
+ * position, how many pixels differ and why (one 8-bit rounding step; a silhouette where the two
+ * rays hit different things; a shadow or reflection ray from the same hit grazing an edge), and
+ * the time each camera took. The scene follows Zellmann and Amstutz's demo: a cloud of 10,000
  * spheres coloured by their distance from the cloud's centre (a per-vertex attribute through an
- * image1D sampler), a floor with a grid, and a mirror sphere (physicallyBased, metallic 1,
- * roughness 0).
+ * image1D sampler), a floor with a grid, a mirror sphere (physicallyBased, metallic 1,
+ * roughness 0), and a ring of twelve coloured lanterns under the ceiling.
  *
  * Output, per head position k, in <folder>/k/: <wall>_<eye>_offAxis.png and
  * <wall>_<eye>_matrix.png for the five walls and two eyes, unfolded_<eye>.png (the CAVE opened
@@ -25,21 +27,37 @@
  *
  * Then two tracked viewers share the CAVE (ANARI_CAVETRACE_CAMERA_MULTI_VIEWER): A stands left
  * and looks at the front wall, B stands right and looks into the corner of the front and right
- * walls; their cones overlap on the front wall's right half. Written to <folder>/viewers/: unfolded_A_alone.png and unfolded_B_alone.png (one tracked viewer, as
- * before), unfolded_perPixel.png, unfolded_tiles.png and unfolded_zones.png (both viewers, one
- * file per viewerMode), and unfolded_weights.png: each pixel's viewer weights in false colour
- * (red A, green B, grey where neither viewer's cone reaches and the heads' mean is used).
+ * walls; their cones overlap on the front wall's right half. Written to <folder>/viewers/:
+ * unfolded_A_alone.png and unfolded_B_alone.png (one tracked viewer, as before),
+ * unfolded_perPixel.png, unfolded_tiles.png and unfolded_zones.png (both viewers, one file per
+ * viewerMode), and unfolded_weights.png: each pixel's viewer weights in false colour (red A,
+ * green B, grey where neither viewer's cone reaches and the heads' mean is used).
  *
- * Last, stereo on the front wall, written to <folder>/stereo/: the time of a side-by-side pair
- * against one eye (printed), front_parallax.png (ANARI_CAVETRACE_FRAME_CHANNEL_PARALLAX in
- * false colour: blue in front of the wall, green behind it, red beyond the comfort limit of
- * 0.03 × the head's distance to the wall) and a glossy gold sphere lit per eye and from the
- * point between the eyes (glossy_perEye_pair.png, glossy_cyclopean_pair.png;
- * ANARI_CAVETRACE_RENDERER_STEREO_LIGHTING), and the front wall for passive 3D displays and
- * red-cyan glasses (ANARI_CAVETRACE_STEREO_INTERLEAVED): front_rowInterleaved.png,
- * front_checkerboard.png, front_anaglyph.png; and as a light-field display would show it
- * (lightField camera, sample calibration, 45 views): front_hologram.png, and the same
- * display's 9×5 quilt: front_quilt.png.
+ * Last, stereo on the front wall, written to <folder>/stereo/ (the head 2.7 m from the wall):
+ *   - the time of a side-by-side pair against one eye (printed);
+ *   - the parallax (ANARI_CAVETRACE_FRAME_CHANNEL_PARALLAX) in false colour, blue in front of
+ *     the wall, green behind it, red beyond the comfort limit of 0.03 × the head's distance to
+ *     the wall: front_parallax_comfortable.png from this head (all within the limit) and
+ *     front_parallax_too_close.png from a head 1.8 m from the wall, where the sphere cloud
+ *     comes within half a metre of the eyes (printed: the range and the share beyond);
+ *   - a mirror on the wall reflecting white bars behind the viewer, lit per eye and from the
+ *     point between the eyes (ANARI_CAVETRACE_RENDERER_STEREO_LIGHTING), through a 1 m window
+ *     around the mirror: mirror_perEye_pair.png, mirror_cyclopean_pair.png,
+ *     mirror_perEye_anaglyph.png, mirror_cyclopean_anaglyph.png and
+ *     mirror_difference_pair.png (the difference, four times brighter). Per eye the bars stand
+ *     at different places in the two eyes (the reflection lies far behind the mirror: red and
+ *     cyan bars in the anaglyph); cyclopean they stand at the same place (the reflection lies
+ *     on the mirror: grey bars);
+ *   - the front wall for passive 3D displays and red-cyan glasses
+ *     (ANARI_CAVETRACE_STEREO_INTERLEAVED): front_rowInterleaved.png, front_checkerboard.png,
+ *     front_anaglyph.png; and as a light-field display would show it (lightField camera,
+ *     sample calibration, 45 views): front_hologram.png, and the same display's 9×5 quilt:
+ *     front_quilt.png.
+ *
+ * Then the whole scene around the CAVE's centre, written to <folder>/panorama/: a 360°
+ * equirectangular image (omnidirectional camera), its omni-directional stereo pair for 360°
+ * video, and a tilted planetarium dome (fisheye camera) from its centre and from a tracked head
+ * (see panoramas()).
  *
  *   cc -std=c99 cave.c $(pkg-config --cflags --libs cavetrace) -lm -o cave
  *   ./cave [folder (default out/cave)] [wall resolution (default 256)] [head positions (4)]
@@ -82,6 +100,21 @@ static const Wall WALL[WALLS] = {
 };
 
 static const char *EYE_NAME[EYES] = {"left", "right"};
+
+/* Where the matrix and the offAxis images of one head position differ. Both cameras make the
+ * same rays from different numbers (the offAxis camera from the corners and the head in double
+ * precision, the matrix camera from single-precision matrices), so ray origins and directions
+ * differ in their last bits. Most pixels come out identical; a few shading values round to the
+ * neighbouring 8-bit step; rarely, a ray passes so close to an edge that one camera's ray hits
+ * it and the other's does not. That edge is either on the camera ray itself (a silhouette: the
+ * two pixels see different things) or on a shadow or reflection ray from the same surface
+ * point (the depths agree, the shading does not). */
+typedef struct {
+  size_t pixels, rounding, silhouette, secondary;
+  int largest, largest_wall, largest_eye;
+  uint32_t largest_x, largest_y;
+  int largest_is_silhouette;
+} Comparison;
 
 /* ----- status and small utilities -------------------------------------------------------- */
 
@@ -261,6 +294,40 @@ static ANARISurface metal_sphere(ANARIDevice device, const float center[3], floa
   return surface_of(device, sphere, metal);
 }
 
+/* Twelve lanterns in a ring under the ceiling, coloured round the colour wheel, so the ceiling
+ * shows something and the unfolded CAVE shows which way round it is (red towards the front
+ * wall, then yellow, green, cyan, blue and magenta counter-clockwise seen from above). */
+static ANARISurface lantern_ring(ANARIDevice device) {
+  enum { COUNT = 12 };
+  float positions[COUNT][3], colors[COUNT][3];
+  for (int i = 0; i < COUNT; i++) {
+    float angle = 6.2831853f * (float)i / COUNT; /* 0: straight towards the front wall */
+    positions[i][0] = -1.05f * sinf(angle);
+    positions[i][1] = 2.7f;
+    positions[i][2] = -0.2f - 1.05f * cosf(angle);
+    float hue = 6 * (float)i / COUNT; /* red, yellow, green, cyan, blue, magenta */
+    for (int k = 0; k < 3; k++) {
+      float h = fmodf(hue + 4 * (float)k, 6); /* distance round the wheel from this primary */
+      float d = fminf(h, 6 - h);
+      colors[i][k] = 0.1f + 0.85f * fmaxf(0, fminf(1, 2 - d));
+    }
+  }
+  ANARIGeometry spheres = anariNewGeometry(device, "sphere");
+  ANARIArray1D position_array = array_of(device, ANARI_FLOAT32_VEC3, positions, COUNT, 12);
+  ANARIArray1D color_array = array_of(device, ANARI_FLOAT32_VEC3, colors, COUNT, 12);
+  float radius = 0.11f;
+  anariSetParameter(device, spheres, "vertex.position", ANARI_ARRAY1D, &position_array);
+  anariSetParameter(device, spheres, "vertex.color", ANARI_ARRAY1D, &color_array);
+  anariSetParameter(device, spheres, "radius", ANARI_FLOAT32, &radius);
+  anariCommitParameters(device, spheres);
+  anariRelease(device, position_array);
+  anariRelease(device, color_array);
+  ANARIMaterial material = anariNewMaterial(device, "matte");
+  anariSetParameter(device, material, "color", ANARI_STRING, "color");
+  anariCommitParameters(device, material);
+  return surface_of(device, spheres, material);
+}
+
 static ANARISurface mirror_sphere(ANARIDevice device) {
   const float center[3] = {0.85f, 0.55f, -0.7f}, base[3] = {0.95f, 0.95f, 0.95f};
   return metal_sphere(device, center, 0.45f, base, 0);
@@ -289,17 +356,56 @@ static ANARIWorld world_of(ANARIDevice device, ANARISurface *surfaces, int count
 }
 
 static ANARIWorld make_world(ANARIDevice device) {
-  ANARISurface surfaces[4] = {sphere_cloud(device), floor_plane(device), floor_grid(device),
-                              mirror_sphere(device)};
-  return world_of(device, surfaces, 4);
+  ANARISurface surfaces[5] = {sphere_cloud(device), floor_plane(device), floor_grid(device),
+                              mirror_sphere(device), lantern_ring(device)};
+  return world_of(device, surfaces, 5);
 }
 
-/* The floor, its grid and a glossy gold sphere half a metre in front of the front wall. */
-static ANARIWorld glossy_world(ANARIDevice device) {
-  const float center[3] = {0.0f, 1.1f, -0.9f}, gold[3] = {1.0f, 0.78f, 0.34f};
-  ANARISurface surfaces[3] = {floor_plane(device), floor_grid(device),
-                              metal_sphere(device, center, 0.35f, gold, 0.3f)};
-  return world_of(device, surfaces, 3);
+/* A flat mirror hung on the front wall (5 cm in front of it, 0.8 m square, its centre at eye
+ * height) facing into the CAVE, and behind the viewer, 1.8 m beyond the head, a dark board
+ * with white vertical bars for the mirror to show; the floor and its grid. */
+static ANARIWorld mirror_world(ANARIDevice device) {
+  const float mirror_corners[4][3] = {
+      {-0.4f, 1.1f, -1.45f}, {0.4f, 1.1f, -1.45f}, {0.4f, 1.9f, -1.45f}, {-0.4f, 1.9f, -1.45f}};
+  ANARIGeometry mirror = anariNewGeometry(device, "quad");
+  ANARIArray1D positions = array_of(device, ANARI_FLOAT32_VEC3, mirror_corners, 4, 12);
+  anariSetParameter(device, mirror, "vertex.position", ANARI_ARRAY1D, &positions);
+  anariCommitParameters(device, mirror);
+  anariRelease(device, positions);
+  ANARIMaterial silver = anariNewMaterial(device, "physicallyBased");
+  float base[3] = {0.92f, 0.92f, 0.92f}, metallic = 1, roughness = 0;
+  anariSetParameter(device, silver, "baseColor", ANARI_FLOAT32_VEC3, base);
+  anariSetParameter(device, silver, "metallic", ANARI_FLOAT32, &metallic);
+  anariSetParameter(device, silver, "roughness", ANARI_FLOAT32, &roughness);
+  anariCommitParameters(device, silver);
+
+  /* The board faces the mirror (−z); the bars, 10 cm wide every 30 cm, 1 cm in front of it. */
+  enum { BARS = 11 };
+  const float board_corners[4][3] = {
+      {1.8f, 0.0f, 3.0f}, {-1.8f, 0.0f, 3.0f}, {-1.8f, 2.8f, 3.0f}, {1.8f, 2.8f, 3.0f}};
+  float bar_corners[4 * BARS][3];
+  for (int i = 0; i < BARS; i++) {
+    float x = -1.5f + 0.3f * (float)i;
+    const float corners[4][3] = {
+        {x + 0.1f, 0.1f, 2.99f}, {x, 0.1f, 2.99f}, {x, 2.7f, 2.99f}, {x + 0.1f, 2.7f, 2.99f}};
+    memcpy(bar_corners[4 * i], corners, sizeof corners);
+  }
+  ANARIGeometry board = anariNewGeometry(device, "quad");
+  positions = array_of(device, ANARI_FLOAT32_VEC3, board_corners, 4, 12);
+  anariSetParameter(device, board, "vertex.position", ANARI_ARRAY1D, &positions);
+  anariCommitParameters(device, board);
+  anariRelease(device, positions);
+  ANARIGeometry bars = anariNewGeometry(device, "quad");
+  positions = array_of(device, ANARI_FLOAT32_VEC3, bar_corners, 4 * BARS, 12);
+  anariSetParameter(device, bars, "vertex.position", ANARI_ARRAY1D, &positions);
+  anariCommitParameters(device, bars);
+  anariRelease(device, positions);
+
+  ANARISurface surfaces[5] = {floor_plane(device), floor_grid(device),
+                              surface_of(device, mirror, silver),
+                              surface_of(device, board, matte(device, 0.05f, 0.05f, 0.08f)),
+                              surface_of(device, bars, matte(device, 1.0f, 1.0f, 1.0f))};
+  return world_of(device, surfaces, 5);
 }
 
 /* ----- images ---------------------------------------------------------------------------- */
@@ -313,13 +419,45 @@ static void copy_block(const unsigned char *frame, uint32_t frame_width, uint32_
     memcpy(out + 4 * (size_t)y * w, frame + 4 * ((size_t)y * frame_width + x0), 4 * (size_t)w);
 }
 
-static int largest_difference(const unsigned char *a, const unsigned char *b, size_t bytes) {
-  int largest = 0;
-  for (size_t i = 0; i < bytes; i++) {
-    int d = abs((int)a[i] - (int)b[i]);
-    largest = d > largest ? d : largest;
+/* Adds one wall and eye to a comparison: colours (RGBA), depths and primitive ids of the
+ * matrix image (m_*) and the offAxis image (o_*), n×n pixels each. */
+static void compare_images(Comparison *c, int wall, int eye, uint32_t n,
+                           const unsigned char *m_rgba, const float *m_depth,
+                           const uint32_t *m_id, const unsigned char *o_rgba,
+                           const float *o_depth, const uint32_t *o_id) {
+  for (size_t i = 0; i < (size_t)n * n; i++) {
+    int d = 0;
+    for (int k = 0; k < 3; k++) {
+      int channel = abs((int)m_rgba[4 * i + k] - (int)o_rgba[4 * i + k]);
+      d = channel > d ? channel : d;
+    }
+    c->pixels++;
+    if (d == 0)
+      continue;
+    /* The same hit: the same primitive at the same distance (to float precision). */
+    int same_hit = m_id[i] == o_id[i] &&
+                   (m_depth[i] == o_depth[i] ||
+                    fabsf(m_depth[i] - o_depth[i]) <= 1e-4f * fabsf(m_depth[i]));
+    if (d == 1)
+      c->rounding++;
+    else if (same_hit)
+      c->secondary++;
+    else
+      c->silhouette++;
+    if (d > c->largest) {
+      c->largest = d, c->largest_wall = wall, c->largest_eye = eye;
+      c->largest_x = (uint32_t)(i % n), c->largest_y = (uint32_t)(i / n);
+      c->largest_is_silhouette = !same_hit;
+    }
   }
-  return largest;
+}
+
+/* Copies a w×h block of a frame's FLOAT32 or UINT32 channel starting at column x0. */
+static void copy_block32(const void *frame, uint32_t frame_width, uint32_t x0, uint32_t w,
+                         uint32_t h, void *out) {
+  for (uint32_t y = 0; y < h; y++)
+    memcpy((char *)out + 4 * (size_t)y * w,
+           (const char *)frame + 4 * ((size_t)y * frame_width + x0), 4 * (size_t)w);
 }
 
 static int write_png(ANARIDevice device, const char *folder, const char *name, uint32_t w,
@@ -415,8 +553,9 @@ static void set_two_viewers(ANARIDevice device, ANARICamera camera, const char *
 /* False colour of screen parallax p (meters) against the comfort limit: blue in front of the
  * screen, grey on it, green behind, brighter towards the limit; red beyond ±limit; black where
  * nothing was hit (NaN). */
-static void parallax_image(const float *parallax, size_t pixels, float limit,
-                           unsigned char *out) {
+static size_t parallax_image(const float *parallax, size_t pixels, float limit,
+                             unsigned char *out) {
+  size_t beyond = 0;
   for (size_t i = 0; i < pixels; i++) {
     float p = parallax[i];
     unsigned char *o = out + 4 * i;
@@ -425,6 +564,7 @@ static void parallax_image(const float *parallax, size_t pixels, float limit,
       o[0] = o[1] = o[2] = 0;
     } else if (fabsf(p) > limit) {
       o[0] = 255, o[1] = 40, o[2] = 40;
+      beyond++;
     } else {
       float a = fabsf(p) / limit;
       unsigned char grey = (unsigned char)(110 * (1 - a));
@@ -433,6 +573,7 @@ static void parallax_image(const float *parallax, size_t pixels, float limit,
       o[2] = (unsigned char)(grey + (p < 0 ? 145 * a : 0));
     }
   }
+  return beyond;
 }
 
 /* Sets the front wall's corners, `head` and `right` on an offAxis camera in `stereo` mode. */
@@ -443,6 +584,20 @@ static void front_wall_camera(ANARIDevice device, ANARICamera camera, const floa
                     WALL[0].lower_right);
   anariSetParameter(device, camera, "screen.upperRight", ANARI_FLOAT32_VEC3,
                     WALL[0].upper_right);
+  anariSetParameter(device, camera, "position", ANARI_FLOAT32_VEC3, head);
+  anariSetParameter(device, camera, "right", ANARI_FLOAT32_VEC3, right);
+  anariSetParameter(device, camera, "stereoMode", ANARI_STRING, stereo);
+  anariCommitParameters(device, camera);
+}
+
+/* Like front_wall_camera, for the 1 m square window of the front wall around the mirror. */
+static void window_camera(ANARIDevice device, ANARICamera camera, const float head[3],
+                          const float right[3], const char *stereo) {
+  const float lower_left[3] = {-0.5f, 1.0f, -1.5f}, lower_right[3] = {0.5f, 1.0f, -1.5f},
+              upper_right[3] = {0.5f, 2.0f, -1.5f};
+  anariSetParameter(device, camera, "screen.lowerLeft", ANARI_FLOAT32_VEC3, lower_left);
+  anariSetParameter(device, camera, "screen.lowerRight", ANARI_FLOAT32_VEC3, lower_right);
+  anariSetParameter(device, camera, "screen.upperRight", ANARI_FLOAT32_VEC3, upper_right);
   anariSetParameter(device, camera, "position", ANARI_FLOAT32_VEC3, head);
   anariSetParameter(device, camera, "right", ANARI_FLOAT32_VEC3, right);
   anariSetParameter(device, camera, "stereoMode", ANARI_STRING, stereo);
@@ -498,6 +653,68 @@ static double render_budgeted(ANARIDevice device, ANARIFrame frame, float *progr
   return elapsed;
 }
 
+/* ----- panoramas ------------------------------------------------------------------------- */
+
+/* Renders `camera` into a new width×height frame and writes it to <folder>/<name>; returns 1 on
+ * success and prints the render time. */
+static int render_panorama(ANARIDevice device, ANARIWorld world, ANARIRenderer renderer,
+                           ANARICamera camera, uint32_t width, uint32_t height,
+                           const char *folder, const char *name) {
+  ANARIFrame frame = color_frame(device, width, height, world, renderer);
+  double seconds = render(device, frame, camera, NULL, 0);
+  char path[2048];
+  snprintf(path, sizeof path, "%s/%s", folder, name);
+  int ok = cavetraceWriteFramePNG(device, frame, "channel.color", path) == ANARI_STATUS_NO_ERROR;
+  printf("panorama: %s %u×%u in %.1f ms\n", name, width, height, 1e3 * seconds);
+  anariRelease(device, frame);
+  return ok;
+}
+
+/* The CAVE's scene all around one point, written to <folder>/: equirectangular.png (the
+ * omnidirectional camera, ANARI_KHR_CAMERA_OMNIDIRECTIONAL: 360° × 180°, the front wall's
+ * direction in the middle), equirectangular_ods.png (360° stereo video's layout: omni-directional
+ * stereo, left eye on top), dome.png (the fisheye camera, ANARI_CAVETRACE_CAMERA_FISHEYE: a
+ * 4 m planetarium dome over the CAVE's centre, tilted 30° towards the front wall, 180° field of
+ * view, seen from its centre; outside the image circle the renderer's background) and
+ * dome_tracked.png (the same dome from a tracked head 0.7 m right of and 0.9 m behind the centre:
+ * every pixel still shows its point of the dome). */
+static int panoramas(ANARIDevice device, ANARIWorld world, ANARIRenderer renderer,
+                     const char *folder, uint32_t n) {
+  int ok = 1;
+  const float eye[3] = {0, 1.6f, 0.3f}, front[3] = {0, 0, -1}, up[3] = {0, 1, 0};
+  ANARICamera omni = anariNewCamera(device, "omnidirectional");
+  anariSetParameter(device, omni, "position", ANARI_FLOAT32_VEC3, eye);
+  anariSetParameter(device, omni, "direction", ANARI_FLOAT32_VEC3, front);
+  anariSetParameter(device, omni, "up", ANARI_FLOAT32_VEC3, up);
+  anariSetParameter(device, omni, "layout", ANARI_STRING, "equirectangular");
+  anariCommitParameters(device, omni);
+  ok &= render_panorama(device, world, renderer, omni, 2 * n, n, folder, "equirectangular.png");
+  float ipd = IPD;
+  anariSetParameter(device, omni, "stereoMode", ANARI_STRING, "topBottom");
+  anariSetParameter(device, omni, "interpupillaryDistance", ANARI_FLOAT32, &ipd);
+  anariCommitParameters(device, omni);
+  ok &= render_panorama(device, world, renderer, omni, 2 * n, 2 * n, folder,
+                        "equirectangular_ods.png");
+  anariRelease(device, omni);
+
+  const float center[3] = {0, 1.2f, 0.3f}, radius = 4, tilt = 0.5236f, fov = 3.14159265f;
+  ANARICamera dome = anariNewCamera(device, "fisheye");
+  anariSetParameter(device, dome, "dome.center", ANARI_FLOAT32_VEC3, center);
+  anariSetParameter(device, dome, "dome.radius", ANARI_FLOAT32, &radius);
+  anariSetParameter(device, dome, "dome.tilt", ANARI_FLOAT32, &tilt);
+  anariSetParameter(device, dome, "fov", ANARI_FLOAT32, &fov);
+  anariSetParameter(device, dome, "position", ANARI_FLOAT32_VEC3, center);
+  anariCommitParameters(device, dome);
+  ok &= render_panorama(device, world, renderer, dome, n, n, folder, "dome.png");
+  const float head[3] = {0.7f, 1.6f, 1.2f};
+  anariSetParameter(device, dome, "position", ANARI_FLOAT32_VEC3, head);
+  anariCommitParameters(device, dome);
+  ok &= render_panorama(device, world, renderer, dome, n, n, folder, "dome_tracked.png");
+  anariRelease(device, dome);
+  return ok;
+}
+
+
 int main(int argc, char **argv) {
   const char *folder = argc > 1 ? argv[1] : "out/cave";
   const uint32_t n = argc > 2 ? (uint32_t)atoi(argv[2]) : 256;
@@ -522,8 +739,13 @@ int main(int argc, char **argv) {
 
   ANARIRenderer renderer = anariNewRenderer(device, "default");
   float background[4] = {0.10f, 0.14f, 0.26f, 1}, ambient = 0.5f;
+  /* One sample per pixel: ambient occlusion would be per-pixel noise here (and would make the
+   * matrix and offAxis images differ by their noise), so the ambient light stays unoccluded;
+   * out/environment/ambient_occlusion.png shows it converged. */
+  float no_occlusion = 0.f;
   anariSetParameter(device, renderer, "background", ANARI_FLOAT32_VEC4, background);
   anariSetParameter(device, renderer, "ambientRadiance", ANARI_FLOAT32, &ambient);
+  anariSetParameter(device, renderer, "ambientOcclusionDistance", ANARI_FLOAT32, &no_occlusion);
   /* The matrix camera sees one eye at a time, so the offAxis pair it is compared with is lit
    * per eye too (the default, cyclopean, is shown at the end). */
   anariSetParameter(device, renderer, "stereoLighting", ANARI_STRING, "perEye");
@@ -558,6 +780,17 @@ int main(int argc, char **argv) {
   for (int e = 0; e < EYES; e++)
     for (int w = 0; w < WALLS; w++)
       walls[e][w] = malloc(wall_bytes);
+  /* Depths and primitive ids say why a matrix and an offAxis pixel differ. */
+  float *off_axis_depth[EYES], *matrix_depth = malloc(wall_bytes);
+  uint32_t *off_axis_id[EYES], *matrix_id = malloc(wall_bytes);
+  for (int e = 0; e < EYES; e++)
+    off_axis_depth[e] = malloc(wall_bytes), off_axis_id[e] = malloc(wall_bytes);
+  ANARIDataType f32 = ANARI_FLOAT32, u32 = ANARI_UINT32;
+  ANARIFrame compared_frames[2] = {pair_frame, eye_frame};
+  for (int f = 0; f < 2; f++) {
+    anariSetParameter(device, compared_frames[f], "channel.depth", ANARI_DATA_TYPE, &f32);
+    anariSetParameter(device, compared_frames[f], "channel.primitiveId", ANARI_DATA_TYPE, &u32);
+  }
 
   int ok = 1;
   for (int step = 0; step < steps; step++) {
@@ -574,7 +807,7 @@ int main(int argc, char **argv) {
     }
 
     double off_axis_seconds = 0, matrix_seconds = 0;
-    int difference = 0;
+    Comparison comparison = {0};
     for (int w = 0; w < WALLS; w++) {
       /* offAxis: corners, head and its right vector; both eyes side by side in one frame. */
       anariSetParameter(device, off_axis, "screen.lowerLeft", ANARI_FLOAT32_VEC3,
@@ -594,8 +827,18 @@ int main(int argc, char **argv) {
       anariSetParameter(device, off_axis, "far", ANARI_FLOAT32, &far);
       anariCommitParameters(device, off_axis);
       off_axis_seconds += render(device, pair_frame, off_axis, pair, 2 * wall_bytes);
-      for (int e = 0; e < EYES; e++)
+      const void *depth = anariMapFrame(device, pair_frame, "channel.depth", NULL, NULL, NULL);
+      const void *ids = anariMapFrame(device, pair_frame, "channel.primitiveId", NULL, NULL, NULL);
+      for (int e = 0; e < EYES; e++) {
         copy_block(pair, 2 * n, e * n, n, n, walls[e][w]);
+        if (depth && ids) {
+          copy_block32(depth, 2 * n, e * n, n, n, off_axis_depth[e]);
+          copy_block32(ids, 2 * n, e * n, n, n, off_axis_id[e]);
+        }
+      }
+      anariUnmapFrame(device, pair_frame, "channel.depth");
+      anariUnmapFrame(device, pair_frame, "channel.primitiveId");
+      ok &= depth && ids;
       if (w == 0) {
         char path[2048];
         snprintf(path, sizeof path, "%s/front_stereo_pair.png", step_folder);
@@ -620,8 +863,17 @@ int main(int argc, char **argv) {
         anariSetParameter(device, matrix, "proj", ANARI_FLOAT32_MAT4, proj);
         anariCommitParameters(device, matrix);
         matrix_seconds += render(device, eye_frame, matrix, matrix_image, wall_bytes);
-        int d = largest_difference(matrix_image, walls[e][w], wall_bytes);
-        difference = d > difference ? d : difference;
+        depth = anariMapFrame(device, eye_frame, "channel.depth", NULL, NULL, NULL);
+        ids = anariMapFrame(device, eye_frame, "channel.primitiveId", NULL, NULL, NULL);
+        if (depth && ids) {
+          memcpy(matrix_depth, depth, wall_bytes);
+          memcpy(matrix_id, ids, wall_bytes);
+          compare_images(&comparison, w, e, n, matrix_image, matrix_depth, matrix_id,
+                         walls[e][w], off_axis_depth[e], off_axis_id[e]);
+        }
+        anariUnmapFrame(device, eye_frame, "channel.depth");
+        anariUnmapFrame(device, eye_frame, "channel.primitiveId");
+        ok &= depth && ids;
         char name[64];
         snprintf(name, sizeof name, "%s_%s_offAxis.png", WALL[w].name, EYE_NAME[e]);
         ok &= write_png(device, step_folder, name, n, n, walls[e][w]);
@@ -653,10 +905,26 @@ int main(int argc, char **argv) {
             ANARI_STATUS_NO_ERROR;
     }
     printf("head %d at (%.2f, %.2f, %.2f): 5 walls × 2 eyes of %u×%u in %.0f ms with offAxis "
-           "(%.1f ms per wall, both eyes), %.0f ms with matrix; largest matrix/offAxis "
-           "difference %d/255\n",
+           "(%.1f ms per wall, both eyes), %.0f ms with matrix\n",
            step, head[0], head[1], head[2], n, n, 1e3 * off_axis_seconds,
-           1e3 * off_axis_seconds / WALLS, 1e3 * matrix_seconds, difference);
+           1e3 * off_axis_seconds / WALLS, 1e3 * matrix_seconds);
+    printf("  matrix vs offAxis: %zu of %zu pixels differ: %zu by one 8-bit step (rounding), "
+           "%zu on a silhouette (the two rays hit different things), %zu where a shadow or "
+           "reflection ray grazes an edge (same hit, different light)",
+           comparison.rounding + comparison.silhouette + comparison.secondary,
+           comparison.pixels, comparison.rounding, comparison.silhouette,
+           comparison.secondary);
+    if (comparison.largest > 1)
+      printf("; largest %d/255 (%s) on the %s wall, %s eye, pixel (%u, %u) counted from the "
+             "bottom left",
+             comparison.largest, comparison.largest_is_silhouette ? "silhouette" : "same hit, grazing secondary ray",
+             WALL[comparison.largest_wall].name, EYE_NAME[comparison.largest_eye],
+             comparison.largest_x, comparison.largest_y);
+    printf("\n");
+  }
+  for (int f = 0; f < 2; f++) {
+    anariUnsetParameter(device, compared_frames[f], "channel.depth");
+    anariUnsetParameter(device, compared_frames[f], "channel.primitiveId");
   }
   if (budget_ms > 0) {
     /* The head stands still: keep rendering to refine until the image is complete. */
@@ -719,7 +987,9 @@ int main(int argc, char **argv) {
     return 1;
   }
   {
-    const float head[3] = {0.1f, 1.65f, 0.3f}, right[3] = {1, 0, 0};
+    /* The tracked head near the CAVE's open back, 2.7 m from the front wall: everything the
+     * front wall shows lies within the comfort limit. */
+    const float head[3] = {0.1f, 1.65f, 1.2f}, right[3] = {1, 0, 0};
     ANARICamera mono_camera = anariNewCamera(device, "offAxis");
     ANARICamera pair_camera = anariNewCamera(device, "offAxis");
     front_wall_camera(device, mono_camera, head, right, "none");
@@ -737,40 +1007,93 @@ int main(int argc, char **argv) {
            n, n, 1e3 * mono_seconds[RUNS / 2], 1e3 * pair_seconds[RUNS / 2],
            pair_seconds[RUNS / 2] / mono_seconds[RUNS / 2], RUNS);
 
-    /* Parallax of the pair, with the comfort limit 0.03 × the head's distance to the wall. */
-    ANARIDataType f32 = ANARI_FLOAT32;
+    /* Parallax of the pair against the comfort limit, from the head above and from a head
+     * 0.9 m nearer the wall, where the sphere cloud comes within half a metre of the eyes. */
+    const float near_head[3] = {0.1f, 1.65f, 0.3f};
+    const float *heads[2] = {head, near_head};
+    const char *parallax_names[2] = {"front_parallax_comfortable.png",
+                                     "front_parallax_too_close.png"};
+    ANARICamera parallax_camera = anariNewCamera(device, "offAxis");
     anariSetParameter(device, pair_frame, "channel.parallax", ANARI_DATA_TYPE, &f32);
-    render(device, pair_frame, pair_camera, NULL, 0);
-    float range[2] = {0, 0}, limit = 0.03f * (head[2] - WALL[0].lower_left[2]);
-    anariGetProperty(device, pair_frame, "parallaxRange", ANARI_FLOAT32_VEC2, range,
-                     sizeof range, ANARI_WAIT);
-    const float *parallax = anariMapFrame(device, pair_frame, "channel.parallax", NULL, NULL, NULL);
-    if (parallax) {
-      parallax_image(parallax, 2 * (size_t)n * n, limit, pair);
-      ok &= write_png(device, stereo_folder, "front_parallax.png", 2 * n, n, pair);
-    } else {
-      ok = 0;
+    for (int h = 0; h < 2; h++) {
+      front_wall_camera(device, parallax_camera, heads[h], right, "sideBySide");
+      render(device, pair_frame, parallax_camera, NULL, 0);
+      float distance = heads[h][2] - WALL[0].lower_left[2], limit = 0.03f * distance;
+      float range[2] = {0, 0};
+      anariGetProperty(device, pair_frame, "parallaxRange", ANARI_FLOAT32_VEC2, range,
+                       sizeof range, ANARI_WAIT);
+      const float *parallax =
+          anariMapFrame(device, pair_frame, "channel.parallax", NULL, NULL, NULL);
+      size_t beyond = 0;
+      if (parallax) {
+        beyond = parallax_image(parallax, 2 * (size_t)n * n, limit, pair);
+        ok &= write_png(device, stereo_folder, parallax_names[h], 2 * n, n, pair);
+      } else {
+        ok = 0;
+      }
+      anariUnmapFrame(device, pair_frame, "channel.parallax");
+      printf("stereo: head %.1f m from the front wall: parallax from %.1f to %.1f mm, comfort "
+             "limit ±%.1f mm: %s",
+             distance, 1e3 * range[0], 1e3 * range[1], 1e3 * limit,
+             beyond == 0 ? "comfortable" : "NOT comfortable");
+      if (beyond > 0)
+        printf(", %.1f %% of the pixels beyond it (red)",
+               100.0 * (double)beyond / (2.0 * n * n));
+      printf(" (%s)\n", parallax_names[h]);
     }
-    anariUnmapFrame(device, pair_frame, "channel.parallax");
     anariUnsetParameter(device, pair_frame, "channel.parallax");
-    printf("stereo: front wall parallax from %.1f to %.1f mm (comfortable within ±%.1f mm)\n",
-           1e3 * range[0], 1e3 * range[1], 1e3 * limit);
+    anariRelease(device, parallax_camera);
 
-    /* A glossy sphere in front of the wall, lit per eye and from between the eyes. */
-    ANARIWorld glossy = glossy_world(device);
+    /* Cyclopean lighting: a mirror hung on the front wall reflects the floor behind the
+     * viewer. Lit per eye, each eye sees the reflection from its own position, so it has its
+     * own depth far behind the mirror; lit from the point between the eyes, both eyes see the
+     * same reflection at each point of the mirror, so it lies on the mirror's surface. Rendered
+     * through a 1 m window of the front wall around the mirror, so the shift shows. */
+    ANARIWorld mirror = mirror_world(device);
     ANARIRenderer lit = anariNewRenderer(device, "default");
     anariSetParameter(device, lit, "background", ANARI_FLOAT32_VEC4, background);
     anariSetParameter(device, lit, "ambientRadiance", ANARI_FLOAT32, &ambient);
-    ANARIFrame glossy_frame = color_frame(device, 2 * n, n, glossy, lit);
+    anariSetParameter(device, lit, "ambientOcclusionDistance", ANARI_FLOAT32, &no_occlusion);
+    ANARIFrame mirror_frame = color_frame(device, 2 * n, n, mirror, lit);
+    ANARIFrame mirror_anaglyph_frame = color_frame(device, n, n, mirror, lit);
+    ANARICamera window_pair = anariNewCamera(device, "offAxis");
+    ANARICamera window_anaglyph = anariNewCamera(device, "offAxis");
+    window_camera(device, window_pair, head, right, "sideBySide");
+    window_camera(device, window_anaglyph, head, right, "anaglyph");
     const char *lightings[2] = {"perEye", "cyclopean"};
+    unsigned char *lit_pairs[2] = {pair, composite};
     for (int l = 0; l < 2; l++) {
       anariSetParameter(device, lit, "stereoLighting", ANARI_STRING, lightings[l]);
       anariCommitParameters(device, lit);
-      render(device, glossy_frame, pair_camera, pair, 2 * wall_bytes);
+      render(device, mirror_frame, window_pair, lit_pairs[l], 2 * wall_bytes);
       char name[64];
-      snprintf(name, sizeof name, "glossy_%s_pair.png", lightings[l]);
-      ok &= write_png(device, stereo_folder, name, 2 * n, n, pair);
+      snprintf(name, sizeof name, "mirror_%s_pair.png", lightings[l]);
+      ok &= write_png(device, stereo_folder, name, 2 * n, n, lit_pairs[l]);
+      render(device, mirror_anaglyph_frame, window_anaglyph, NULL, 0);
+      char path[2048];
+      snprintf(path, sizeof path, "%s/mirror_%s_anaglyph.png", stereo_folder, lightings[l]);
+      ok &= cavetraceWriteFramePNG(device, mirror_anaglyph_frame, "channel.color", path) ==
+            ANARI_STATUS_NO_ERROR;
     }
+    /* Where the two pairs differ, four times brighter. */
+    size_t differing = 0;
+    int largest = 0;
+    for (size_t i = 0; i < 2 * (size_t)n * n; i++) {
+      for (int k = 0; k < 3; k++) {
+        int d = abs((int)pair[4 * i + k] - (int)composite[4 * i + k]);
+        largest = d > largest ? d : largest;
+        pair[4 * i + k] = (unsigned char)(4 * d > 255 ? 255 : 4 * d);
+      }
+      differing += pair[4 * i] || pair[4 * i + 1] || pair[4 * i + 2];
+      pair[4 * i + 3] = 255;
+    }
+    ok &= write_png(device, stereo_folder, "mirror_difference_pair.png", 2 * n, n, pair);
+    printf("stereo: mirror lit per eye and cyclopean: %zu of %u pixels differ, largest %d/255 "
+           "(mirror_difference_pair.png)\n",
+           differing, 2 * n * n, largest);
+    anariRelease(device, window_pair);
+    anariRelease(device, window_anaglyph);
+    anariRelease(device, mirror_anaglyph_frame);
     /* Passive 3D displays and red-cyan glasses: the front wall, one frame of one eye's size. */
     const char *interleaved[3] = {"rowInterleaved", "checkerboard", "anaglyph"};
     ANARICamera shared_camera = anariNewCamera(device, "offAxis");
@@ -820,15 +1143,26 @@ int main(int argc, char **argv) {
     anariRelease(device, hologram_frame);
     anariRelease(device, hologram);
     printf("stereo images in %s/\n", stereo_folder);
-    ANARIObject stereo_objects[] = {mono_camera, pair_camera, glossy, lit, glossy_frame};
+    ANARIObject stereo_objects[] = {mono_camera, pair_camera, mirror, lit, mirror_frame};
     for (size_t i = 0; i < sizeof stereo_objects / sizeof stereo_objects[0]; i++)
       anariRelease(device, stereo_objects[i]);
+  }
+
+  char panorama_folder[1024];
+  snprintf(panorama_folder, sizeof panorama_folder, "%s/panorama", folder);
+  if (make_folders(panorama_folder) != 0) {
+    fprintf(stderr, "cannot create %s\n", panorama_folder);
+    ok = 0;
+  } else {
+    ok &= panoramas(device, world, renderer, panorama_folder, n);
   }
 
   for (int e = 0; e < EYES; e++)
     for (int w = 0; w < WALLS; w++)
       free(walls[e][w]);
-  free(pair), free(composite), free(matrix_image);
+  for (int e = 0; e < EYES; e++)
+    free(off_axis_depth[e]), free(off_axis_id[e]);
+  free(pair), free(composite), free(matrix_image), free(matrix_depth), free(matrix_id);
   ANARIObject objects[] = {off_axis,     matrix,        pair_frame, eye_frame,
                            budget_frame, budget_camera, renderer,   world};
   for (size_t i = 0; i < sizeof objects / sizeof objects[0]; i++)

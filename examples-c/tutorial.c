@@ -1,15 +1,18 @@
 /*
- * The smallest complete cavetrace program: two triangles lit by one directional light, rendered
- * once and written to a PNG file.
+ * The first cavetrace program: one sphere lit by one directional light, rendered once and
+ * written to a PNG file. Built from this checkout (see the README, "A first program"):
  *
- *   cc -std=c99 tutorial.c $(pkg-config --cflags --libs cavetrace) -o tutorial
- *   ./tutorial [output.png]
+ *   cargo build --release
+ *   ln -sf libcavetrace.so target/release/libcavetrace.so.0
+ *   cc -std=c99 examples-c/tutorial.c -Iinclude -Ltarget/release -lcavetrace \
+ *      -Wl,-rpath,"$PWD/target/release" -o tutorial
+ *   ./tutorial out/tutorial.png
  */
 #include <stdio.h>
 
 #include <cavetrace.h>
 
-/* Every error, warning and note of the device arrives here. */
+/* Every error, warning and note of the device arrives here, with the object it concerns. */
 static void print_status(const void *user_data, ANARIDevice device, ANARIObject source,
                          ANARIDataType source_type, ANARIStatusSeverity severity,
                          ANARIStatusCode code, const char *message) {
@@ -30,40 +33,34 @@ int main(int argc, char **argv) {
   if (!device)
     return 1;
 
-  /* Geometry: two triangles (a quad), vertex colours interpolated across them. */
-  float positions[] = {-1, -1, -3, 1, -1, -3, 1, 1, -3, -1, 1, -3};
-  float colors[] = {1, 0, 0, 1, 0, 1, 0, 1, 0, 0, 1, 1, 1, 1, 0, 1};
-  uint32_t indices[] = {0, 1, 2, 0, 2, 3};
-  /* Arrays with a NULL deleter share the application's memory, which must outlive them. */
-  ANARIArray1D position_array =
-      anariNewArray1D(device, positions, NULL, NULL, ANARI_FLOAT32_VEC3, 4);
-  ANARIArray1D color_array = anariNewArray1D(device, colors, NULL, NULL, ANARI_FLOAT32_VEC4, 4);
-  ANARIArray1D index_array = anariNewArray1D(device, indices, NULL, NULL, ANARI_UINT32_VEC3, 2);
-  ANARIGeometry geometry = anariNewGeometry(device, "triangle");
-  anariSetParameter(device, geometry, "vertex.position", ANARI_ARRAY1D, &position_array);
-  anariSetParameter(device, geometry, "vertex.color", ANARI_ARRAY1D, &color_array);
-  anariSetParameter(device, geometry, "primitive.index", ANARI_ARRAY1D, &index_array);
-  anariCommitParameters(device, geometry);
+  /* Geometry: one sphere of radius 1 at (0, 0, -4). Positions are an array, one per sphere;
+   * with a NULL deleter the array uses the application's memory, which must outlive it. */
+  float centers[] = {0, 0, -4};
+  float radius = 1;
+  ANARIArray1D center_array = anariNewArray1D(device, centers, NULL, NULL, ANARI_FLOAT32_VEC3, 1);
+  ANARIGeometry sphere = anariNewGeometry(device, "sphere");
+  anariSetParameter(device, sphere, "vertex.position", ANARI_ARRAY1D, &center_array);
+  anariSetParameter(device, sphere, "radius", ANARI_FLOAT32, &radius);
+  anariCommitParameters(device, sphere);
 
-  /* A matte material coloured by the geometry's "color" attribute. */
   ANARIMaterial material = anariNewMaterial(device, "matte");
-  anariSetParameter(device, material, "color", ANARI_STRING, "color");
+  float orange[] = {0.9f, 0.45f, 0.1f};
+  anariSetParameter(device, material, "color", ANARI_FLOAT32_VEC3, orange);
   anariCommitParameters(device, material);
 
   ANARISurface surface = anariNewSurface(device);
-  anariSetParameter(device, surface, "geometry", ANARI_GEOMETRY, &geometry);
+  anariSetParameter(device, surface, "geometry", ANARI_GEOMETRY, &sphere);
   anariSetParameter(device, surface, "material", ANARI_MATERIAL, &material);
   anariCommitParameters(device, surface);
 
-  /* One light, shining from behind the viewer's left shoulder. */
+  /* The default renderer shows only what light reaches: without a light and without ambient
+   * light every surface is black. */
   ANARILight light = anariNewLight(device, "directional");
-  float direction[] = {0.3f, -0.3f, -1};
-  float irradiance = 3;
+  float direction[] = {1, -1, -1}, irradiance = 3;
   anariSetParameter(device, light, "direction", ANARI_FLOAT32_VEC3, direction);
   anariSetParameter(device, light, "irradiance", ANARI_FLOAT32, &irradiance);
   anariCommitParameters(device, light);
 
-  /* The world holds the surface and the light. */
   ANARIWorld world = anariNewWorld(device);
   ANARIArray1D surfaces = anariNewArray1D(device, &surface, NULL, NULL, ANARI_SURFACE, 1);
   ANARIArray1D lights = anariNewArray1D(device, &light, NULL, NULL, ANARI_LIGHT, 1);
@@ -71,21 +68,24 @@ int main(int argc, char **argv) {
   anariSetParameter(device, world, "light", ANARI_ARRAY1D, &lights);
   anariCommitParameters(device, world);
 
-  /* A perspective camera at the origin looking down -z. */
+  /* A perspective camera at the origin looking down -z; aspect = the frame's width / height. */
   ANARICamera camera = anariNewCamera(device, "perspective");
   float eye[] = {0, 0, 0}, forward[] = {0, 0, -1}, up[] = {0, 1, 0};
-  float aspect = 640.0f / 480.0f;
+  float aspect = 640.0f / 480.0f, fovy = 0.8f; /* radians */
   anariSetParameter(device, camera, "position", ANARI_FLOAT32_VEC3, eye);
   anariSetParameter(device, camera, "direction", ANARI_FLOAT32_VEC3, forward);
   anariSetParameter(device, camera, "up", ANARI_FLOAT32_VEC3, up);
   anariSetParameter(device, camera, "aspect", ANARI_FLOAT32, &aspect);
+  anariSetParameter(device, camera, "fovy", ANARI_FLOAT32, &fovy);
   anariCommitParameters(device, camera);
 
   ANARIRenderer renderer = anariNewRenderer(device, "default");
-  float background[] = {0.1f, 0.1f, 0.15f, 1};
+  float background[] = {0.1f, 0.1f, 0.15f, 1}, ambient = 0.3f;
   anariSetParameter(device, renderer, "background", ANARI_FLOAT32_VEC4, background);
+  anariSetParameter(device, renderer, "ambientRadiance", ANARI_FLOAT32, &ambient);
   anariCommitParameters(device, renderer);
 
+  /* The frame ties it together: its size, the channels to render, world, camera, renderer. */
   ANARIFrame frame = anariNewFrame(device);
   uint32_t size[] = {640, 480};
   ANARIDataType color_type = ANARI_UFIXED8_RGBA_SRGB;
@@ -104,9 +104,8 @@ int main(int argc, char **argv) {
     printf("wrote %s\n", output);
 
   /* Release what we created; objects still used by others live on until they are not. */
-  ANARIObject objects[] = {position_array, color_array, index_array, geometry, material,
-                           surface,        light,       surfaces,    lights,   world,
-                           camera,         renderer,    frame};
+  ANARIObject objects[] = {center_array, sphere, material, surface, light,    surfaces,
+                           lights,       world,  camera,   renderer, frame};
   for (size_t i = 0; i < sizeof objects / sizeof objects[0]; i++)
     anariRelease(device, objects[i]);
   anariRelease(device, device);

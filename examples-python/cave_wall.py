@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """A CAVE's front wall in stereo, driven from Python through the ANARI C API (ctypes).
 
-The scene: a cloud of spheres in front of the wall, a floor, one light. The tracked head stands
+The scene: a cloud of spheres just in front of the wall, a floor, one light. The tracked head stands
 half a metre left of the wall's centre; the offAxis camera renders both eyes side by side,
 with the parallax channel, and the script writes the pair and prints the parallax range against
 the comfort limit (0.03 x the head's distance to the wall).
@@ -185,7 +185,7 @@ def sphere_cloud(device, count=2000):
     while len(centres) < count:
         p = [random.uniform(-1, 1) for _ in range(3)]
         if sum(c * c for c in p) <= 1:
-            centres.append((-0.3 + 0.45 * p[0], 1.5 + 0.45 * p[1], -0.6 + 0.45 * p[2]))
+            centres.append((-0.3 + 0.45 * p[0], 1.5 + 0.45 * p[1], -1.1 + 0.45 * p[2]))
     geometry = lib.anariNewGeometry(device.handle, b"sphere")
     positions = device.array(ANARI_FLOAT32_VEC3, centres)
     device.set(geometry, "vertex.position", ANARI_ARRAY1D, positions)
@@ -268,9 +268,10 @@ def main():
     written = write_png(device, frame, output)
     limit = 0.03 * (head[2] + 1.5)
     through = "the Khronos front end" if os.environ.get("ANARI_FRONT_END") else "cavetrace's C API"
+    comfortable = -limit <= parallax[0] and parallax[1] <= limit
     print(f"wrote {output} through {through}: {2 * n}x{n} stereo pair in {1e3 * duration.value:.1f} ms; parallax "
-          f"{1e3 * parallax[0]:.1f} to {1e3 * parallax[1]:.1f} mm (comfortable within "
-          f"±{1e3 * limit:.1f} mm)")
+          f"{1e3 * parallax[0]:.1f} to {1e3 * parallax[1]:.1f} mm, comfort limit ±{1e3 * limit:.1f} mm: "
+          f"{'comfortable' if comfortable else 'NOT comfortable'}")
 
     device.release(frame, renderer, camera, world, surface_array, light_array, light, *surfaces, *parts)
     lib.anariRelease(device.handle, device.handle)

@@ -27,4 +27,9 @@ if [ -x packaging/test-install.sh ]; then
   echo "== install and packaging (pkg-config, CMake)"
   packaging/test-install.sh
 fi
+# Rendering across MPI ranks (the `mpi` feature): skipped, saying so, without mpirun.
+if [ -x cluster-tests/run.sh ]; then
+  echo "== MPI cluster tests (mpirun -np 1/2/4)"
+  cluster-tests/run.sh
+fi
 echo "all test stages passed"

@@ -1,14 +1,17 @@
 //! cavetrace: a ray-tracing ANARI device for CAVEs, powerwalls and head-tracked stereo.
 //!
-//! Layers, with data flowing one way: `capi` (the C boundary) → `device` (registry, parameters,
-//! status) → `scene` (object kinds) → `accel` (BVHs) → `render` (shading, tiles, frames).
-//! Cameras (`camera`) are pure math used by the renderer.
+//! Layers, with imports running one way (see `docs/architecture.md`): `capi` and `sdk` (the C
+//! boundary) → `kinds` (the one table of object kinds) → `render` (renderers, shading, frames)
+//! → `scene` (object kinds) and `camera` (camera math) → `device` (the base: objects,
+//! parameters, specs, status, arrays); `scene` and `render` also use `accel` (BVHs), which
+//! like `device` uses only `isa`.
 
 pub mod accel;
 pub mod camera;
 pub mod capi;
 pub mod device;
 pub mod isa;
+pub mod kinds;
 pub mod render;
 pub mod scene;
 pub mod sdk;

@@ -36,7 +36,7 @@ fn scene(dev: ANARIDevice) -> Scene {
     let world = world_of(dev, &[surface]);
     let camera = anariNewCamera(dev, c("perspective").as_ptr());
     commit(dev, camera);
-    let renderer = plain_renderer(dev, "default");
+    let renderer = lit_renderer(dev);
     let frame = frame_for(dev, world, camera, renderer, [8, 8]);
     release_all(dev, &[camera, renderer]);
     Scene {
@@ -45,6 +45,14 @@ fn scene(dev: ANARIDevice) -> Scene {
         world,
         frame,
     }
+}
+
+/// A committed default renderer with ambient light, so that an unlit world is not black.
+fn lit_renderer(dev: ANARIDevice) -> ANARIRenderer {
+    let renderer = anariNewRenderer(dev, c("default").as_ptr());
+    set(dev, renderer, "ambientRadiance", ANARI_FLOAT32, &1.0f32);
+    commit(dev, renderer);
+    renderer
 }
 
 impl Scene {
@@ -189,6 +197,53 @@ fn setting_the_committed_value_again_is_not_a_change() {
     anariUnsetParameter(dev, s.geometry, c("color").as_ptr());
     render_and_wait(dev, s.frame);
     assert_eq!(warnings(&log), Vec::<String>::new());
+    s.release(dev);
+    release_device(lib, dev);
+}
+
+const UNLIT: &str = "anariRenderFrame: frame: renderer 'default' has 'ambientRadiance' 0 and \
+     the world has no lights, so its surfaces are unlit and render black (apart from emission \
+     and reflections of the background); add a light to the world's 'light' array or set the \
+     renderer's 'ambientRadiance' > 0";
+
+#[test]
+fn an_unlit_world_under_the_default_renderer_warns_once() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let s = scene(dev);
+    let unlit = plain_renderer(dev, "default");
+    set_object(dev, s.frame, "renderer", ANARI_RENDERER, unlit);
+    commit(dev, s.frame);
+    render_and_wait(dev, s.frame);
+    render_and_wait(dev, s.frame);
+    render_and_wait(dev, s.frame);
+    assert_eq!(warnings(&log), [UNLIT]);
+    // The image is black where the triangle is, as the warning says.
+    let (color, _, _) = render_channel::<[f32; 4]>(dev, s.frame, "channel.color");
+    assert_eq!(color[4 * 8 + 4], [0.0, 0.0, 0.0, 1.0]);
+    assert_eq!(warnings(&log), Vec::<String>::new());
+
+    // Ambient light fixes it: no warning.
+    set(dev, unlit, "ambientRadiance", ANARI_FLOAT32, &0.5f32);
+    commit(dev, unlit);
+    render_and_wait(dev, s.frame);
+    assert_eq!(warnings(&log), Vec::<String>::new());
+    // A light in the world does too.
+    set(dev, unlit, "ambientRadiance", ANARI_FLOAT32, &0.0f32);
+    commit(dev, unlit);
+    light_world(dev, s.world, [0.0, 0.0, -1.0]);
+    render_and_wait(dev, s.frame);
+    assert_eq!(warnings(&log), Vec::<String>::new());
+
+    // The fast renderer lights what it sees from the eye: no warning either.
+    let fast = plain_renderer(dev, "fast");
+    let dark = world_of(dev, &[s.surface]);
+    set_object(dev, s.frame, "renderer", ANARI_RENDERER, fast);
+    set_object(dev, s.frame, "world", ANARI_WORLD, dark);
+    commit(dev, s.frame);
+    render_and_wait(dev, s.frame);
+    assert_eq!(warnings(&log), Vec::<String>::new());
+    release_all(dev, &[unlit, fast, dark]);
     s.release(dev);
     release_device(lib, dev);
 }

@@ -336,7 +336,15 @@ fn introspection_comes_from_the_tables() {
     let geometries = c_strings(anariGetObjectSubtypes(dev, ANARI_GEOMETRY));
     assert_eq!(
         geometries,
-        ["triangle", "quad", "sphere", "cylinder", "cone", "curve"]
+        [
+            "triangle",
+            "quad",
+            "sphere",
+            "cylinder",
+            "cone",
+            "curve",
+            "isosurface"
+        ]
     );
     let renderers = c_strings(anariGetObjectSubtypes(dev, ANARI_RENDERER));
     assert_eq!(renderers[0], "default");

@@ -82,6 +82,8 @@ impl Scene {
         for (name, value) in vectors {
             set(dev, light, name, ANARI_FLOAT32_VEC3, value);
         }
+        // The camera looks at the floor past the lights: only their light is measured.
+        set(dev, light, "visible", ANARI_BOOL, &0u8);
         commit(dev, light);
         light
     }

@@ -6,8 +6,9 @@ use crate::accel::packet::{
 };
 use crate::accel::primitives::{
     GROUP_LANES, PackedSphere, PackedTriangle, TriangleGroup, group_any, group_closest,
-    sphere_surface, sphere_t, triangle_t_uv,
+    is_usable_box, sphere_surface, sphere_t, triangle_t_uv,
 };
+use crate::accel::procedural::{ProceduralPrimitives, ProceduralSlots};
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
 use crate::accel::wide_bvh::{
     LeafAlignment, LeafSizing, MAX_PRIMITIVES, PADDING, TraversalRay, WideBvh, WideNode,
@@ -20,6 +21,7 @@ use rayon::iter::{
     IndexedParallelIterator, IntoParallelIterator, IntoParallelRefIterator, ParallelIterator,
 };
 use rayon::slice::ParallelSlice;
+use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
 static GEOMETRY_BUILDS: AtomicU64 = AtomicU64::new(0);
@@ -45,6 +47,7 @@ enum PrimitiveData {
     Quads(Vec<TriangleGroup>),
     Spheres(Vec<PackedSphere>),
     Tubes(Vec<PackedTube>),
+    Procedural(ProceduralSlots),
 }
 
 /// A BVH over the primitives of one geometry, in object space.
@@ -309,6 +312,38 @@ impl GeometryBvh {
         )
     }
 
+    /// Builds the BVH over procedural primitives; those without a usable box are skipped.
+    /// Increments [`geometry_build_count`].
+    pub fn build_procedural(primitives: Arc<dyn ProceduralPrimitives>) -> GeometryBvh {
+        GEOMETRY_BUILDS.fetch_add(1, Ordering::Relaxed);
+        let count = primitives.count().min(u32::MAX as usize);
+        let boxes: Vec<Aabb> = (0..count as u32)
+            .map(|id| match primitives.bounds(id) {
+                Some((lo, hi)) if lo.cmple(hi).all() => Aabb::new(lo.into(), hi.into()),
+                _ => Aabb::INVALID,
+            })
+            .collect();
+        let mut collected = Collected::with_capacity(count);
+        for (id, aabb) in boxes.iter().enumerate() {
+            if aabb.valid() && is_usable_box(aabb) {
+                collected.push(id as u32, id as u32);
+            }
+        }
+        let accepted = collected.primitives.len();
+        bvh_over_collected(
+            collected,
+            |&id| boxes[id as usize],
+            (LeafSizing::Split, LeafAlignment::Packed),
+            |indices| {
+                PrimitiveData::Procedural(ProceduralSlots {
+                    primitives,
+                    indices,
+                })
+            },
+            (accepted, count),
+        )
+    }
+
     /// Closest hit with `t` in `[t_min, t_max]`.
     pub fn intersect(&self, ray: &Ray) -> Option<PrimHit> {
         let mut ray = prepare(ray)?;
@@ -380,6 +415,7 @@ impl GeometryBvh {
             }
             PrimitiveData::Spheres(spheres) => spheres.capacity() * size_of::<PackedSphere>(),
             PrimitiveData::Tubes(tubes) => tubes.capacity() * size_of::<PackedTube>(),
+            PrimitiveData::Procedural(slots) => slots.memory_bytes(),
         };
         self.nodes.capacity() * size_of::<WideNode>()
             + self.source_ids.capacity() * size_of::<u32>()
@@ -428,6 +464,20 @@ impl GeometryBvh {
                     for slot in first..first + count {
                         if let Some((t, _)) = tube_hit(&tubes[slot as usize], ray) {
                             ray.t_max = t;
+                            closest = Some((slot, Vec2::ZERO));
+                            found = true;
+                        }
+                    }
+                    found
+                });
+            }
+            PrimitiveData::Procedural(slots) => {
+                traverse::<false, _>(&self.nodes, ray, |code, ray| {
+                    let (first, count) = leaf_range(code);
+                    let mut found = false;
+                    for slot in first..first + count {
+                        if let Some(hit) = slots.hit(slot, ray) {
+                            ray.t_max = hit.t;
                             closest = Some((slot, Vec2::ZERO));
                             found = true;
                         }
@@ -512,6 +562,7 @@ impl GeometryBvh {
                     prefetch(tube);
                 }
             }
+            PrimitiveData::Procedural(_) => {}
         }
     }
 
@@ -567,6 +618,12 @@ impl GeometryBvh {
                     per_lane(packet, closest, slot, &|ray| {
                         tube_hit(tube, ray).map(|hit| hit.0)
                     });
+            }
+            PrimitiveData::Procedural(slots) => {
+                for slot in first..first + count {
+                    per_lane(packet, closest, slot, &|ray| {
+                        slots.hit(slot, ray).map(|hit| hit.t)
+                    });
                 }
             }
         }
@@ -593,6 +650,12 @@ impl GeometryBvh {
                 let (first, count) = leaf_range(code);
                 (first..first + count).any(|slot| tube_hit(&tubes[slot as usize], ray).is_some())
             }),
+            PrimitiveData::Procedural(slots) => {
+                traverse::<true, _>(&self.nodes, ray, |code, ray| {
+                    let (first, count) = leaf_range(code);
+                    (first..first + count).any(|slot| slots.hit(slot, ray).is_some())
+                })
+            }
         }
     }
 
@@ -628,7 +691,9 @@ impl GeometryBvh {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
                 Self::triangle(groups, slot).normal()
             }
-            PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) => Vec3::ZERO,
+            PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) | PrimitiveData::Procedural(_) => {
+                Vec3::ZERO
+            }
         }
     }
 
@@ -656,7 +721,9 @@ impl GeometryBvh {
                 uv: quad_coordinates(bary, source_id),
                 normal,
             }),
-            PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) => None,
+            PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) | PrimitiveData::Procedural(_) => {
+                None
+            }
         }
     }
 
@@ -719,6 +786,17 @@ impl GeometryBvh {
                     primitive: source_id,
                     uv,
                     normal,
+                }
+            }
+            PrimitiveData::Procedural(slots) => {
+                let Some(hit) = slots.hit(slot as u32, ray) else {
+                    return miss();
+                };
+                PrimHit {
+                    t: hit.t,
+                    primitive: source_id,
+                    uv: hit.uv,
+                    normal: hit.normal,
                 }
             }
         }

@@ -45,6 +45,7 @@ mod geometry;
 pub use crate::isa;
 mod packet;
 mod primitives;
+mod procedural;
 mod scene;
 mod tube;
 mod wide_bvh;
@@ -56,6 +57,7 @@ pub use geometry::{GeometryBvh, geometry_build_count};
 pub use packet::PacketScratch;
 #[cfg(test)]
 pub(crate) use packet::QUADRANT_GROUPS;
+pub use procedural::{ProceduralHit, ProceduralPrimitives};
 pub use scene::SceneBvh;
 pub use tube::{TubeKind, TubeSegment};
 

@@ -7,7 +7,9 @@ use crate::device::datatype::*;
 use crate::device::params::ParamSet;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 
+use super::fisheye::FisheyeDesc;
 use super::light_field::LightFieldDesc;
+use super::omnidirectional::{OmnidirectionalDesc, OmnidirectionalLayout};
 use super::viewers::{DEFAULT_CUTOFF_ANGLE, DEFAULT_TILES, MAX_VIEWERS};
 use super::{
     Camera, CameraError, DEFAULT_INTERPUPILLARY_DISTANCE, MatrixDesc, OffAxisDesc,
@@ -15,7 +17,7 @@ use super::{
 };
 
 /// Builds and validates the camera of `subtype` ("perspective", "orthographic", "matrix",
-/// "offAxis") from its committed parameters. Unset parameters (and parameters of another type,
+/// "offAxis", "lightField", "omnidirectional", "fisheye") from its committed parameters. Unset parameters (and parameters of another type,
 /// which the getters report as unset) take their defaults.
 pub fn camera_from_params(
     subtype: &str,
@@ -27,6 +29,8 @@ pub fn camera_from_params(
         "matrix" => matrix_desc(params).build(),
         "offAxis" => offaxis_desc(params)?.build(),
         "lightField" => light_field_desc(params).build(),
+        "omnidirectional" => omnidirectional_desc(params)?.build(),
+        "fisheye" => fisheye_desc(params)?.build(),
         other => Err(CameraError::new(
             "subtype",
             format!("unknown camera subtype '{other}'"),
@@ -123,6 +127,57 @@ fn offaxis_desc(params: &ParamSet) -> Result<OffAxisDesc, CameraError> {
             .get_box2("imageRegion")
             .unwrap_or(defaults.image_region),
         viewers: viewer_desc(params)?,
+    })
+}
+
+fn omnidirectional_desc(params: &ParamSet) -> Result<OmnidirectionalDesc, CameraError> {
+    let defaults = OmnidirectionalDesc::default();
+    let layout = match params.get_string("layout") {
+        None => defaults.layout,
+        Some(value) => OmnidirectionalLayout::parse(value).ok_or_else(|| {
+            CameraError::new(
+                "layout",
+                format!("unknown value '{value}' (expected equirectangular)"),
+            )
+        })?,
+    };
+    Ok(OmnidirectionalDesc {
+        position: params.get_vec3("position").unwrap_or(defaults.position),
+        direction: params.get_vec3("direction").unwrap_or(defaults.direction),
+        up: params.get_vec3("up").unwrap_or(defaults.up),
+        image_region: params
+            .get_box2("imageRegion")
+            .unwrap_or(defaults.image_region),
+        layout,
+        stereo_mode: stereo_mode(params)?,
+        interpupillary_distance: params
+            .get_f32("interpupillaryDistance")
+            .unwrap_or(defaults.interpupillary_distance),
+    })
+}
+
+fn fisheye_desc(params: &ParamSet) -> Result<FisheyeDesc, CameraError> {
+    let defaults = FisheyeDesc::default();
+    Ok(FisheyeDesc {
+        position: params.get_vec3("position").unwrap_or(defaults.position),
+        dome_center: params
+            .get_vec3("dome.center")
+            .unwrap_or(defaults.dome_center),
+        dome_radius: params.get_f32("dome.radius"),
+        dome_direction: params
+            .get_vec3("dome.direction")
+            .unwrap_or(defaults.dome_direction),
+        dome_up: params.get_vec3("dome.up").unwrap_or(defaults.dome_up),
+        dome_tilt: params.get_f32("dome.tilt").unwrap_or(defaults.dome_tilt),
+        fov: params.get_f32("fov").unwrap_or(defaults.fov),
+        right: params.get_vec3("right"),
+        image_region: params
+            .get_box2("imageRegion")
+            .unwrap_or(defaults.image_region),
+        stereo_mode: stereo_mode(params)?,
+        interpupillary_distance: params
+            .get_f32("interpupillaryDistance")
+            .unwrap_or(defaults.interpupillary_distance),
     })
 }
 
@@ -541,10 +596,119 @@ pub const OFF_AXIS: ObjectSpec = ObjectSpec::new(
     "ANARI_CAVETRACE_STEREO_INTERLEAVED",
 ]);
 
+pub const OMNIDIRECTIONAL: ObjectSpec = ObjectSpec::new(
+    ANARI_CAMERA,
+    "omnidirectional",
+    "360° camera: equirectangular panorama, longitude 2π(s−½) to the right and latitude π(t−½) \
+     upwards, the centre along direction; stereo is omni-directional stereo (ODS) for 360° \
+     video",
+    &[
+        POSITION,
+        DIRECTION,
+        UP,
+        IMAGE_REGION,
+        ParamSpec::new("layout", &[ANARI_STRING], "pixel layout")
+            .default(SpecValue::Str("equirectangular"))
+            .values(&OmnidirectionalLayout::VALUES),
+        STEREO_MODE,
+        INTERLEAVE_START_RIGHT,
+        ParamSpec::new(
+            "interpupillaryDistance",
+            &[ANARI_FLOAT32],
+            "diameter of the ODS circle: each column's eyes sit at ±half of it around position, \
+             perpendicular to the column's longitude",
+        )
+        .default(SpecValue::Float(DEFAULT_INTERPUPILLARY_DISTANCE)),
+    ],
+)
+.extensions(&[
+    "ANARI_KHR_CAMERA_OMNIDIRECTIONAL",
+    "ANARI_KHR_CAMERA_STEREO",
+    "ANARI_CAVETRACE_STEREO_INTERLEAVED",
+]);
+
+pub const FISHEYE: ObjectSpec = ObjectSpec::new(
+    ANARI_CAMERA,
+    "fisheye",
+    "dome camera (planetariums, fulldome): azimuthal equidistant image circle inscribed in the \
+     frame, angle from dome.direction = (r/R)·fov/2; each pixel maps to a fixed dome point, rays \
+     start at the tracked eye and pass through it; pixels outside the circle show the \
+     renderer's background",
+    &[
+        ParamSpec::new(
+            "position",
+            &[ANARI_FLOAT32_VEC3],
+            "tracked viewer, or the head centre between the eyes in stereo; must be inside the \
+             dome when dome.radius is set",
+        )
+        .default(SpecValue::Floats(&[0.0, 0.0, 0.0])),
+        ParamSpec::new(
+            "dome.center",
+            &[ANARI_FLOAT32_VEC3],
+            "centre of the dome sphere in world space",
+        )
+        .default(SpecValue::Floats(&[0.0, 0.0, 0.0])),
+        ParamSpec::new(
+            "dome.radius",
+            &[ANARI_FLOAT32],
+            "radius of the dome sphere in meters (unset: infinitely far, every eye looks along \
+             the pixel's direction from the centre)",
+        ),
+        ParamSpec::new(
+            "dome.direction",
+            &[ANARI_FLOAT32_VEC3],
+            "dome axis from the centre: where the image centre looks (the zenith of a flat dome)",
+        )
+        .default(SpecValue::Floats(&[0.0, 1.0, 0.0])),
+        ParamSpec::new(
+            "dome.up",
+            &[ANARI_FLOAT32_VEC3],
+            "dome direction towards the image's top edge (made perpendicular to dome.direction); \
+             the image's right is dome.direction × dome.up",
+        )
+        .default(SpecValue::Floats(&[0.0, 0.0, 1.0])),
+        ParamSpec::new(
+            "dome.tilt",
+            &[ANARI_FLOAT32],
+            "dome tilt in radians: dome.direction and dome.up turn about the image's right \
+             vector, the axis towards the image's bottom edge (the audience's front)",
+        )
+        .default(SpecValue::Float(0.0)),
+        ParamSpec::new(
+            "fov",
+            &[ANARI_FLOAT32],
+            "full angle of the image circle in radians, in (0, 2π]",
+        )
+        .default(SpecValue::Float(std::f32::consts::PI)),
+        ParamSpec::new(
+            "right",
+            &[ANARI_FLOAT32_VEC3],
+            "the head's right vector for stereo (unset: the image's right vector)",
+        ),
+        IMAGE_REGION,
+        STEREO_MODE,
+        INTERLEAVE_START_RIGHT,
+        INTERPUPILLARY_DISTANCE,
+    ],
+)
+.extensions(&[
+    "ANARI_CAVETRACE_CAMERA_FISHEYE",
+    "ANARI_KHR_CAMERA_STEREO",
+    "ANARI_CAVETRACE_STEREO_INTERLEAVED",
+]);
+
 const _: () = assert!(MAX_VIEWERS == 64, "the viewer.position description says 64");
 
 /// The camera subtypes this module implements.
-pub const SPECS: &[ObjectSpec] = &[PERSPECTIVE, ORTHOGRAPHIC, MATRIX, OFF_AXIS, LIGHT_FIELD];
+pub const SPECS: &[ObjectSpec] = &[
+    PERSPECTIVE,
+    ORTHOGRAPHIC,
+    MATRIX,
+    OFF_AXIS,
+    LIGHT_FIELD,
+    OMNIDIRECTIONAL,
+    FISHEYE,
+];
 
 #[cfg(test)]
 mod tests {
@@ -719,6 +883,98 @@ mod tests {
     }
 
     #[test]
+    fn omnidirectional_and_fisheye_parameters_reach_the_camera() {
+        let mut set = ParamSet::default();
+        floats(&mut set, "position", ANARI_FLOAT32_VEC3, &[1.0, 2.0, 3.0]);
+        floats(&mut set, "direction", ANARI_FLOAT32_VEC3, &[1.0, 0.0, 0.0]);
+        floats(&mut set, "up", ANARI_FLOAT32_VEC3, &[0.0, 0.0, 1.0]);
+        floats(
+            &mut set,
+            "imageRegion",
+            ANARI_FLOAT32_BOX2,
+            &[0.1, 0.2, 0.9, 0.8],
+        );
+        floats(&mut set, "interpupillaryDistance", ANARI_FLOAT32, &[0.07]);
+        set.set("layout", ParamValue::String("equirectangular".into()));
+        set.set("stereoMode", ParamValue::String("topBottom".into()));
+        same_rays(
+            &*camera_from_params("omnidirectional", &set).unwrap(),
+            &*OmnidirectionalDesc {
+                position: Vec3::new(1.0, 2.0, 3.0),
+                direction: Vec3::X,
+                up: Vec3::Z,
+                image_region: [0.1, 0.2, 0.9, 0.8],
+                stereo_mode: StereoMode::TopBottom,
+                interpupillary_distance: 0.07,
+                ..OmnidirectionalDesc::default()
+            }
+            .build()
+            .unwrap(),
+        );
+
+        let mut set = ParamSet::default();
+        floats(&mut set, "position", ANARI_FLOAT32_VEC3, &[0.5, 1.0, 0.2]);
+        floats(
+            &mut set,
+            "dome.center",
+            ANARI_FLOAT32_VEC3,
+            &[0.0, 0.5, 0.0],
+        );
+        floats(&mut set, "dome.radius", ANARI_FLOAT32, &[4.0]);
+        floats(
+            &mut set,
+            "dome.direction",
+            ANARI_FLOAT32_VEC3,
+            &[0.0, 1.0, 0.1],
+        );
+        floats(&mut set, "dome.up", ANARI_FLOAT32_VEC3, &[0.0, 0.0, -1.0]);
+        floats(&mut set, "dome.tilt", ANARI_FLOAT32, &[0.3]);
+        floats(&mut set, "fov", ANARI_FLOAT32, &[4.0]);
+        floats(&mut set, "right", ANARI_FLOAT32_VEC3, &[1.0, 0.0, 0.5]);
+        floats(
+            &mut set,
+            "imageRegion",
+            ANARI_FLOAT32_BOX2,
+            &[0.0, 0.5, 0.5, 1.0],
+        );
+        floats(&mut set, "interpupillaryDistance", ANARI_FLOAT32, &[0.05]);
+        set.set("stereoMode", ParamValue::String("sideBySide".into()));
+        let fisheye = camera_from_params("fisheye", &set).unwrap();
+        same_rays(
+            &*fisheye,
+            &*FisheyeDesc {
+                position: Vec3::new(0.5, 1.0, 0.2),
+                dome_center: Vec3::new(0.0, 0.5, 0.0),
+                dome_radius: Some(4.0),
+                dome_direction: Vec3::new(0.0, 1.0, 0.1),
+                dome_up: Vec3::NEG_Z,
+                dome_tilt: 0.3,
+                fov: 4.0,
+                right: Some(Vec3::new(1.0, 0.0, 0.5)),
+                image_region: [0.0, 0.5, 0.5, 1.0],
+                stereo_mode: StereoMode::SideBySide,
+                interpupillary_distance: 0.05,
+            }
+            .build()
+            .unwrap(),
+        );
+        let empty = ParamSet::default();
+        same_rays(
+            &*camera_from_params("omnidirectional", &empty).unwrap(),
+            &*OmnidirectionalDesc::default().build().unwrap(),
+        );
+        same_rays(
+            &*camera_from_params("fisheye", &empty).unwrap(),
+            &*FisheyeDesc::default().build().unwrap(),
+        );
+        // And the parameters changed something.
+        let ray = |c: &dyn Camera| c.prepare(Eye::Left, 4, 4).ray(0.4, 0.6, Vec2::ZERO);
+        let default = FisheyeDesc::default().build().unwrap();
+        assert_ne!(ray(&*fisheye).origin, ray(&*default).origin);
+        assert_ne!(ray(&*fisheye).direction, ray(&*default).direction);
+    }
+
+    #[test]
     fn bad_values_are_reported_with_their_parameter() {
         let mut set = ParamSet::default();
         set.set("stereoMode", ParamValue::String("hologram".into()));
@@ -742,8 +998,22 @@ mod tests {
             camera_from_params("matrix", &set).unwrap_err().parameter,
             "proj"
         );
-        let error = camera_from_params("omnidirectional", &ParamSet::default()).unwrap_err();
+        let error = camera_from_params("cylindrical", &ParamSet::default()).unwrap_err();
         assert_eq!(error.parameter, "subtype");
+        let mut set = ParamSet::default();
+        set.set("layout", ParamValue::String("cubemap".into()));
+        assert_eq!(
+            camera_from_params("omnidirectional", &set)
+                .unwrap_err()
+                .parameter,
+            "layout"
+        );
+        let mut set = ParamSet::default();
+        floats(&mut set, "dome.radius", ANARI_FLOAT32, &[-2.0]);
+        assert_eq!(
+            camera_from_params("fisheye", &set).unwrap_err().parameter,
+            "dome.radius"
+        );
     }
 
     #[test]
@@ -782,6 +1052,36 @@ mod tests {
                 ][..],
             ),
             ("matrix", &["view", "proj", "imageRegion"][..]),
+            (
+                "omnidirectional",
+                &[
+                    "position",
+                    "direction",
+                    "up",
+                    "imageRegion",
+                    "layout",
+                    "stereoMode",
+                    "interleaveStartRight",
+                    "interpupillaryDistance",
+                ][..],
+            ),
+            (
+                "fisheye",
+                &[
+                    "position",
+                    "dome.center",
+                    "dome.radius",
+                    "dome.direction",
+                    "dome.up",
+                    "dome.tilt",
+                    "fov",
+                    "right",
+                    "imageRegion",
+                    "stereoMode",
+                    "interleaveStartRight",
+                    "interpupillaryDistance",
+                ][..],
+            ),
             (
                 "offAxis",
                 &[
@@ -837,6 +1137,27 @@ mod tests {
         );
         assert!(spec("offAxis").param("screen.lowerLeft").unwrap().required);
         assert_eq!(spec("matrix").extensions, &["ANARI_VSNRAY_CAMERA_MATRIX"]);
+        let omni = OmnidirectionalDesc::default();
+        assert_eq!(
+            spec("omnidirectional").param("direction").unwrap().default,
+            SpecValue::Floats(&[0.0, 0.0, -1.0])
+        );
+        assert_eq!(omni.direction, Vec3::NEG_Z);
+        let fisheye = FisheyeDesc::default();
+        assert_eq!(
+            spec("fisheye").param("fov").unwrap().default,
+            SpecValue::Float(fisheye.fov)
+        );
+        assert_eq!(
+            spec("fisheye").param("dome.direction").unwrap().default,
+            SpecValue::Floats(&[0.0, 1.0, 0.0])
+        );
+        assert_eq!(fisheye.dome_direction, Vec3::Y);
+        assert_eq!(
+            spec("fisheye").param("dome.up").unwrap().default,
+            SpecValue::Floats(&[0.0, 0.0, 1.0])
+        );
+        assert_eq!(fisheye.dome_up, Vec3::Z);
         assert!(
             spec("offAxis")
                 .extensions

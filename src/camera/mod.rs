@@ -7,9 +7,11 @@
 //! - Geometry is computed in f64 and rounded to f32 only in the outputs.
 
 pub mod anari;
+pub mod fisheye;
 pub mod light_field;
 pub mod matrix;
 pub mod offaxis;
+pub mod omnidirectional;
 pub mod orthographic;
 pub mod perspective;
 mod rays;
@@ -25,8 +27,10 @@ mod test_support;
 mod viewer_tests;
 
 pub use anari::{SPECS, camera_from_params};
+pub use fisheye::FisheyeDesc;
 pub use matrix::MatrixDesc;
 pub use offaxis::{OffAxisError, PerspectiveFit};
+pub use omnidirectional::{OmnidirectionalDesc, OmnidirectionalLayout};
 pub use orthographic::OrthographicDesc;
 pub use perspective::PerspectiveDesc;
 pub(crate) use rays::BLOCK_RAYS;

@@ -5,8 +5,10 @@ use std::sync::Arc;
 use glam::{DMat4, DVec2, DVec3, DVec4, Vec2, Vec3};
 
 use super::CameraRay;
+use super::fisheye::DomeRays;
 use super::light_field::LightFieldCamera;
 use super::offaxis::ScreenFrame;
+use super::omnidirectional::EquirectangularRays;
 use super::viewers::ViewerSet;
 
 /// Near plane used by `EyeRays::window_depth` for perspective-like cameras whose `near` is
@@ -38,6 +40,11 @@ impl ImageRegion {
     #[inline]
     fn apply(&self, s: f32, t: f32) -> DVec2 {
         self.lo + DVec2::new(f64::from(s), f64::from(t)) * self.extent
+    }
+
+    /// The region's width and height as fractions of the whole image.
+    pub(crate) fn extent(&self) -> DVec2 {
+        self.extent
     }
 }
 
@@ -268,6 +275,8 @@ enum Generator {
     Parallel(Parallel),
     /// With the pinhole that traces the same rays, for perspective projections.
     Unproject(Unproject, Option<Pinhole>),
+    Equirectangular(EquirectangularRays),
+    Dome(DomeRays),
 }
 
 /// Precomputed ray generator for one eye and one viewport size.
@@ -327,6 +336,22 @@ impl EyeRays {
             Generator::LightField(l) if l.flip_subpixels => Some([2, 1, 0]),
             Generator::LightField(_) => Some([0, 1, 2]),
             _ => None,
+        }
+    }
+
+    pub(crate) fn equirectangular(region: ImageRegion, rays: EquirectangularRays) -> EyeRays {
+        EyeRays {
+            region,
+            generator: Generator::Equirectangular(rays),
+            stereo: None,
+        }
+    }
+
+    pub(crate) fn dome(region: ImageRegion, rays: DomeRays) -> EyeRays {
+        EyeRays {
+            region,
+            generator: Generator::Dome(rays),
+            stereo: None,
         }
     }
 
@@ -410,6 +435,8 @@ impl EyeRays {
                 let target = window_point(p, st);
                 clipped_ray(p.eye, target, p.forward, &p.clip)
             }
+            Generator::Equirectangular(e) => e.ray(st),
+            Generator::Dome(d) => d.ray(st),
             Generator::Unproject(m, None) => {
                 let (near_point, towards_far, length) =
                     m.segment(2.0 * st.x - 1.0, 2.0 * st.y - 1.0);
@@ -546,7 +573,9 @@ impl EyeRays {
             Generator::Blended(_)
             | Generator::LightField(_)
             | Generator::Parallel(_)
-            | Generator::Unproject(..) => {
+            | Generator::Unproject(..)
+            | Generator::Equirectangular(_)
+            | Generator::Dome(_) => {
                 return t;
             }
         };
@@ -565,6 +594,8 @@ impl EyeRays {
     ///   screen.
     /// - orthographic: the glOrtho depth mapping with near/far; unset near means 0 and unset
     ///   far means [`DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR`].
+    /// - omnidirectional and fisheye (no plane projection): 1 − near/d for the distance d from
+    ///   the ray's eye, with near [`DEFAULT_WINDOW_DEPTH_NEAR`].
     pub fn window_depth(&self, ray: &CameraRay, p: Vec3) -> f32 {
         let p = p.as_dvec3();
         let frustum_depth = |eye: DVec3, forward: DVec3, clip: &ClipRange| {
@@ -594,6 +625,12 @@ impl EyeRays {
                 let clip = m.proj * (m.view * p.extend(1.0));
                 0.5 * (clip.z / clip.w) + 0.5
             }
+            // No plane projection: the glFrustum mapping of the distance from the eye.
+            Generator::Equirectangular(_) | Generator::Dome(_) => perspective_window_depth(
+                (p - ray.origin.as_dvec3()).length(),
+                DEFAULT_WINDOW_DEPTH_NEAR,
+                None,
+            ),
         };
         if depth.is_nan() {
             0.0
@@ -663,7 +700,11 @@ impl EyeRays {
                 };
                 Some((head - 0.5 * right, head + 0.5 * right))
             }
-            Generator::LightField(_) | Generator::Parallel(_) | Generator::Unproject(..) => None,
+            Generator::LightField(_)
+            | Generator::Parallel(_)
+            | Generator::Unproject(..)
+            | Generator::Equirectangular(_)
+            | Generator::Dome(_) => None,
         }
     }
 

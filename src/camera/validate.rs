@@ -57,13 +57,21 @@ pub(crate) fn unit_vector(name: &str, v: Vec3) -> Result<DVec3, CameraError> {
 
 /// Orthonormal camera frame `(forward, right, up)` from ANARI `direction` and `up`.
 pub(crate) fn view_frame(direction: Vec3, up: Vec3) -> Result<(DVec3, DVec3, DVec3), CameraError> {
-    let forward = unit_vector("direction", direction)?;
-    let up = unit_vector("up", up)?;
+    named_view_frame(("direction", direction), ("up", up))
+}
+
+/// [`view_frame`] of the parameters named `direction.0` and `up.0`.
+pub(crate) fn named_view_frame(
+    (direction_name, direction): (&str, Vec3),
+    (up_name, up): (&str, Vec3),
+) -> Result<(DVec3, DVec3, DVec3), CameraError> {
+    let forward = unit_vector(direction_name, direction)?;
+    let up = unit_vector(up_name, up)?;
     let side = forward.cross(up);
     if side.length() < MIN_DIRECTION_UP_SINE {
         return Err(CameraError::new(
-            "up",
-            "must not be parallel to the viewing direction",
+            up_name,
+            format!("must not be parallel to {direction_name}"),
         ));
     }
     let right = side.normalize();

@@ -4,8 +4,8 @@ use std::ffi::c_void;
 
 use crate::capi::types::*;
 use crate::capi::{device_of, guard};
+use crate::device::array::ANARIMemoryDeleter;
 use crate::device::datatype::ANARIDataType;
-use crate::scene::array::ANARIMemoryDeleter;
 
 #[allow(clippy::too_many_arguments)]
 fn new_array(

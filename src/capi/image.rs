@@ -390,7 +390,7 @@ pub extern "C" fn cavetraceWriteImagePNG(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::color::srgb_to_linear;
+    use crate::device::array::srgb_to_linear;
 
     fn floats(values: &[f32]) -> Vec<u8> {
         values.iter().flat_map(|v| v.to_ne_bytes()).collect()

@@ -6,15 +6,18 @@ use std::ffi::{c_char, c_void};
 use crate::capi::cache::{cached, leak_c_string, leak_slice, leak_string_list};
 use crate::capi::types::*;
 use crate::capi::{device_of, guard, plain_string, string_arg};
+use crate::device::Device;
+use crate::device::catalog::Kinds;
 use crate::device::datatype::*;
 use crate::device::property::{self, PropertyValue};
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::*;
-use crate::device::{Device, catalog};
+use crate::kinds::KINDS;
 
 fn spec_for(object_type: ANARIDataType, subtype: Option<&str>) -> Option<&'static ObjectSpec> {
-    catalog::find(object_type, subtype.unwrap_or(""))
-        .or_else(|| catalog::find(object_type, "default"))
+    KINDS
+        .find(object_type, subtype.unwrap_or(""))
+        .or_else(|| KINDS.find(object_type, "default"))
         .filter(|s| {
             subtype.is_none_or(|st| st == s.subtype || s.subtype.is_empty() || st == "default")
         })
@@ -30,7 +33,7 @@ pub extern "C" fn anariGetObjectSubtypes(
         if device_of(F, device).is_none() {
             return std::ptr::null_mut();
         }
-        let names = catalog::subtype_names(object_type);
+        let names = KINDS.subtype_names(object_type);
         cached(format!("subtypes {object_type}"), || {
             leak_string_list(&names)
         }) as _
@@ -324,7 +327,7 @@ pub(crate) fn get_property(
         return 0;
     }
     let value = if handle == dev.handle {
-        property::device_property(&name)
+        property::device_property(dev, &name)
     } else {
         let Some(target) = dev.resolve(F, handle) else {
             return 0;

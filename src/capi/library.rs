@@ -5,10 +5,12 @@ use std::ffi::{c_char, c_void};
 use crate::capi::cache::{cached, leak_string_list};
 use crate::capi::types::*;
 use crate::capi::{guard, plain_string};
+use crate::device::Device;
+use crate::device::catalog::Kinds;
 use crate::device::datatype::*;
 use crate::device::registry::{self, LibraryRecord};
 use crate::device::status::*;
-use crate::device::{Device, catalog};
+use crate::kinds::KINDS;
 
 /// Names under which this library answers anariLoadLibrary, and its device subtypes.
 const LIBRARY_NAMES: &[&str] = &["cavetrace", "default"];
@@ -151,6 +153,7 @@ fn new_device(
     let requested = plain_string(subtype);
     match requested.as_deref() {
         Some(s) if DEVICE_SUBTYPES.contains(&s) => Some(Device::new(
+            &KINDS,
             record.default_callback,
             record.default_user_data,
         )),
@@ -246,7 +249,7 @@ pub extern "C" fn anariGetDeviceExtensions(
             match plain_string(device_subtype).as_deref() {
                 Some(s) if DEVICE_SUBTYPES.contains(&s) => {
                     cached("device extensions".into(), || {
-                        leak_string_list(&catalog::extensions())
+                        leak_string_list(&KINDS.extensions())
                     }) as _
                 }
                 _ => std::ptr::null_mut(),

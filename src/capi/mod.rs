@@ -166,7 +166,7 @@ mod tests {
 
     #[test]
     fn a_panic_becomes_an_unknown_error_and_the_device_stays_usable() {
-        let device = Device::new(Some(remember), 0);
+        let device = Device::new(&crate::kinds::KINDS, Some(remember), 0);
         let handle = device.handle as *mut std::ffi::c_void;
         let result = guard("anariTest", handle, 7, || -> i32 { panic!("boom") });
         assert_eq!(result, 7);

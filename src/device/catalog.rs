@@ -1,7 +1,14 @@
-//! Every object subtype the device implements, gathered from the tables that live beside each
-//! implementation. The extension list is derived from these tables, never written twice.
+//! The device's own parameters, and the table of object kinds every device serves. The specs of
+//! the kinds live beside each implementation; the extension list is derived from them, never
+//! written twice.
 
+use std::sync::Arc;
+
+use crate::device::Device;
 use crate::device::datatype::*;
+use crate::device::frame::Frame;
+use crate::device::object::Object;
+use crate::device::property::PropertyValue;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 
 pub const DEVICE_PARAMS: &[ParamSpec] = &[
@@ -29,7 +36,7 @@ pub const DEVICE_PARAMS: &[ParamSpec] = &[
          CAVETRACE_ISA, else auto",
     )
     .default(SpecValue::Str("auto"))
-    .values(&crate::accel::isa::Isa::VALUES),
+    .values(&crate::isa::Isa::VALUES),
 ];
 
 pub const DEVICE: ObjectSpec = ObjectSpec::new(
@@ -39,57 +46,51 @@ pub const DEVICE: ObjectSpec = ObjectSpec::new(
     DEVICE_PARAMS,
 );
 
-/// Every implemented object subtype.
-pub fn all() -> impl Iterator<Item = &'static ObjectSpec> {
-    std::iter::once(&DEVICE)
-        .chain(crate::scene::SPECS.iter())
-        .chain(crate::camera::SPECS.iter())
-        .chain(crate::render::SPECS.iter())
-}
+/// The table of object kinds a device serves: which subtypes exist (their specs), what a commit
+/// builds, the properties kinds compute and the state a frame renders with. The base layer
+/// names no kind; the layer above those that define the kinds implements this (see
+/// `crate::kinds`), and every device holds it.
+pub trait Kinds: Send + Sync {
+    /// Every implemented object subtype, the device's own (`DEVICE`) included.
+    fn specs(&self) -> &[&'static ObjectSpec];
 
-pub fn find(kind: ANARIDataType, subtype: &str) -> Option<&'static ObjectSpec> {
-    let kind = if is_array(kind) { ANARI_ARRAY1D } else { kind };
-    all().find(|s| s.kind == kind && s.subtype == subtype)
-}
+    /// Kind-specific work after an object's parameters were committed (validation, derived
+    /// state).
+    fn commit(&self, device: &Device, object: &Object);
 
-/// Subtype names of a kind, in table order ("default" first for renderers).
-pub fn subtype_names(kind: ANARIDataType) -> Vec<&'static str> {
-    all()
-        .filter(|s| s.kind == kind && !s.subtype.is_empty())
-        .map(|s| s.subtype)
-        .collect()
-}
+    /// A property an object's kind computes from its committed state (not the frame's own,
+    /// which [`crate::device::frame::Frame`] answers).
+    fn property(&self, device: &Device, object: &Object, name: &str) -> Option<PropertyValue>;
 
-/// The extensions the device implements in full, sorted, without duplicates.
-pub fn extensions() -> Vec<&'static str> {
-    let mut names: Vec<&'static str> = all().flat_map(|s| s.extensions.iter().copied()).collect();
-    names.sort_unstable();
-    names.dedup();
-    names
-}
+    /// The render state of a new frame object.
+    fn new_frame(&self) -> Arc<dyn Frame>;
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+    fn find(&self, kind: ANARIDataType, subtype: &str) -> Option<&'static ObjectSpec> {
+        let kind = if is_array(kind) { ANARI_ARRAY1D } else { kind };
+        self.specs()
+            .iter()
+            .copied()
+            .find(|s| s.kind == kind && s.subtype == subtype)
+    }
 
-    #[test]
-    fn every_spec_is_unique_and_every_parameter_has_types() {
-        let specs: Vec<_> = all().collect();
-        for (i, a) in specs.iter().enumerate() {
-            for b in &specs[i + 1..] {
-                assert!(
-                    !(a.kind == b.kind && a.subtype == b.subtype),
-                    "duplicate spec {} '{}'",
-                    a.kind,
-                    a.subtype
-                );
-            }
-            for p in a.params {
-                assert!(!p.types.is_empty(), "{} has no types", p.name);
-                for t in p.types {
-                    assert!(is_valid(*t), "{}: bad type {t}", p.name);
-                }
-            }
-        }
+    /// Subtype names of a kind, in table order ("default" first for renderers).
+    fn subtype_names(&self, kind: ANARIDataType) -> Vec<&'static str> {
+        self.specs()
+            .iter()
+            .filter(|s| s.kind == kind && !s.subtype.is_empty())
+            .map(|s| s.subtype)
+            .collect()
+    }
+
+    /// The extensions the device implements in full, sorted, without duplicates.
+    fn extensions(&self) -> Vec<&'static str> {
+        let mut names: Vec<&'static str> = self
+            .specs()
+            .iter()
+            .flat_map(|s| s.extensions.iter().copied())
+            .collect();
+        names.sort_unstable();
+        names.dedup();
+        names
     }
 }

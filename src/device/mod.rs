@@ -1,10 +1,10 @@
 //! The device: object registry, parameters, commits, reference counting and status reporting.
 //! Everything here takes plain Rust values; the C boundary (`crate::capi`) converts arguments.
 
+pub mod array;
 pub mod catalog;
-#[cfg(test)]
-mod cycle_tests;
 pub mod datatype;
+pub mod frame;
 pub mod memory;
 pub mod object;
 pub mod params;
@@ -18,13 +18,13 @@ use std::collections::HashMap;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, Weak};
 
+use crate::device::array::{ANARIMemoryDeleter, ArrayError, ArrayStore};
+use crate::device::catalog::Kinds;
 use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::params::ParamValue;
 use crate::device::pool::WorkerPool;
-use crate::device::spec::ObjectSpec;
 use crate::device::status::*;
-use crate::scene::array::{ANARIMemoryDeleter, ArrayError, ArrayStore};
 
 /// A parameter value as it arrived from C, before handles are resolved.
 #[derive(Clone, Debug)]
@@ -44,6 +44,8 @@ pub struct Device {
     /// alive, and the device's release breaks those cycles.
     created: Mutex<Vec<Weak<Object>>>,
     pub status: Arc<StatusSink>,
+    /// The object kinds this device serves.
+    kinds: &'static dyn Kinds,
     /// The device's own parameters (statusCallback, numThreads, …).
     pub self_object: Object,
     pool: Mutex<Option<Arc<WorkerPool>>>,
@@ -62,8 +64,12 @@ pub fn source_of(object: Option<&Object>) -> Source {
 }
 
 impl Device {
-    pub fn new(callback: ANARIStatusCallback, user_data: usize) -> Arc<Device> {
-        crate::accel::isa::select(crate::accel::isa::Isa::from_environment());
+    pub fn new(
+        kinds: &'static dyn Kinds,
+        callback: ANARIStatusCallback,
+        user_data: usize,
+    ) -> Arc<Device> {
+        crate::isa::select(crate::isa::Isa::from_environment());
         let handle = registry::next_handle();
         let device = Arc::new(Device {
             handle,
@@ -71,7 +77,8 @@ impl Device {
             objects: Mutex::new(HashMap::new()),
             created: Mutex::new(Vec::new()),
             status: Arc::new(StatusSink::new(handle, callback, user_data)),
-            self_object: Object::new(handle, ANARI_DEVICE, "", Some(&catalog::DEVICE), None),
+            kinds,
+            self_object: Object::new(handle, ANARI_DEVICE, "", Some(&catalog::DEVICE), None, None),
             pool: Mutex::new(None),
             commit_epoch: AtomicU64::new(0),
         });
@@ -142,6 +149,11 @@ impl Device {
         object
     }
 
+    /// The object kinds this device serves.
+    pub fn kinds(&self) -> &'static dyn Kinds {
+        self.kinds
+    }
+
     pub fn live_object_count(&self) -> usize {
         self.objects.lock().unwrap_or_else(|e| e.into_inner()).len()
     }
@@ -169,9 +181,10 @@ impl Device {
     /// anariNew*: always returns a valid object; an unknown subtype is reported and ignored at
     /// render time.
     pub fn new_object(&self, function: &str, kind: ANARIDataType, subtype: &str) -> usize {
-        let spec = catalog::find(kind, subtype);
+        let spec = self.kinds.find(kind, subtype);
         let handle = registry::next_handle();
-        let object = Object::new(handle, kind, subtype, spec, None);
+        let frame = (kind == ANARI_FRAME).then(|| self.kinds.new_frame());
+        let object = Object::new(handle, kind, subtype, spec, None, frame);
         if spec.is_none() {
             self.warning(
                 Some(&object),
@@ -179,7 +192,7 @@ impl Device {
                     "{function}: unknown {} subtype '{subtype}'; the object is accepted but \
                      ignored when rendering (known subtypes: {})",
                     object::kind_name(kind),
-                    catalog::subtype_names(kind).join(", ")
+                    self.kinds.subtype_names(kind).join(", ")
                 ),
             );
         }
@@ -235,7 +248,7 @@ impl Device {
                 return 0;
             }
         };
-        let object = Object::new(registry::next_handle(), kind, "", None, Some(store));
+        let object = Object::new(registry::next_handle(), kind, "", None, Some(store), None);
         if is_object(element_type) && !app_memory.is_null() {
             self.resolve_array_objects(function, &object);
         }
@@ -654,7 +667,7 @@ impl Device {
             Target::Object(object) => {
                 object.commit_staged();
                 self.check_required(function, &object);
-                crate::scene::commit(self, &object);
+                self.kinds.commit(self, &object);
             }
         }
     }
@@ -697,7 +710,7 @@ impl Device {
             self.status.set_callback(callback, user);
         }
         if let Some(name) = params.get_string("isa") {
-            use crate::accel::isa::{self, Isa};
+            use crate::isa::{self, Isa};
             let Some(requested) = Isa::parse(name) else {
                 self.error(
                     ANARI_STATUS_INVALID_ARGUMENT,
@@ -837,11 +850,6 @@ impl Target {
             Target::Object(object) => object,
         }
     }
-}
-
-/// The spec of an object kind without subtypes, for messages and defaults.
-pub fn kind_spec(kind: ANARIDataType) -> Option<&'static ObjectSpec> {
-    catalog::find(kind, "")
 }
 
 /// Whether a parameter declared `types` takes a value declared `data_type`: one of them, or the

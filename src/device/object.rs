@@ -6,11 +6,11 @@ use std::collections::{BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, RwLock};
 
+use crate::device::array::ArrayStore;
 use crate::device::datatype::*;
+use crate::device::frame::Frame;
 use crate::device::params::ParamSet;
 use crate::device::spec::ObjectSpec;
-use crate::render::frame::FrameState;
-use crate::scene::array::ArrayStore;
 
 /// What the application has set but not yet committed.
 #[derive(Default)]
@@ -52,7 +52,7 @@ pub struct Object {
     /// Present for array objects only.
     pub array: Option<ArrayStore>,
     /// Present for frame objects only.
-    pub frame: Option<Arc<FrameState>>,
+    pub frame: Option<Arc<dyn Frame>>,
 }
 
 impl std::fmt::Debug for Object {
@@ -68,8 +68,8 @@ impl Object {
         subtype: &str,
         spec: Option<&'static ObjectSpec>,
         array: Option<ArrayStore>,
+        frame: Option<Arc<dyn Frame>>,
     ) -> Object {
-        let frame = (kind == ANARI_FRAME).then(|| Arc::new(FrameState::default()));
         Object {
             handle,
             kind,
@@ -197,6 +197,15 @@ impl Object {
 
     pub fn set_derived(&self, derived: Option<Derived>) {
         *self.derived.write().unwrap_or_else(|e| e.into_inner()) = derived;
+    }
+
+    /// Replaces the derived state only if it is still `expected`: a rebuild made while
+    /// rendering must not overwrite what a commit made meanwhile.
+    pub fn replace_derived_if_unchanged(&self, expected: &Derived, derived: Derived) {
+        let mut slot = self.derived.write().unwrap_or_else(|e| e.into_inner());
+        if slot.as_ref().is_some_and(|d| Arc::ptr_eq(d, expected)) {
+            *slot = Some(derived);
+        }
     }
 
     /// Drops every reference this object holds to others (parameters, derived state, array

@@ -1,7 +1,6 @@
 //! Object properties (anariGetProperty): values computed from committed state.
 
 use crate::device::Device;
-use crate::device::catalog;
 use crate::device::datatype::*;
 use crate::device::object::Object;
 
@@ -39,7 +38,7 @@ impl PropertyValue {
     }
 }
 
-pub fn device_property(name: &str) -> Option<PropertyValue> {
+pub fn device_property(device: &Device, name: &str) -> Option<PropertyValue> {
     Some(match name {
         "version" => {
             PropertyValue::Int32(VERSION_MAJOR * 10000 + VERSION_MINOR * 100 + VERSION_PATCH)
@@ -49,7 +48,7 @@ pub fn device_property(name: &str) -> Option<PropertyValue> {
         "version.patch" => PropertyValue::Int32(VERSION_PATCH),
         "version.name" => PropertyValue::String(VERSION_NAME),
         "geometryMaxIndex" => PropertyValue::UInt64(GEOMETRY_MAX_INDEX),
-        "extension" => PropertyValue::StringList(catalog::extensions()),
+        "extension" => PropertyValue::StringList(device.kinds().extensions()),
         _ => return None,
     })
 }
@@ -61,13 +60,8 @@ pub fn object_property(
     name: &str,
     wait: bool,
 ) -> Option<PropertyValue> {
-    match (object.kind, name) {
-        // An empty world or group has no bounds: the query fails rather than return an
-        // inverted box.
-        (ANARI_WORLD | ANARI_GROUP, "bounds") => crate::scene::bounds(device, object)
-            .filter(|b| b[0] <= b[3] && b[1] <= b[4] && b[2] <= b[5])
-            .map(PropertyValue::Box3),
-        (ANARI_FRAME, _) => object.frame.as_ref()?.property(name, wait),
-        _ => None,
+    match object.kind {
+        ANARI_FRAME => object.frame.as_ref()?.property(name, wait),
+        _ => device.kinds().property(device, object, name),
     }
 }

@@ -10,15 +10,6 @@ pub fn linear_to_srgb(linear: f32) -> f32 {
     }
 }
 
-/// Inverse sRGB transfer function: encoded [0,1] → linear.
-pub fn srgb_to_linear(encoded: f32) -> f32 {
-    if encoded <= 0.040_45 {
-        encoded / 12.92
-    } else {
-        ((encoded + 0.055) / 1.055).powf(2.4)
-    }
-}
-
 /// Quantises [0,1] to a byte, rounding to nearest.
 pub fn to_unorm8(value: f32) -> u8 {
     (value.clamp(0.0, 1.0) * 255.0 + 0.5) as u8
@@ -109,6 +100,7 @@ fn truncate4(values: glam::Vec4) -> [i32; 4] {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::device::array::srgb_to_linear;
 
     #[test]
     fn known_values_encode_to_the_right_bytes() {

@@ -11,6 +11,45 @@ use std::sync::Arc;
 use crate::device::Device;
 use crate::device::object::{Object, Pending};
 use crate::device::params::ParamValue;
+use crate::render::frame::FrameState;
+use crate::render::renderer::RendererSettings;
+use crate::scene::material::Input;
+use crate::scene::world::SceneSnapshot;
+
+/// Warns, once until it changes, that a default renderer with no ambient light renders a world
+/// without lights: its surfaces come out black, which looks like a broken program.
+pub fn report_unlit(
+    device: &Device,
+    frame: &Object,
+    state: &FrameState,
+    settings: &RendererSettings,
+    scene: &SceneSnapshot,
+) {
+    let mut surfaces = scene.instances.iter().flat_map(|i| &i.surfaces).peekable();
+    let has_surfaces = surfaces.peek().is_some();
+    // A material whose emission is not a constant zero may light the image itself.
+    let emits = surfaces.any(|s| match &s.material.emissive {
+        Input::Constant(v) => v.truncate() != glam::Vec3::ZERO,
+        _ => true,
+    });
+    let unlit = !settings.fast
+        && settings.ambient == glam::Vec3::ZERO
+        && scene.lights.is_empty()
+        && has_surfaces
+        && !emits;
+    if state.first_unlit_render(unlit) {
+        device.warning(
+            Some(frame),
+            format!(
+                "anariRenderFrame: {}: renderer 'default' has 'ambientRadiance' 0 and the world \
+                 has no lights, so its surfaces are unlit and render black (apart from emission \
+                 and reflections of the background); add a light to the world's 'light' array \
+                 or set the renderer's 'ambientRadiance' > 0",
+                frame.describe()
+            ),
+        );
+    }
+}
 
 /// Walks what `frame` uses and warns about uncommitted changes and uncommitted objects.
 pub fn report_uncommitted(device: &Device, frame: &Object) {

@@ -1,13 +1,16 @@
 //! Rendering: renderers (shading), frames (tiles, threads, channels) and colour encoding.
 
 pub mod bsdf;
+pub mod cluster;
 pub mod color;
 pub mod diagnostics;
 pub mod frame;
+pub mod integrator;
 pub mod interleave;
 pub mod progressive;
 pub mod renderer;
 pub mod surface_model;
+pub mod volume_lighting;
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -17,7 +20,7 @@ use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::*;
-use crate::render::frame::{CHANNELS, RenderSetup};
+use crate::render::frame::{CHANNELS, FrameState, RenderSetup};
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
 
@@ -117,6 +120,15 @@ pub const FRAME: ObjectSpec = ObjectSpec::new(
             &[ANARI_VOID_POINTER],
             "first argument of frameCompletionCallback",
         ),
+        // Cluster hook: rendering across MPI ranks (docs/cluster.md).
+        #[cfg(feature = "mpi")]
+        cluster::MPI_COMMUNICATOR,
+        #[cfg(feature = "mpi")]
+        cluster::MPI_MODE,
+        #[cfg(feature = "mpi")]
+        cluster::MPI_TIMEOUT,
+        #[cfg(feature = "mpi")]
+        cluster::MPI_IMAGE_ON_EVERY_RANK,
     ],
 )
 .channels(&[
@@ -139,6 +151,9 @@ pub const FRAME: ObjectSpec = ObjectSpec::new(
     "ANARI_CAVETRACE_FRAME_CHANNEL_WINDOW_DEPTH",
     "ANARI_CAVETRACE_FRAME_BUDGET",
     "ANARI_CAVETRACE_FRAME_CHANNEL_PARALLAX",
+    // Cluster hook: rendering across MPI ranks.
+    #[cfg(feature = "mpi")]
+    "ANARI_KHR_DATA_PARALLEL_MPI",
 ]);
 
 pub const SPECS: &[ObjectSpec] = &[renderer::DEFAULT, renderer::FAST, FRAME];
@@ -200,6 +215,11 @@ pub fn commit(device: &Device, object: &Object) {
         }
         _ => {}
     }
+    // Cluster hook: the frame's MPI communicator is duplicated at its commit.
+    #[cfg(feature = "mpi")]
+    if object.kind == ANARI_FRAME {
+        cluster::commit_frame(device, object);
+    }
 }
 
 /// The frame's budget: a finite positive `budget` (seconds), with `budgetPixels` if non-zero.
@@ -215,7 +235,13 @@ fn budget(params: &crate::device::params::ParamSet) -> Option<frame::Budget> {
 
 /// anariRenderFrame: snapshots the committed scene and starts rendering on the device's threads.
 pub fn render_frame(device: &Device, frame: &Object) {
-    let Some(state) = &frame.frame else { return };
+    let Some(state) = frame
+        .frame
+        .clone()
+        .and_then(|state| state.into_any().downcast::<FrameState>().ok())
+    else {
+        return;
+    };
     diagnostics::report_uncommitted(device, frame);
     let params = frame.committed();
     let fail = |code, text: String| {
@@ -273,6 +299,7 @@ pub fn render_frame(device: &Device, frame: &Object) {
             SceneSnapshot::empty()
         }
     };
+    diagnostics::report_unlit(device, frame, &state, &settings, &scene);
     let mut channels = HashMap::new();
     for (name, accepted) in CHANNELS {
         if let Some(t) = params.get_data_type(name)
@@ -303,6 +330,12 @@ pub fn render_frame(device: &Device, frame: &Object) {
         scene_version: device.commit_epoch(),
         completion,
         budget: budget(&params),
+        tile_split: None,
+    };
+    // Cluster hook: a frame rendered across MPI ranks renders here, collectively.
+    #[cfg(feature = "mpi")]
+    let Some(setup) = cluster::render(device, frame, &state, setup) else {
+        return;
     };
     match state.start(setup, &device.pool()) {
         Ok(()) => {}

@@ -13,8 +13,13 @@
 //! Both eyes of a stereo frame get the same pixels: the lattices start at each eye's
 //! viewport corner and the eyes' units alternate.
 //!
-//! Untraced pixels copy every channel from the nearest pixel traced so far (never blended:
-//! ids and depths stay values that exist in the scene).
+//! Untraced pixels copy the channels other than colour from the nearest pixel traced so far
+//! (never blended: ids and depths stay values that exist in the scene); colour is interpolated
+//! between traced neighbours of the same surface ([`interpolate`]).
+
+mod interpolate;
+
+pub use interpolate::{ColorPixels, SurfaceGuide};
 
 use crate::camera::{EyeViewport, PixelSet};
 
@@ -253,6 +258,55 @@ impl Plan {
         pixel_bytes: usize,
         bytes: &mut [u8],
     ) {
+        self.fill_with(
+            width,
+            start,
+            done,
+            pixel_bytes,
+            bytes,
+            |stride, bytes| match pixel_bytes {
+                4 => self.fill_pixels::<4>(width, stride, bytes),
+                6 => self.fill_pixels::<6>(width, stride, bytes),
+                12 => self.fill_pixels::<12>(width, stride, bytes),
+                16 => self.fill_pixels::<16>(width, stride, bytes),
+                3 => self.fill_pixels::<3>(width, stride, bytes),
+                _ => debug_assert!(false, "no channel has {pixel_bytes}-byte pixels"),
+            },
+        );
+    }
+
+    /// [`Plan::fill`] for the colour channel: untraced pixels blend the traced corners of
+    /// their lattice cell that show the nearest corner's surface (as `guide` tells).
+    pub fn fill_color(
+        &self,
+        width: u32,
+        (start, done): (usize, usize),
+        pixels: ColorPixels,
+        bytes: &mut [u8],
+        guide: &SurfaceGuide,
+    ) {
+        let pixel_bytes = match pixels {
+            ColorPixels::Unorm8 => 4,
+            ColorPixels::Float32 => 16,
+        };
+        self.fill_with(width, start, done, pixel_bytes, bytes, |stride, bytes| {
+            for viewport in &self.viewports {
+                interpolate::fill_viewport(viewport, width, stride, pixels, bytes, guide);
+            }
+        });
+    }
+
+    /// Runs `fill(stride, bytes)` with the stride of the finest complete level when the
+    /// render completed a level (the pixels of a level in progress kept as traced).
+    fn fill_with(
+        &self,
+        width: u32,
+        start: usize,
+        done: usize,
+        pixel_bytes: usize,
+        bytes: &mut [u8],
+        fill: impl FnOnce(u32, &mut [u8]),
+    ) {
         let levels = self.complete_levels(done);
         if levels == 0
             || levels == LEVELS.len()
@@ -270,15 +324,7 @@ impl Plan {
                 kept.extend_from_slice(&bytes[start..start + length]);
             }
         }
-        let stride = LEVELS[levels - 1];
-        match pixel_bytes {
-            4 => self.fill_pixels::<4>(width, stride, bytes),
-            6 => self.fill_pixels::<6>(width, stride, bytes),
-            12 => self.fill_pixels::<12>(width, stride, bytes),
-            16 => self.fill_pixels::<16>(width, stride, bytes),
-            3 => self.fill_pixels::<3>(width, stride, bytes),
-            _ => debug_assert!(false, "no channel has {pixel_bytes}-byte pixels"),
-        }
+        fill(LEVELS[levels - 1], bytes);
         let mut offset = 0;
         for unit in partial {
             for (start, length) in byte_runs(unit, width, pixel_bytes) {

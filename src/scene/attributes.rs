@@ -3,8 +3,8 @@
 
 use glam::{Vec2, Vec4};
 
+use crate::device::array::ArrayStore;
 use crate::device::datatype::*;
-use crate::scene::array::ArrayStore;
 
 /// The five attribute slots a geometry carries, in this order.
 pub const ATTRIBUTE_NAMES: [&str; 5] = [
@@ -65,7 +65,7 @@ pub fn read_values(store: &ArrayStore) -> Option<Vec<Vec4>> {
                         }
                     };
                     value[k] = if srgb && k < colour_components {
-                        crate::render::color::srgb_to_linear(v)
+                        crate::device::array::srgb_to_linear(v)
                     } else {
                         v
                     };

@@ -69,6 +69,16 @@ impl EnvironmentMap {
         self.texels[row * self.width + column]
     }
 
+    /// The density per solid angle with which [`EnvironmentMap::sample`] picks `direction`
+    /// (unit, in the map's frame).
+    pub fn pdf(&self, direction: Vec3) -> f32 {
+        let (column, row) = self.texel_of(direction);
+        let cdf = &self.row_cdf[row * self.width..(row + 1) * self.width];
+        let weight = cdf[column] - if column == 0 { 0.0 } else { cdf[column - 1] };
+        let total = self.marginal_cdf[self.height - 1];
+        weight / (total * texel_solid_angle(row, self.width, self.height))
+    }
+
     /// A direction for `u` in [0, 1)², chosen in proportion to luminance × solid angle: a
     /// texel by its weight, then a point of it uniform in solid angle (uniform in azimuth and
     /// in cos θ), so that radiance over density is the same anywhere in the texel.
@@ -165,6 +175,31 @@ mod tests {
             }
         }
         assert!(mean.length() < 0.01, "{mean}");
+        // The density is 1/4π everywhere.
+        for direction in [Vec3::X, Vec3::NEG_Y, Vec3::new(0.3, 0.4, -0.5).normalize()] {
+            assert!((map.pdf(direction) * 4.0 * PI - 1.0).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn the_density_is_the_radiance_over_the_sample_estimate() {
+        let (width, height) = (8, 4);
+        let texels = (0..width * height)
+            .map(|k| Vec3::splat(1.0 + (k % 5) as f32))
+            .collect();
+        let map = EnvironmentMap::new(texels, width, height).unwrap();
+        for k in 0..64 {
+            let u = Vec2::new((k as f32 * 0.618).fract(), (k as f32 * 0.381 + 0.1).fract());
+            let sample = map.sample(u).unwrap();
+            let radiance = map.radiance(sample.direction);
+            let pdf = map.pdf(sample.direction);
+            assert!(
+                (sample.radiance.x * pdf - radiance.x).abs() < 1e-4 * radiance.x,
+                "{u}: {} × {pdf} vs {}",
+                sample.radiance.x,
+                radiance.x
+            );
+        }
     }
 
     #[test]

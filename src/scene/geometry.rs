@@ -49,6 +49,7 @@ macro_rules! attribute_params {
 
 const MESH_ATTRIBUTES: &[ParamSpec] = &attribute_params!("vertex", "faceVarying", "primitive");
 const POINT_ATTRIBUTES: &[ParamSpec] = &attribute_params!("vertex", "primitive");
+pub(crate) const PRIMITIVE_ATTRIBUTES: &[ParamSpec] = &attribute_params!("primitive");
 
 const POSITION: ParamSpec = ParamSpec::new("vertex.position", ARRAY, "vertex positions")
     .required()
@@ -254,6 +255,7 @@ pub enum Shape {
     Cylinder,
     Cone,
     Curve,
+    Isosurface,
 }
 
 /// A committed geometry: its BVH plus what shading needs to evaluate attributes and normals.
@@ -313,7 +315,7 @@ impl Geometry {
                     count: 4,
                 }
             }
-            Shape::Sphere => Interpolation::single(v.x),
+            Shape::Sphere | Shape::Isosurface => Interpolation::single(v.x),
             Shape::Cylinder | Shape::Cone | Shape::Curve => {
                 // uv.x runs from the first end point (0) to the second (1).
                 let s = uv.x.clamp(0.0, 1.0);
@@ -491,7 +493,7 @@ fn bad_radius(from_array: bool, array_name: &str) -> String {
     }
 }
 
-fn array<'p>(params: &'p ParamSet, name: &str) -> Option<&'p crate::scene::array::ArrayStore> {
+fn array<'p>(params: &'p ParamSet, name: &str) -> Option<&'p crate::device::array::ArrayStore> {
     params.get_object(name).and_then(|o| o.array.as_ref())
 }
 
@@ -500,7 +502,7 @@ fn finite(v: Vec3) -> bool {
 }
 
 /// Reads the attribute arrays and uniform values of a geometry.
-fn read_attributes(params: &ParamSet, has_corners: bool) -> [Attribute; 5] {
+pub(crate) fn read_attributes(params: &ParamSet, has_corners: bool) -> [Attribute; 5] {
     std::array::from_fn(|slot| {
         let name = ATTRIBUTE_NAMES[slot];
         let read = |prefix: &str| -> Option<Vec<Vec4>> {
@@ -519,7 +521,17 @@ fn read_attributes(params: &ParamSet, has_corners: bool) -> [Attribute; 5] {
     })
 }
 
+/// The geometry the next frame renders: the committed build, or for an isosurface whose field
+/// was committed since its build, the rebuild (made here, once per field commit).
+pub fn current(device: &Device, object: &Object) -> Option<Arc<Geometry>> {
+    if object.subtype == crate::scene::isosurface::ISOSURFACE.subtype {
+        return crate::scene::isosurface::current(device, object);
+    }
+    object.derived_as::<Geometry>()
+}
+
 /// Validates a geometry and builds its BVH. Returns None when there is nothing to render.
+/// (Isosurfaces are built by `scene::isosurface`.)
 pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
     let params = object.committed();
     let problems = Problems { device, object };
@@ -564,6 +576,7 @@ pub fn commit(device: &Device, object: &Object) -> Option<Geometry> {
     let mut vertex_indices: Vec<UVec4> = Vec::new();
     let mut triangles_kept_whole = false;
     let prims = match shape {
+        Shape::Isosurface => return None,
         Shape::Triangle => {
             let triangles: Vec<UVec3> = match array(&params, "primitive.index") {
                 Some(a) => a.read_indices(3, UVec3::from_slice).unwrap_or_default(),

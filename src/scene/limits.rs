@@ -64,10 +64,10 @@ pub fn check_geometry(params: &ParamSet) -> Result<(), Refusal> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::device::array::ArrayStore;
     use crate::device::datatype::*;
     use crate::device::object::Object;
     use crate::device::params::ParamValue;
-    use crate::scene::array::ArrayStore;
     use std::sync::Arc;
 
     /// A shared array that claims `count` elements of `element_type` (never read).
@@ -83,7 +83,7 @@ mod tests {
         .unwrap();
         ParamValue::Object {
             data_type: ANARI_ARRAY1D,
-            object: Arc::new(Object::new(16, ANARI_ARRAY1D, "", None, Some(store))),
+            object: Arc::new(Object::new(16, ANARI_ARRAY1D, "", None, Some(store), None)),
         }
     }
 

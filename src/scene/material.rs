@@ -380,6 +380,12 @@ impl Material {
         }
     }
 
+    /// Whether the material lets light through anywhere (transmission, or an alpha mode that
+    /// is not opaque).
+    pub fn lets_light_through(&self) -> bool {
+        self.transmission.is_some() || self.alpha != AlphaMode::Opaque
+    }
+
     fn with_uses_attributes(mut self) -> Material {
         self.uses_attributes = [
             &self.base_color,

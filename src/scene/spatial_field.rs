@@ -9,6 +9,7 @@ use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
+use crate::scene::macrocells::MacrocellGrid;
 
 /// Element types `data` may hold (KHR_SPATIAL_FIELD_STRUCTURED_REGULAR).
 pub const DATA_ELEMENT_TYPES: &[ANARIDataType] = &[
@@ -103,6 +104,8 @@ pub struct StructuredRegularField {
     /// Largest grid coordinate on each axis (dims − 1).
     last: Vec3,
     nearest: bool,
+    /// Value ranges of blocks of cells, for volumes' empty-space skipping.
+    macrocells: MacrocellGrid,
 }
 
 impl StructuredRegularField {
@@ -113,7 +116,7 @@ impl StructuredRegularField {
         spacing: Vec3,
         nearest: bool,
     ) -> StructuredRegularField {
-        StructuredRegularField {
+        let mut field = StructuredRegularField {
             dims,
             voxels,
             origin,
@@ -125,7 +128,16 @@ impl StructuredRegularField {
                 (dims[2] - 1) as f32,
             ),
             nearest,
-        }
+            macrocells: MacrocellGrid::over_grid([1, 1, 1], origin, spacing, |_| f32::NAN),
+        };
+        field.macrocells =
+            MacrocellGrid::over_grid(dims, origin, spacing, |v| field.vertex_value(v));
+        field
+    }
+
+    /// Value ranges of blocks of cells.
+    pub fn macrocells(&self) -> &MacrocellGrid {
+        &self.macrocells
     }
 
     /// A field of FLOAT32 values (x fastest); `None` when `values` does not fill `dims`.
@@ -144,6 +156,27 @@ impl StructuredRegularField {
 
     pub fn dims(&self) -> [usize; 3] {
         self.dims
+    }
+
+    /// Position of vertex (0, 0, 0) and the size of a cell.
+    pub fn grid(&self) -> (Vec3, Vec3) {
+        (self.origin, self.spacing)
+    }
+
+    /// Whether values are reconstructed by nearest-vertex filtering.
+    pub fn is_nearest(&self) -> bool {
+        self.nearest
+    }
+
+    /// The value at grid vertex `[i, j, k]` (each below its `dims`).
+    pub fn vertex_value(&self, [i, j, k]: [usize; 3]) -> f32 {
+        let index = i + self.dims[0] * (j + self.dims[1] * k);
+        match &self.voxels {
+            Voxels::Unorm8(v) => v[index].value(),
+            Voxels::Snorm16(v) => v[index].value(),
+            Voxels::Unorm16(v) => v[index].value(),
+            Voxels::Float(v) => v[index],
+        }
     }
 
     /// Object-space box [origin, origin + (dims − 1) × spacing].
@@ -199,6 +232,17 @@ impl StructuredRegularField {
         let plane = |offset: usize| lerp(row(offset), row(offset + sy), fy);
         lerp(plane(0), plane(sz), fz)
     }
+}
+
+/// Scalars of any `DATA_ELEMENT_TYPES` element type, fixed-point normalised (the unstructured
+/// field's `vertex.data` and `cell.data`).
+pub fn decode_scalars(element_type: ANARIDataType, bytes: &[u8]) -> Option<Vec<f32>> {
+    Some(match decode(element_type, bytes)? {
+        Voxels::Unorm8(v) => v.into_iter().map(Voxel::value).collect(),
+        Voxels::Snorm16(v) => v.into_iter().map(Voxel::value).collect(),
+        Voxels::Unorm16(v) => v.into_iter().map(Voxel::value).collect(),
+        Voxels::Float(v) => v,
+    })
 }
 
 fn decode(element_type: ANARIDataType, bytes: &[u8]) -> Option<Voxels> {

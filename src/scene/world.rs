@@ -16,10 +16,10 @@ use crate::device::pool::with_build_pool;
 use crate::device::spec::{ObjectSpec, ParamSpec};
 use crate::device::status::ANARI_STATUS_INVALID_ARGUMENT;
 use crate::scene::attributes::ATTRIBUTE_NAMES;
+use crate::scene::field::Field;
 use crate::scene::geometry::Geometry;
 use crate::scene::light::Light;
 use crate::scene::material::Material;
-use crate::scene::spatial_field::StructuredRegularField;
 use crate::scene::volume::{PlacedVolume, TransferFunction};
 
 pub const WORLD: ObjectSpec = ObjectSpec::new(
@@ -78,6 +78,11 @@ pub struct SceneSnapshot {
     pub instances: Vec<InstanceData>,
     pub lights: Vec<Light>,
     pub volumes: Vec<PlacedVolume>,
+    /// Whether any surface's material lets light through (see
+    /// [`crate::scene::material::Material::lets_light_through`]).
+    pub see_through: bool,
+    /// Cluster hook: the ray exchange of a render across MPI ranks (render::cluster), if any.
+    pub cluster: Option<std::sync::Arc<dyn std::any::Any + Send + Sync>>,
 }
 
 impl SceneSnapshot {
@@ -87,6 +92,8 @@ impl SceneSnapshot {
             instances: Vec::new(),
             lights: Vec::new(),
             volumes: Vec::new(),
+            see_through: false,
+            cluster: None,
         }
     }
 
@@ -119,7 +126,7 @@ fn surface_data(device: &Device, surface: &Object) -> Option<SurfaceData> {
         return None;
     }
     let geometry_object = params.get_object("geometry")?;
-    let geometry = geometry_object.derived_as::<Geometry>()?;
+    let geometry = crate::scene::geometry::current(device, geometry_object)?;
     let material = params
         .get_object("material")
         .and_then(|m| crate::scene::material::build(m))
@@ -147,13 +154,11 @@ fn volume_data(volume: &Object) -> Option<VolumeParts> {
         return None;
     }
     let transfer = volume.derived_as::<TransferFunction>()?;
-    let field = params
-        .get_object("value")?
-        .derived_as::<StructuredRegularField>()?;
+    let field = Field::of(params.get_object("value")?)?;
     Some((transfer, field))
 }
 
-type VolumeParts = (Arc<TransferFunction>, Arc<StructuredRegularField>);
+type VolumeParts = (Arc<TransferFunction>, Field);
 
 /// What a group (or the world itself) holds.
 struct GroupContents {
@@ -271,11 +276,17 @@ pub fn snapshot(device: &Device, world: &Object) -> SceneSnapshot {
                 .collect(),
         })
         .collect();
+    let see_through = instances
+        .iter()
+        .flat_map(|i| &i.surfaces)
+        .any(|s| s.material.lets_light_through());
     SceneSnapshot {
         bvh: with_build_pool(device.requested_thread_count(), || SceneBvh::build(descs)),
         instances,
         lights,
         volumes,
+        see_through,
+        cluster: None,
     }
 }
 

@@ -20,11 +20,13 @@ use crate::capi::object::kind_from_name;
 use crate::capi::params::incoming_value;
 use crate::capi::types::*;
 use crate::capi::{plain_string, string_arg};
+use crate::device::array::ANARIMemoryDeleter;
+use crate::device::catalog::Kinds;
 use crate::device::datatype::*;
 use crate::device::status::*;
-use crate::device::{Device, IncomingValue, catalog};
+use crate::device::{Device, IncomingValue};
+use crate::kinds::KINDS;
 use crate::render::frame::ANARIFrameCompletionCallback;
-use crate::scene::array::ANARIMemoryDeleter;
 use crate::sdk::{VirtualTable, allocate, panic_text};
 
 /// Begins with the layout of `anari::DeviceImpl` (vtable, then its two data members); cavetrace's
@@ -251,7 +253,7 @@ pub(super) fn create(
     }
     // The internal device reports through `forward_status`, which finds this object through its
     // user data and substitutes the SDK device pointer.
-    let device = Device::new(Some(forward_status), object as usize);
+    let device = Device::new(&KINDS, Some(forward_status), object as usize);
     library_devices.fetch_add(1, Ordering::AcqRel);
     // SAFETY: `object` is fresh memory of the right size and alignment; the device makes no
     // report before this write (creating it reports nothing).
@@ -944,7 +946,7 @@ extern "C" fn get_object_subtypes(
     object_type: ANARIDataType,
 ) -> *const *const c_char {
     with_device(this, "anariGetObjectSubtypes", std::ptr::null(), |_| {
-        let names = catalog::subtype_names(object_type);
+        let names = KINDS.subtype_names(object_type);
         cached(format!("subtypes {object_type}"), || {
             leak_string_list(&names)
         }) as _

@@ -8,9 +8,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use crate::capi::cache::{cached, leak_string_list};
 use crate::capi::plain_string;
 use crate::capi::types::{ANARIDevice, ANARILibrary, ANARIParameterValue};
-use crate::device::catalog;
+use crate::device::catalog::Kinds;
 use crate::device::datatype::ANARI_LIBRARY;
 use crate::device::status::*;
+use crate::kinds::KINDS;
 use crate::sdk::device::{self, DeviceObject};
 use crate::sdk::{VirtualTable, allocate, panic_text};
 
@@ -296,7 +297,7 @@ extern "C" fn get_device_extensions(
         std::ptr::null(),
         |_| match plain_string(device_subtype).as_deref() {
             Some(s) if DEVICE_SUBTYPES.contains(&s) => cached("device extensions".into(), || {
-                leak_string_list(&catalog::extensions())
+                leak_string_list(&KINDS.extensions())
             }) as _,
             _ => std::ptr::null(),
         },

@@ -1,6 +1,9 @@
 //! Shared helpers for integration tests that drive the C API in-process.
 #![allow(dead_code, unused_imports)]
 
+mod scenes;
+pub use scenes::*;
+
 use std::ffi::{CString, c_char, c_void};
 use std::sync::Mutex;
 
@@ -585,9 +588,10 @@ pub fn camera_rays(dev: ANARIDevice, camera: ANARICamera, size: u32) -> Vec<cave
 /// The acceleration structure a world of `geometry` alone (committed, identity placement) traces
 /// against, for tracing rays without a frame.
 pub fn geometry_scene(dev: ANARIDevice, geometry: ANARIGeometry) -> cavetrace::accel::SceneBvh {
-    let bvh = cavetrace::device::registry::device(dev as usize)
-        .and_then(|d| d.lookup(geometry as usize))
-        .and_then(|o| o.derived_as::<cavetrace::scene::geometry::Geometry>())
+    let device = cavetrace::device::registry::device(dev as usize).expect("device");
+    let bvh = device
+        .lookup(geometry as usize)
+        .and_then(|o| cavetrace::scene::geometry::current(&device, &o))
         .map(|g| g.bvh.clone())
         .expect("committed geometry");
     cavetrace::accel::SceneBvh::build(vec![cavetrace::accel::InstanceDesc {

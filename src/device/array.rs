@@ -347,7 +347,7 @@ impl ArrayStore {
                     };
                     // sRGB applies to colour components, not alpha.
                     if srgb && (i % n) < 3 {
-                        crate::render::color::srgb_to_linear(v)
+                        srgb_to_linear(v)
                     } else {
                         v
                     }
@@ -370,6 +370,15 @@ impl Drop for ArrayInner {
             // destroyed, so this is the one and only call.
             unsafe { deleter(user_data as *const c_void, address as *const c_void) }
         }
+    }
+}
+
+/// Inverse sRGB transfer function: encoded [0,1] → linear (how `*_SRGB` elements are read).
+pub fn srgb_to_linear(encoded: f32) -> f32 {
+    if encoded <= 0.040_45 {
+        encoded / 12.92
+    } else {
+        ((encoded + 0.055) / 1.055).powf(2.4)
     }
 }
 

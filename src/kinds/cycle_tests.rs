@@ -7,7 +7,7 @@ use crate::device::{Device, IncomingValue};
 
 #[test]
 fn device_release_frees_objects_that_refer_to_each_other() {
-    let device = Device::new(None, 0);
+    let device = Device::new(&super::KINDS, None, 0);
     let first = device.new_object("test", ANARI_GEOMETRY, "triangle");
     let second = device.new_object("test", ANARI_GEOMETRY, "triangle");
     // A parameter naming its own object, and two objects naming each other (found by the C API

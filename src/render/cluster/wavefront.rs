@@ -1,0 +1,506 @@
+//! The data-parallel ray exchange: which rank shades each primary sample, and the rounds that
+//! answer every rank's shadow and secondary rays from every rank's part.
+
+use std::fmt;
+use std::sync::Arc;
+use std::time::Instant;
+
+use glam::Vec4;
+use rayon::prelude::*;
+
+use super::{
+    Answers, KeySet, NO_RANK, Pending, PrimaryRecord, RayKey, SAMPLE_WORDS, TraceKey,
+    decode_sample, encode_sample, evaluate, key_ray, trace_inputs,
+};
+use crate::render::integrator::{self, Sample};
+use crate::render::renderer::RendererSettings;
+use crate::scene::world::SceneSnapshot;
+
+/// The collectives a render across ranks needs; every rank calls each in the same order.
+pub trait Exchange {
+    fn rank(&self) -> u32;
+    fn ranks(&self) -> u32;
+    /// Every rank's words, by rank.
+    fn all_gather(&self, mine: &[u32]) -> Result<Vec<Vec<u32>>, ClusterError>;
+    /// Element-wise minimum over the ranks, in place.
+    fn all_min(&self, values: &mut [u64]) -> Result<(), ClusterError>;
+    /// Every rank's words on rank 0 (`None` on the others).
+    fn gather_to_root(&self, mine: &[u32]) -> Result<Option<Vec<Vec<u32>>>, ClusterError>;
+    /// Every rank's words on rank 0, or with `everywhere` on every rank.
+    fn gather(
+        &self,
+        mine: &[u32],
+        everywhere: bool,
+    ) -> Result<Option<Vec<Vec<u32>>>, ClusterError> {
+        if everywhere {
+            self.all_gather(mine).map(Some)
+        } else {
+            self.gather_to_root(mine)
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum ClusterError {
+    /// A collective did not complete in time: a rank is gone or stuck.
+    Timeout { what: &'static str, seconds: f32 },
+    /// A rank reported that it failed.
+    RankFailed { rank: u32 },
+    /// The ranks do not render the same frame (camera, size or samples differ).
+    Mismatch(String),
+    /// MPI returned an error.
+    Mpi(String),
+}
+
+impl fmt::Display for ClusterError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ClusterError::Timeout { what, seconds } => write!(
+                f,
+                "{what} did not complete within {seconds} s (mpiTimeout): another rank has \
+                 exited, failed or stopped rendering"
+            ),
+            ClusterError::RankFailed { rank } => write!(f, "rank {rank} reported a failure"),
+            ClusterError::Mismatch(text) => write!(f, "{text}"),
+            ClusterError::Mpi(text) => write!(f, "MPI error: {text}"),
+        }
+    }
+}
+
+/// What the exchange of one data-parallel render cost this rank.
+#[derive(Default, Debug, Clone, Copy)]
+pub struct Traffic {
+    /// Rounds of shadow and secondary rays (after the primary compositing).
+    pub rounds: u32,
+    /// Words this rank contributed to collectives (×4 for bytes).
+    pub words_sent: u64,
+    /// Seconds spent in collectives and in testing other ranks' rays.
+    pub exchange_seconds: f64,
+    /// Primary samples this rank shaded.
+    pub shaded: u64,
+}
+
+/// The outcome of the rays one rank shaded, by the task that asked.
+enum Task {
+    Primary(usize),
+    Child { requester: u32, key: TraceKey },
+}
+
+enum Outcome {
+    Sample(Sample),
+    Radiance(Vec4),
+}
+
+/// The results of a data-parallel render: per record (sorted primary samples), what the ranks
+/// shaded — every sample on rank 0 (on every rank with `everywhere`), this rank's own elsewhere.
+pub fn resolve(
+    exchange: &dyn Exchange,
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    records: &[PrimaryRecord],
+    max_rounds: u32,
+    everywhere: bool,
+) -> Result<(Vec<Option<Sample>>, Traffic), ClusterError> {
+    let me = exchange.rank();
+    let mut traffic = Traffic::default();
+    let started = Instant::now();
+    // Every rank must ask for the same samples; a count and a digest of the keys tell.
+    let digest = records.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, r| {
+        r.key
+            .iter()
+            .fold(h, |h, w| (h ^ u64::from(*w)).wrapping_mul(0x100_0000_01b3))
+    });
+    let mut check = [
+        records.len() as u64,
+        !(records.len() as u64),
+        digest,
+        !digest,
+    ];
+    exchange.all_min(&mut check)?;
+    if check[0] != !check[1] || check[2] != !check[3] {
+        return Err(ClusterError::Mismatch(
+            "the ranks' frames ask for different primary rays: every rank must render the same \
+             frame (size, camera, renderer's pixelSamples)"
+                .into(),
+        ));
+    }
+    // Depth compositing: the smallest t of every rank wins, ties to the lower rank.
+    let mut winners: Vec<u64> = records
+        .iter()
+        .map(|r| match r.local_t {
+            u32::MAX => u64::MAX,
+            t => (u64::from(t) << 32) | u64::from(me),
+        })
+        .collect();
+    exchange.all_min(&mut winners)?;
+    traffic.words_sent += 2 * winners.len() as u64 + 8;
+    traffic.exchange_seconds += started.elapsed().as_secs_f64();
+    // A sample that misses every part is shaded (the background) by rank 0.
+    let owner = |winner: u64| if winner == u64::MAX { 0 } else { winner as u32 };
+    let mut tasks: Vec<(Task, Option<Pending>)> = winners
+        .iter()
+        .enumerate()
+        .filter(|(_, w)| owner(**w) == me)
+        .map(|(i, _)| (Task::Primary(i), None))
+        .collect();
+    traffic.shaded = tasks.len() as u64;
+    let mut samples: Vec<Option<Sample>> = vec![None; records.len()];
+    let mut answers = Answers {
+        rank: me,
+        ..Answers::default()
+    };
+    let mut requested: KeySet<TraceKey> = KeySet::default();
+    let mut children: KeySet<(u32, TraceKey)> = KeySet::default();
+    let mut quiet_rounds = 0;
+    loop {
+        // Shade what can progress: new tasks, and tasks whose every missing answer has come.
+        let shared = Arc::new(std::mem::take(&mut answers));
+        let ready: Vec<usize> = tasks
+            .iter()
+            .enumerate()
+            .filter(|(_, (_, pending))| pending.as_ref().is_none_or(|p| answered(p, &shared)))
+            .map(|(i, _)| i)
+            .collect();
+        let evaluated: Vec<(usize, Outcome, Pending)> = ready
+            .into_par_iter()
+            .map(|i| {
+                let (outcome, pending) =
+                    evaluate(&shared, || shade(&tasks[i].0, scene, settings, records));
+                (i, outcome, pending)
+            })
+            .collect();
+        answers = Arc::try_unwrap(shared).unwrap_or_else(|shared| (*shared).clone());
+        let exchange_started = Instant::now();
+        let mut occlusion: Vec<RayKey> = Vec::new();
+        let mut closest: Vec<TraceKey> = Vec::new();
+        let mut remote: Vec<(TraceKey, u32)> = Vec::new();
+        let mut results: Vec<u32> = Vec::new();
+        let mut done = Vec::new();
+        {
+            let mut seen_rays: KeySet<RayKey> = KeySet::default();
+            let mut seen_traces: KeySet<TraceKey> = KeySet::default();
+            for (i, outcome, mut pending) in evaluated {
+                if !pending.incomplete {
+                    match (&tasks[i].0, outcome) {
+                        (Task::Primary(index), Outcome::Sample(sample)) => {
+                            samples[*index] = Some(sample)
+                        }
+                        (Task::Child { requester, key }, Outcome::Radiance(radiance)) => {
+                            results.push(*requester);
+                            results.extend_from_slice(key);
+                            results.extend(radiance.to_array().map(f32::to_bits));
+                        }
+                        _ => {}
+                    }
+                    done.push(i);
+                    continue;
+                }
+                for key in &pending.occlusion {
+                    if seen_rays.insert(*key) {
+                        occlusion.push(*key);
+                    }
+                }
+                for key in &pending.closest {
+                    if seen_traces.insert(*key) {
+                        closest.push(*key);
+                    }
+                }
+                for (key, owner) in &pending.remote {
+                    if requested.insert(*key) {
+                        remote.push((*key, *owner));
+                    }
+                }
+                pending.occlusion.sort_unstable();
+                tasks[i].1 = Some(pending);
+            }
+        }
+        // Finished tasks leave the list (highest index first keeps the others' indices).
+        done.sort_unstable();
+        for i in done.into_iter().rev() {
+            tasks.swap_remove(i);
+        }
+        let busy = !tasks.is_empty();
+        let mut message = vec![
+            u32::from(busy),
+            0,
+            occlusion.len() as u32,
+            closest.len() as u32,
+            remote.len() as u32,
+            (results.len() / RESULT_WORDS) as u32,
+        ];
+        occlusion.iter().for_each(|k| message.extend_from_slice(k));
+        closest.iter().for_each(|k| message.extend_from_slice(k));
+        for (key, owner) in &remote {
+            message.extend_from_slice(key);
+            message.push(*owner);
+        }
+        message.extend_from_slice(&results);
+        traffic.words_sent += message.len() as u64;
+        let gathered = exchange.all_gather(&message)?;
+        let messages: Vec<Message> = gathered.iter().map(|words| Message::parse(words)).collect();
+        if let Some(rank) = messages.iter().position(|m| m.failed) {
+            return Err(ClusterError::RankFailed { rank: rank as u32 });
+        }
+        let anything = messages.iter().any(|m| !m.is_empty());
+        if !anything && !messages.iter().any(|m| m.busy) {
+            traffic.exchange_seconds += exchange_started.elapsed().as_secs_f64();
+            break;
+        }
+        traffic.rounds += 1;
+        if traffic.rounds > max_rounds {
+            return Err(ClusterError::Mismatch(format!(
+                "the ray exchange did not settle within {max_rounds} rounds"
+            )));
+        }
+        quiet_rounds = if anything { 0 } else { quiet_rounds + 1 };
+        if quiet_rounds > 2 {
+            return Err(ClusterError::Mismatch(
+                "the ray exchange stalled: a rank waits for an answer no rank computes".into(),
+            ));
+        }
+        // This rank's answers to every rank's rays, reduced over the ranks.
+        let queries: Vec<(&[u32], bool)> = messages
+            .iter()
+            .flat_map(|m| m.occlusion().map(|k| (k, true)))
+            .chain(
+                messages
+                    .iter()
+                    .flat_map(|m| m.closest().map(|k| (k, false))),
+            )
+            .collect();
+        let mut values: Vec<u64> = queries
+            .par_iter()
+            .map(|(key, shadow)| {
+                let ray = key_ray(key);
+                if *shadow {
+                    u64::from(!scene.bvh.occluded(&ray))
+                } else {
+                    scene.bvh.intersect(&ray).map_or(u64::MAX, |h| {
+                        (u64::from(h.t.max(0.0).to_bits()) << 32) | u64::from(me)
+                    })
+                }
+            })
+            .collect();
+        exchange.all_min(&mut values)?;
+        traffic.words_sent += 2 * values.len() as u64;
+        let mut value = values.into_iter();
+        for (rank, m) in messages.iter().enumerate() {
+            for key in m.occlusion() {
+                let occluded = value.next() == Some(0);
+                if rank as u32 == me {
+                    answers.occluded.insert(ray_of(key), occluded);
+                }
+            }
+        }
+        for (rank, m) in messages.iter().enumerate() {
+            let rank = rank as u32;
+            for key in m.closest() {
+                let winner = value.next().unwrap_or(u64::MAX);
+                let hit_rank = if winner == u64::MAX {
+                    NO_RANK
+                } else {
+                    winner as u32
+                };
+                let trace = trace_of(key);
+                if rank == me {
+                    answers.closest.insert(ray_of(key), hit_rank);
+                    if hit_rank != me && hit_rank != NO_RANK {
+                        // The hit's rank starts shading it now (below, on that rank).
+                        requested.insert(trace);
+                    }
+                }
+                if hit_rank == me {
+                    answers.closest.insert(ray_of(key), me);
+                    if rank != me && children.insert((rank, trace)) {
+                        tasks.push((
+                            Task::Child {
+                                requester: rank,
+                                key: trace,
+                            },
+                            None,
+                        ));
+                    }
+                }
+            }
+            for (key, owner) in m.remote() {
+                if owner == me {
+                    answers.closest.insert(ray_of(key), me);
+                    let trace = trace_of(key);
+                    if children.insert((rank, trace)) {
+                        tasks.push((
+                            Task::Child {
+                                requester: rank,
+                                key: trace,
+                            },
+                            None,
+                        ));
+                    }
+                }
+            }
+            for result in m.results() {
+                if result[0] == me {
+                    let colour = std::array::from_fn(|i| f32::from_bits(result[15 + i]));
+                    answers
+                        .radiance
+                        .insert(trace_of(&result[1..15]), Vec4::from_array(colour));
+                }
+            }
+        }
+        traffic.exchange_seconds += exchange_started.elapsed().as_secs_f64();
+    }
+    // The shaded samples go to rank 0 (or every rank).
+    let gather_started = Instant::now();
+    let mut mine = Vec::new();
+    for (index, sample) in samples.iter().enumerate() {
+        if let Some(sample) = sample {
+            mine.push(index as u32);
+            encode_sample(sample, &mut mine);
+        }
+    }
+    traffic.words_sent += mine.len() as u64;
+    if let Some(all) = exchange.gather(&mine, everywhere)? {
+        for words in all {
+            for entry in words.chunks_exact(1 + SAMPLE_WORDS) {
+                if let Some(slot) = samples.get_mut(entry[0] as usize) {
+                    *slot = Some(decode_sample(&entry[1..]));
+                }
+            }
+        }
+    }
+    traffic.exchange_seconds += gather_started.elapsed().as_secs_f64();
+    Ok((samples, traffic))
+}
+
+/// Words of a result: requester, trace key, colour.
+const RESULT_WORDS: usize = 1 + 14 + 4;
+
+fn ray_of(words: &[u32]) -> RayKey {
+    std::array::from_fn(|i| words[i])
+}
+
+fn trace_of(words: &[u32]) -> TraceKey {
+    std::array::from_fn(|i| words[i])
+}
+
+/// Whether every answer an evaluation lacked has come.
+fn answered(pending: &Pending, answers: &Answers) -> bool {
+    pending
+        .occlusion
+        .iter()
+        .all(|k| answers.occluded.contains_key(k))
+        && pending
+            .closest
+            .iter()
+            .all(|k| answers.closest.contains_key(&ray_of(k)))
+        && pending
+            .remote
+            .iter()
+            .all(|(k, _)| answers.radiance.contains_key(k))
+}
+
+fn shade(
+    task: &Task,
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    records: &[PrimaryRecord],
+) -> Outcome {
+    match task {
+        Task::Primary(index) => {
+            let record = &records[*index];
+            let ray = record.ray();
+            let hit = scene.bvh.intersect(&ray);
+            if record.fast {
+                let screen = record.screen().unwrap_or_default();
+                Outcome::Sample(integrator::fast_surface_sample(
+                    scene,
+                    settings,
+                    &ray,
+                    hit.as_ref(),
+                    || screen,
+                    record.cyclopean(),
+                ))
+            } else {
+                Outcome::Sample(integrator::shade_primary_at(
+                    scene,
+                    settings,
+                    &ray,
+                    hit,
+                    record.screen(),
+                    record.cyclopean(),
+                    &record.sampling(),
+                ))
+            }
+        }
+        Task::Child { key, .. } => {
+            let (ray, depth, from_camera, screen, sampling) = trace_inputs(key);
+            Outcome::Radiance(integrator::trace_continuing(
+                scene,
+                settings,
+                &ray,
+                depth,
+                from_camera,
+                screen,
+                &sampling,
+            ))
+        }
+    }
+}
+
+/// One rank's message of a round, read.
+struct Message<'a> {
+    busy: bool,
+    failed: bool,
+    counts: [usize; 4],
+    words: &'a [u32],
+}
+
+const HEADER_WORDS: usize = 6;
+const SIZES: [usize; 4] = [8, 14, 15, RESULT_WORDS];
+
+impl<'a> Message<'a> {
+    fn parse(words: &'a [u32]) -> Message<'a> {
+        if words.len() < HEADER_WORDS {
+            return Message {
+                busy: false,
+                failed: true,
+                counts: [0; 4],
+                words: &[],
+            };
+        }
+        let counts = std::array::from_fn(|i| words[2 + i] as usize);
+        let expected: usize = (0..4).map(|i| counts[i] * SIZES[i]).sum();
+        let failed = words[1] != 0 || words.len() != HEADER_WORDS + expected;
+        Message {
+            busy: words[0] != 0,
+            failed,
+            counts: if failed { [0; 4] } else { counts },
+            words: &words[HEADER_WORDS.min(words.len())..],
+        }
+    }
+
+    fn is_empty(&self) -> bool {
+        self.counts.iter().all(|c| *c == 0)
+    }
+
+    fn part(&self, which: usize) -> std::slice::ChunksExact<'a, u32> {
+        let start: usize = (0..which).map(|i| self.counts[i] * SIZES[i]).sum();
+        let end = start + self.counts[which] * SIZES[which];
+        self.words[start..end].chunks_exact(SIZES[which])
+    }
+
+    fn occlusion(&self) -> std::slice::ChunksExact<'a, u32> {
+        self.part(0)
+    }
+
+    fn closest(&self) -> std::slice::ChunksExact<'a, u32> {
+        self.part(1)
+    }
+
+    fn remote(&self) -> impl Iterator<Item = (&'a [u32], u32)> {
+        self.part(2).map(|w| (&w[..14], w[14]))
+    }
+
+    fn results(&self) -> std::slice::ChunksExact<'a, u32> {
+        self.part(3)
+    }
+}

@@ -1,0 +1,122 @@
+//! The frame budget: which units of the progressive plan a budgeted render traces, and how
+//! far the renders of an unchanged frame got.
+
+use std::sync::atomic::{AtomicU64, AtomicUsize};
+use std::time::Instant;
+
+use crate::render::progressive::Plan;
+
+use super::{Inner, RenderSetup};
+
+/// A budgeted render traces a subset of the pixels (see [`crate::render::progressive`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Budget {
+    /// Wall-clock seconds a render should take.
+    pub seconds: f32,
+    /// Pixels to trace per render instead of what the measured speed allows (`budgetPixels`),
+    /// for reproducible progressive renders.
+    pub pixels: Option<u32>,
+}
+
+/// What a budgeted render traces: units `start..` of its plan, as far as time allows.
+pub(super) struct BudgetedRun {
+    pub(super) plan: Plan,
+    /// Units traced by earlier renders of the unchanged frame.
+    pub(super) start: usize,
+    /// Units the measured speed allows (the mandatory units, and at least one more than
+    /// `start` so that refinement always progresses, are traced whatever the time).
+    pub(super) planned_end: usize,
+    pub(super) deadline: Option<Instant>,
+    /// The first unit a worker declined: units `start..first_declined` are traced.
+    pub(super) first_declined: AtomicUsize,
+    /// Nanoseconds the threads spent tracing units, summed.
+    pub(super) tracing_nanos: AtomicU64,
+}
+
+impl BudgetedRun {
+    /// Whether unit `index` is not traced in this render. Monotonic in `index` and in time, so
+    /// the traced units always form a prefix.
+    pub(super) fn declines(&self, index: usize) -> bool {
+        index >= self.plan.units.len()
+            || (index >= self.plan.mandatory_units().max(self.start + 1)
+                && (index >= self.planned_end
+                    || self
+                        .deadline
+                        .is_some_and(|deadline| Instant::now() >= deadline)))
+    }
+}
+
+/// How far the budgeted renders of an unchanged frame got.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct Refinement {
+    pub(super) scene_version: u64,
+    pub(super) width: u32,
+    pub(super) height: u32,
+    /// Units traced so far.
+    pub(super) done: usize,
+    pub(super) total: usize,
+}
+
+/// The budgeted part of a render, if it has a budget: where refinement of the unchanged frame
+/// goes on, and how many units the measured speed allows. `None` renders every pixel (no
+/// budget, no camera, or an image already complete that accumulation refines further).
+pub(super) fn budgeted_run(
+    setup: &RenderSetup,
+    inner: &mut Inner,
+    threads: usize,
+) -> Option<BudgetedRun> {
+    let budget = setup.budget?;
+    let camera = setup.camera.as_ref()?;
+    let plan = Plan::new(&camera.viewports(setup.width, setup.height));
+    let start = inner
+        .refinement
+        .filter(|r| {
+            r.scene_version == setup.scene_version
+                && r.width == setup.width
+                && r.height == setup.height
+                && r.total == plan.units.len()
+                && inner.output.is_some()
+        })
+        .map_or(0, |r| r.done);
+    if start == plan.units.len() && setup.accumulate {
+        return None;
+    }
+    let planned_pixels = match budget.pixels {
+        Some(pixels) => f64::from(pixels),
+        None => {
+            let primitives = setup
+                .scene
+                .instances
+                .iter()
+                .flat_map(|instance| &instance.surfaces)
+                .map(|surface| surface.geometry.bvh.primitive_count())
+                .sum();
+            inner.throughput.pixels_for(
+                f64::from(budget.seconds),
+                primitives,
+                setup.settings.fast,
+                threads,
+            )
+        }
+    };
+    // Units after `start` until their pixels reach the plan.
+    let mut planned_end = start;
+    let mut pixels = 0.0;
+    while planned_end < plan.units.len() && pixels < planned_pixels {
+        pixels += plan.units[planned_end].pixel_count() as f64;
+        planned_end += 1;
+    }
+    // Tracing stops in time for the fill (as long as it took last time) and the rest.
+    let deadline = budget.pixels.is_none().then(|| {
+        let tracing = 0.85 * f64::from(budget.seconds) - inner.throughput.overhead_seconds;
+        Instant::now() + std::time::Duration::from_secs_f64(tracing.max(0.0))
+    });
+    Some(BudgetedRun {
+        first_declined: AtomicUsize::new(plan.units.len()),
+        tracing_nanos: AtomicU64::new(0),
+        plan,
+        start,
+        planned_end,
+        deadline,
+    })
+}

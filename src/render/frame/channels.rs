@@ -1,0 +1,317 @@
+//! Frame channels: which channels a frame can produce, how each requested one is encoded
+//! per tile, and the buffers a render writes them into.
+
+use glam::{Vec3, Vec4};
+
+use std::collections::HashMap;
+
+use crate::device::datatype::*;
+use crate::render::color::{srgb8_encoder, srgb8_rgba_encoder, to_snorm16, to_unorm8};
+use crate::render::progressive::TileMap;
+
+use super::records::TileRecords;
+use super::{Inner, Output, RenderSetup, StartError};
+
+/// The channels a frame can produce and the types each may be mapped as.
+pub const CHANNELS: &[(&str, &[ANARIDataType])] = &[
+    (
+        "channel.color",
+        &[
+            ANARI_UFIXED8_RGBA_SRGB,
+            ANARI_UFIXED8_VEC4,
+            ANARI_FLOAT32_VEC4,
+        ],
+    ),
+    ("channel.depth", &[ANARI_FLOAT32]),
+    ("channel.primitiveId", &[ANARI_UINT32]),
+    ("channel.objectId", &[ANARI_UINT32]),
+    ("channel.instanceId", &[ANARI_UINT32]),
+    (
+        "channel.albedo",
+        &[
+            ANARI_UFIXED8_VEC3,
+            ANARI_UFIXED8_RGB_SRGB,
+            ANARI_FLOAT32_VEC3,
+        ],
+    ),
+    ("channel.normal", &[ANARI_FLOAT32_VEC3, ANARI_FIXED16_VEC3]),
+    ("channel.windowDepth", &[ANARI_FLOAT32]),
+    ("channel.parallax", &[ANARI_FLOAT32]),
+];
+
+/// What a channel holds.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(super) enum ChannelKind {
+    Color,
+    Depth,
+    WindowDepth,
+    PrimitiveId,
+    ObjectId,
+    InstanceId,
+    Albedo,
+    Normal,
+    Parallax,
+}
+
+impl ChannelKind {
+    pub(super) fn of(name: &str) -> Option<ChannelKind> {
+        Some(match name {
+            "channel.color" => ChannelKind::Color,
+            "channel.depth" => ChannelKind::Depth,
+            "channel.windowDepth" => ChannelKind::WindowDepth,
+            "channel.primitiveId" => ChannelKind::PrimitiveId,
+            "channel.objectId" => ChannelKind::ObjectId,
+            "channel.instanceId" => ChannelKind::InstanceId,
+            "channel.albedo" => ChannelKind::Albedo,
+            "channel.normal" => ChannelKind::Normal,
+            "channel.parallax" => ChannelKind::Parallax,
+            _ => return None,
+        })
+    }
+}
+
+/// How one requested channel is encoded: what it holds, as which type.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct ChannelFormat {
+    pub(super) kind: ChannelKind,
+    pub(super) data_type: ANARIDataType,
+    pub(super) pixel_bytes: usize,
+}
+
+/// `values` as native-endian bytes (`B` = 4·`N`).
+#[inline(always)]
+pub(super) fn f32_bytes<const N: usize, const B: usize>(values: [f32; N]) -> [u8; B] {
+    let mut bytes = [0; B];
+    for (chunk, value) in bytes.chunks_exact_mut(4).zip(values) {
+        chunk.copy_from_slice(&value.to_ne_bytes());
+    }
+    bytes
+}
+
+impl ChannelFormat {
+    /// Writes `pixel(k)` as pixel `k` of `out` (N bytes each, which must be the type's size).
+    #[inline(always)]
+    pub(super) fn encode_pixels<const N: usize>(
+        &self,
+        out: &mut [u8],
+        pixel: impl Fn(usize) -> [u8; N],
+    ) {
+        debug_assert_eq!(N, self.pixel_bytes, "pixel size of {:?}", self.data_type);
+        for (k, chunk) in out.chunks_exact_mut(N).enumerate() {
+            chunk.copy_from_slice(&pixel(k));
+        }
+    }
+
+    /// Encodes the pixels of a tile into `out` (`pixel_bytes` each, in the order of `colors`):
+    /// `colors` are their final colours, `records` the other channels' values. The match on
+    /// the type is made once per tile, not per pixel.
+    pub(super) fn encode(&self, colors: &[Vec4], records: &TileRecords, out: &mut [u8]) {
+        let out = &mut out[..colors.len() * self.pixel_bytes];
+        let color = |k: usize| colors[k];
+        let float = |values: &[f32], k: usize, nothing: f32| {
+            f32_bytes::<1, 4>([values.get(k).copied().unwrap_or(nothing)])
+        };
+        let id = |values: &[u32], k: usize| values.get(k).map_or(u32::MAX, |v| *v).to_ne_bytes();
+        let vector =
+            |values: &[Vec3], k: usize| values.get(k).map_or(Vec3::ZERO, |v| *v).to_array();
+        match (self.kind, self.data_type) {
+            (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB) => {
+                let srgba = srgb8_rgba_encoder();
+                self.encode_pixels(out, |k| srgba(color(k)))
+            }
+            (ChannelKind::Color, ANARI_UFIXED8_VEC4) => {
+                self.encode_pixels(out, |k| color(k).to_array().map(to_unorm8))
+            }
+            (ChannelKind::Color, _) => {
+                self.encode_pixels(out, |k| f32_bytes::<4, 16>(color(k).to_array()))
+            }
+            (ChannelKind::Depth, _) => {
+                self.encode_pixels(out, |k| float(&records.depth, k, f32::INFINITY))
+            }
+            (ChannelKind::WindowDepth, _) => {
+                self.encode_pixels(out, |k| float(&records.window_depth, k, 1.0))
+            }
+            (ChannelKind::Parallax, _) => {
+                self.encode_pixels(out, |k| float(&records.parallax, k, f32::NAN))
+            }
+            (ChannelKind::PrimitiveId, _) => {
+                self.encode_pixels(out, |k| id(&records.primitive_id, k))
+            }
+            (ChannelKind::ObjectId, _) => self.encode_pixels(out, |k| id(&records.object_id, k)),
+            (ChannelKind::InstanceId, _) => {
+                self.encode_pixels(out, |k| id(&records.instance_id, k))
+            }
+            (ChannelKind::Albedo, data_type) => {
+                let albedo = |k: usize| vector(&records.albedo, k);
+                match data_type {
+                    ANARI_UFIXED8_RGB_SRGB => {
+                        let srgb = srgb8_encoder();
+                        self.encode_pixels(out, |k| albedo(k).map(srgb))
+                    }
+                    ANARI_UFIXED8_VEC3 => self.encode_pixels(out, |k| albedo(k).map(to_unorm8)),
+                    _ => self.encode_pixels(out, |k| f32_bytes::<3, 12>(albedo(k))),
+                }
+            }
+            (ChannelKind::Normal, data_type) => {
+                let normal = |k: usize| vector(&records.normal, k);
+                match data_type {
+                    ANARI_FIXED16_VEC3 => self.encode_pixels(out, |k| {
+                        let [x, y, z] = normal(k).map(|v| to_snorm16(v).to_ne_bytes());
+                        [x[0], x[1], y[0], y[1], z[0], z[1]]
+                    }),
+                    _ => self.encode_pixels(out, |k| f32_bytes::<3, 12>(normal(k))),
+                }
+            }
+        }
+    }
+}
+
+/// One requested channel of a render with its pixels. Tiles are encoded by the threads that
+/// render them and copied in row by row, so a finished render needs no encoding pass.
+pub(super) struct Channel {
+    pub(super) name: &'static str,
+    pub(super) format: ChannelFormat,
+    pub(super) bytes: Vec<u8>,
+}
+
+impl Channel {
+    /// Copies the encoded pixels of `map`'s tile (in its order) to their places in a frame
+    /// `frame_width` pixels wide.
+    pub(super) fn write_area(&mut self, map: &impl TileMap, frame_width: u32, tile: &[u8]) {
+        let area = map.area();
+        if let Some((x0, y0)) = map.rectangle_origin() {
+            self.write_tile(x0, y0, area.s1 - area.s0, frame_width, tile);
+            return;
+        }
+        let bytes = self.format.pixel_bytes;
+        let width = (area.s1 - area.s0) as usize;
+        for (k, source) in tile.chunks_exact(bytes).enumerate() {
+            let s = area.s0 + (k % width) as u32;
+            let t = area.t0 + (k / width) as u32;
+            if map.skips(s, t) {
+                continue;
+            }
+            let (x, y) = map.pixel(s, t);
+            let start = (y as usize * frame_width as usize + x as usize) * bytes;
+            if let Some(target) = self.bytes.get_mut(start..start + bytes) {
+                target.copy_from_slice(source);
+            }
+        }
+    }
+
+    /// Copies a tile encoded by [`ChannelFormat::encode`] (`tile_width` pixels per row, rows
+    /// from `y0` up) to its place in a frame `frame_width` pixels wide.
+    pub(super) fn write_tile(
+        &mut self,
+        x0: u32,
+        y0: u32,
+        tile_width: u32,
+        frame_width: u32,
+        tile: &[u8],
+    ) {
+        let row_bytes = tile_width as usize * self.format.pixel_bytes;
+        for (row, source) in tile.chunks_exact(row_bytes).enumerate() {
+            let start = ((y0 as usize + row) * frame_width as usize + x0 as usize)
+                * self.format.pixel_bytes;
+            if let Some(target) = self.bytes.get_mut(start..start + row_bytes) {
+                target.copy_from_slice(source);
+            }
+        }
+    }
+}
+
+/// Bytes of `pixels` pixels of `pixel_bytes` bytes, or OutOfMemory when that overflows.
+pub(super) fn buffer_bytes(pixels: usize, pixel_bytes: usize) -> Result<usize, StartError> {
+    pixels
+        .checked_mul(pixel_bytes)
+        .ok_or(StartError::OutOfMemory)
+}
+
+/// Bytes a render will allocate: its channels and accumulation sum, less the buffers of the
+/// last render it can reuse (same size and type).
+pub(super) fn new_buffer_bytes(setup: &RenderSetup, inner: &Inner) -> Result<u64, StartError> {
+    let pixels = setup.width as usize * setup.height as usize;
+    let same_size = |w: u32, h: u32| w == setup.width && h == setup.height;
+    let previous = inner
+        .output
+        .as_ref()
+        .filter(|o| same_size(o.width, o.height));
+    let mut bytes = 0u64;
+    for (&name, &data_type) in &setup.channels {
+        let reused = previous
+            .and_then(|o| o.channels.get(name))
+            .is_some_and(|(t, _)| *t == data_type);
+        if !reused {
+            let pixel_bytes = element_size(data_type).unwrap_or(0);
+            bytes = bytes.saturating_add(buffer_bytes(pixels, pixel_bytes)? as u64);
+        }
+    }
+    let sum_reused = matches!(&inner.accumulation, Some((_, _, _, w, h)) if same_size(*w, *h));
+    if setup.accumulate && !sum_reused {
+        let sum = buffer_bytes(pixels, std::mem::size_of::<Vec4>())?;
+        bytes = bytes.saturating_add(sum as u64);
+    }
+    Ok(bytes)
+}
+
+/// The channels of a render: the previous render's buffers when nobody has them mapped and
+/// they fit (a head-tracked application renders the same frame again and again), otherwise
+/// new ones.
+pub(super) fn allocate_channels(
+    setup: &RenderSetup,
+    previous: Option<Output>,
+) -> Result<Vec<Channel>, StartError> {
+    let pixels = setup.width as usize * setup.height as usize;
+    let mut reusable = match previous {
+        Some(output) if output.width == setup.width && output.height == setup.height => {
+            output.channels
+        }
+        _ => HashMap::new(),
+    };
+    let mut channels = Vec::new();
+    for (&name, &data_type) in &setup.channels {
+        let (Some(kind), Some(pixel_bytes)) = (ChannelKind::of(name), element_size(data_type))
+        else {
+            continue;
+        };
+        let bytes = match reusable.remove(name) {
+            Some((previous_type, bytes)) if previous_type == data_type => bytes,
+            _ => {
+                let length = buffer_bytes(pixels, pixel_bytes)?;
+                let mut bytes = Vec::new();
+                bytes
+                    .try_reserve_exact(length)
+                    .map_err(|_| StartError::OutOfMemory)?;
+                bytes.resize(length, 0);
+                bytes
+            }
+        };
+        channels.push(Channel {
+            name,
+            format: ChannelFormat {
+                kind,
+                data_type,
+                pixel_bytes,
+            },
+            bytes,
+        });
+    }
+    Ok(channels)
+}
+
+/// Smallest and largest of native-endian FLOAT32 pixels, NaNs (no hit) left out; NaN for both
+/// when every pixel is NaN.
+pub(super) fn value_range(bytes: &[u8]) -> [f32; 2] {
+    let (low, high) = bytes
+        .chunks_exact(4)
+        .map(|b| f32::from_ne_bytes([b[0], b[1], b[2], b[3]]))
+        .filter(|v| !v.is_nan())
+        .fold((f32::INFINITY, f32::NEG_INFINITY), |(low, high), v| {
+            (low.min(v), high.max(v))
+        });
+    if low > high {
+        [f32::NAN; 2]
+    } else {
+        [low, high]
+    }
+}

@@ -1,0 +1,483 @@
+//! Tile tracing: a worker turns one tile (or one unit of a budgeted plan) into encoded pixels,
+//! tracing 8×8 blocks of primary rays as packets and shading their hits.
+
+use glam::{Vec2, Vec3, Vec4};
+
+use crate::accel::{PacketScratch, Ray};
+use crate::camera::{BLOCK_RAYS, BlockRays, CameraRay, EyeRays, PixelSet};
+use crate::render::integrator::{fast_surface_color, fast_surface_sample, shade_primary_at};
+use crate::render::interleave::{InterleavedTile, lattice_size};
+use crate::render::progressive::{FrameTile, TileMap};
+use crate::scene::light::LightSampling;
+
+use super::anaglyph::{anaglyph, anaglyph_eyes};
+use super::records::TileRecords;
+use super::samples::{jitter, lens_sample};
+use super::{Job, TILE_SIZE, lock};
+
+impl Job {
+    /// Tile `tile` of an unbudgeted interleaved render: the eyes' lattice tiles alternate.
+    pub(super) fn interleaved_tile(&self, tile: usize, sets: [PixelSet; 2]) -> InterleavedTile {
+        let set = sets[tile % 2];
+        let (width, height) = lattice_size(set, self.setup.width, self.setup.height);
+        let tile = tile as u32 / 2;
+        let (s0, t0) = (
+            (tile % self.tiles_x) * TILE_SIZE,
+            (tile / self.tiles_x) * TILE_SIZE,
+        );
+        InterleavedTile {
+            set,
+            s0,
+            t0,
+            s1: (s0 + TILE_SIZE).min(width),
+            t1: (t0 + TILE_SIZE).min(height),
+            width: self.setup.width,
+            height: self.setup.height,
+        }
+    }
+
+    /// Tile `tile` of an unbudgeted render: a square of the whole frame.
+    pub(super) fn frame_tile(&self, tile: usize) -> FrameTile {
+        let x0 = (tile as u32 % self.tiles_x) * TILE_SIZE;
+        let y0 = (tile as u32 / self.tiles_x) * TILE_SIZE;
+        FrameTile {
+            x0,
+            y0,
+            x1: (x0 + TILE_SIZE).min(self.setup.width),
+            y1: (y0 + TILE_SIZE).min(self.setup.height),
+        }
+    }
+}
+
+/// Side of the pixel blocks traced together as one coherent packet of primary rays.
+pub(super) const PACKET_SIDE: u32 = 8;
+
+/// Pixel offsets of an 8×8 block in the order packet traversal expects: sixteen 2×2 quads of
+/// four consecutive rays, quads in row order.
+pub(super) const PACKET_ORDER: [(u32, u32); 64] = {
+    let mut order = [(0, 0); 64];
+    let mut i = 0;
+    while i < 64 {
+        let quad = i / 4;
+        let lane = i % 4;
+        order[i] = (
+            (quad % 4) as u32 * 2 + (lane % 2) as u32,
+            (quad / 4) as u32 * 2 + (lane / 2) as u32,
+        );
+        i += 1;
+    }
+    order
+};
+
+/// A ray that hits nothing (zero direction): fills packet lanes outside the frame or any eye.
+pub(super) const NO_RAY: Ray = Ray {
+    origin: Vec3::ZERO,
+    direction: Vec3::ZERO,
+    t_min: 0.0,
+    t_max: 0.0,
+};
+
+/// Pixels in a full tile.
+pub(super) const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
+
+/// The ray to trace for a camera ray.
+#[inline]
+pub(super) fn traced(camera_ray: &CameraRay) -> Ray {
+    Ray {
+        origin: camera_ray.origin,
+        direction: camera_ray.direction,
+        t_min: camera_ray.t_min,
+        t_max: camera_ray.t_max,
+    }
+}
+
+/// A worker's working memory, kept from one tile to the next.
+#[derive(Default)]
+pub(super) struct TileScratch {
+    packets: PacketScratch,
+    /// Per pixel of a tile, the requested channels' values from its first hit.
+    records: TileRecords,
+    /// One channel's pixels of a tile, encoded.
+    encoded: Vec<u8>,
+}
+
+/// Lattices this sparse are traced ray by ray: their packets are too incoherent to pay
+/// (measured on the 1M-triangle benchmark: the coarsest level 32 → 22 ms at stride ≥ 4, no
+/// better at stride 2).
+pub(super) const SINGLE_RAY_STRIDE: u32 = 4;
+
+pub(super) fn render_tile(
+    job: &Job,
+    eyes: &[(crate::camera::EyeViewport, EyeRays)],
+    map: impl TileMap,
+    scratch: &mut TileScratch,
+) {
+    let setup = &job.setup;
+    // The tile's pixels are lattice points (sx, sy) of [s0, s1) × [t0, t1); for a tile
+    // of the whole frame they are plain pixel coordinates.
+    let area = map.area();
+    let pixel_count = area.pixel_count();
+    let samples = setup.settings.pixel_samples;
+    // Colour summed over the samples, and whether any eye covers the pixel.
+    let mut colors = [Vec4::ZERO; TILE_PIXELS];
+    let mut covered = [false; TILE_PIXELS];
+    scratch
+        .records
+        .reset(&job.pixel_work.hit_channels, pixel_count);
+    let subpixel_channels = eyes.first().and_then(|(_, rays)| rays.subpixel_channels());
+    match (anaglyph_eyes(eyes), subpixel_channels) {
+        (Some((left, right)), _) => {
+            // Both eyes for every pixel; the channels other than colour are the left eye's.
+            let all = PixelRays::All;
+            trace_blocks(
+                job,
+                left,
+                map,
+                scratch,
+                &mut colors,
+                &mut covered,
+                true,
+                all,
+            );
+            let mut right_colors = [Vec4::ZERO; TILE_PIXELS];
+            trace_blocks(
+                job,
+                right,
+                map,
+                scratch,
+                &mut right_colors,
+                &mut covered,
+                false,
+                all,
+            );
+            for (color, right) in colors[..pixel_count].iter_mut().zip(&right_colors) {
+                *color = anaglyph(*color, *right);
+            }
+        }
+        (None, Some(channels)) => {
+            // A light-field display: a ray per subpixel, each giving its colour channel; alpha
+            // and the other channels come from the green subpixel's ray.
+            let mut passes = [[Vec4::ZERO; TILE_PIXELS]; 3];
+            for (k, pass) in passes.iter_mut().enumerate() {
+                let green = channels[k] == 1;
+                let rays = PixelRays::Subpixel(k as u32);
+                trace_blocks(job, eyes, map, scratch, pass, &mut covered, green, rays);
+            }
+            let green = channels.iter().position(|c| *c == 1).unwrap_or(1);
+            for (index, color) in colors[..pixel_count].iter_mut().enumerate() {
+                *color = passes[green][index];
+                for (k, channel) in channels.iter().enumerate() {
+                    color[*channel] = passes[k][index][*channel];
+                }
+            }
+        }
+        (None, None) => {
+            let all = PixelRays::All;
+            trace_blocks(
+                job,
+                eyes,
+                map,
+                scratch,
+                &mut colors,
+                &mut covered,
+                true,
+                all,
+            );
+        }
+    }
+    let passes = (job.pass + 1) as f32;
+    // Final colours: the samples' mean (the background where no eye looks), then the running
+    // mean over the passes when accumulating.
+    let mut color_sum = job.color_sum.as_ref().map(lock);
+    // Walked row by row: a division per pixel for its lattice point cost a tenth of this loop.
+    let (s0, s1) = (area.s0, area.s1);
+    let lattice_points = (area.t0..area.t1).flat_map(|sy| (s0..s1).map(move |sx| (sx, sy)));
+    for (k, (color, (sx, sy))) in colors[..pixel_count]
+        .iter_mut()
+        .zip(lattice_points)
+        .enumerate()
+    {
+        if map.skips(sx, sy) {
+            continue;
+        }
+        let (x, y) = map.pixel(sx, sy);
+        *color = if covered[k] {
+            // x / 1 is x: one sample (the usual case) needs no division.
+            if samples == 1 {
+                *color
+            } else {
+                *color / samples as f32
+            }
+        } else {
+            setup.settings.background_at(Vec2::new(
+                (x as f32 + 0.5) / setup.width as f32,
+                (y as f32 + 0.5) / setup.height as f32,
+            ))
+        };
+        if let Some(sum) = color_sum.as_deref_mut()
+            && let Some(total) = sum.get_mut((y * setup.width + x) as usize)
+        {
+            *total += *color;
+            *color = *total / passes;
+        }
+    }
+    drop(color_sum);
+    // Encoded outside the lock; the lock is held only to copy the rows in.
+    for (index, format) in job.formats.iter().enumerate() {
+        let encoded = &mut scratch.encoded;
+        encoded.resize(pixel_count * format.pixel_bytes, 0);
+        format.encode(&colors[..pixel_count], &scratch.records, encoded);
+        if let Some(channel) = lock(&job.channels).get_mut(index) {
+            channel.write_area(&map, setup.width, encoded);
+        }
+    }
+}
+
+/// Which ray of a pixel a pass traces: the pixel's own, or (light-field displays) the ray of
+/// its subpixel k (0, 1, 2 from the left).
+#[derive(Clone, Copy)]
+pub(super) enum PixelRays {
+    All,
+    Subpixel(u32),
+}
+
+/// An eye's viewport with its ray generator for the frame.
+pub(super) type PreparedEye = (crate::camera::EyeViewport, EyeRays);
+
+/// Traces the tile's pixels from `eyes`, summing each pixel's samples into `colors` and
+/// marking it `covered`; with `record_hits` (and a frame that keeps hits), each pixel's first
+/// hit's channel values go into `scratch.records`.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn trace_blocks(
+    job: &Job,
+    eyes: &[(crate::camera::EyeViewport, EyeRays)],
+    map: impl TileMap,
+    scratch: &mut TileScratch,
+    colors: &mut [Vec4; TILE_PIXELS],
+    covered: &mut [bool; TILE_PIXELS],
+    record_hits: bool,
+    pixel_rays: PixelRays,
+) {
+    let setup = &job.setup;
+    let area = map.area();
+    let (tx, ty, x_end, y_end) = (area.s0, area.t0, area.s1, area.t1);
+    let tile_width = x_end - tx;
+    let samples = setup.settings.pixel_samples;
+    let work = &job.pixel_work;
+    let keeps_hits = work.hit_channels.any() && record_hits;
+    let records = &mut scratch.records;
+    let mut rays = [NO_RAY; 64];
+    // Viewport coordinates of a block's rays, for cameras that make them four at a time.
+    let mut batch: [Option<(f32, f32)>; 64] = [None; 64];
+    let mut camera_rays = [None; 64];
+    let mut hits = [None; 64];
+    let mut block = BlockRays::default();
+    for by in (ty..y_end).step_by(PACKET_SIDE as usize) {
+        for bx in (tx..x_end).step_by(PACKET_SIDE as usize) {
+            let (bx_end, by_end) = ((bx + PACKET_SIDE).min(x_end), (by + PACKET_SIDE).min(y_end));
+            let (x0, y0) = map.pixel(bx, by);
+            let (x1, y1) = map.pixel(bx_end - 1, by_end - 1);
+            // Usually one eye's viewport holds the whole block; otherwise look per pixel.
+            let block_eye = eyes
+                .iter()
+                .find(|(viewport, _)| viewport.holds_block(x0, y0, x1 + 1, y1 + 1, map.pixels()));
+            // Cameras that blend several viewers make their rays four at a time.
+            let batched =
+                block_eye.filter(|(_, eye_rays)| !work.plain_pixels && eye_rays.batches_rays());
+            if batched.is_some() {
+                batch = [None; 64];
+            }
+            // A whole block of pixels seen from one lensless pinhole (or from several viewers'
+            // blended positions): its rays are made together, lane by lane.
+            let whole_block = !work.plain_pixels
+                && matches!(pixel_rays, PixelRays::All)
+                && bx_end - bx == PACKET_SIDE
+                && by_end - by == PACKET_SIDE;
+            let block_maker =
+                block_eye.filter(|(_, eye_rays)| whole_block && eye_rays.makes_block_rays());
+            for s in 0..samples {
+                let index = job.pass * samples + s;
+                let offset = jitter(index);
+                let lens = lens_sample(index);
+                let block_rays = block_maker.and_then(|(viewport, eye_rays)| {
+                    let (width, height) = (viewport.width as f32, viewport.height as f32);
+                    let mut s_lanes = [0.0; BLOCK_RAYS];
+                    let mut t_lanes = [0.0; BLOCK_RAYS];
+                    for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
+                        let (sx, sy) = (bx + dx, by + dy);
+                        if map.skips(sx, sy) {
+                            return None;
+                        }
+                        // As below, ray by ray.
+                        let (x, y) = map.pixel(sx, sy);
+                        s_lanes[lane] = ((x - viewport.x) as f32 + offset.x) / width;
+                        t_lanes[lane] = ((y - viewport.y) as f32 + offset.y) / height;
+                    }
+                    if !eye_rays.block_rays(&s_lanes, &t_lanes, &mut block) {
+                        return None;
+                    }
+                    for (lane, ray) in rays.iter_mut().enumerate() {
+                        *ray = traced(&block.ray(lane));
+                    }
+                    Some(eye_rays)
+                });
+                // Otherwise ray by ray.
+                let per_lane = if block_rays.is_some() {
+                    &[][..]
+                } else {
+                    &PACKET_ORDER[..]
+                };
+                for (lane, (dx, dy)) in per_lane.iter().enumerate() {
+                    let (sx, sy) = (bx + dx, by + dy);
+                    rays[lane] = NO_RAY;
+                    camera_rays[lane] = None;
+                    if sx >= x_end || sy >= y_end || map.skips(sx, sy) {
+                        continue;
+                    }
+                    let (x, y) = map.pixel(sx, sy);
+                    let eye = block_eye.or_else(|| {
+                        eyes.iter()
+                            .find(|(viewport, _)| viewport.holds(x, y, x + 1, y + 1))
+                    });
+                    let Some((viewport, eye_rays)) = eye else {
+                        continue;
+                    };
+                    let u = match pixel_rays {
+                        PixelRays::All => {
+                            ((x - viewport.x) as f32 + offset.x) / viewport.width as f32
+                        }
+                        // The subpixel as a pixel of a frame three times as wide.
+                        PixelRays::Subpixel(k) => {
+                            ((3 * (x - viewport.x) + k) as f32 + offset.x)
+                                / (3 * viewport.width) as f32
+                        }
+                    };
+                    let v = ((y - viewport.y) as f32 + offset.y) / viewport.height as f32;
+                    if batched.is_some() {
+                        batch[lane] = Some((u, v));
+                        continue;
+                    }
+                    let camera_ray = eye_rays.ray(u, v, lens);
+                    rays[lane] = traced(&camera_ray);
+                    camera_rays[lane] = Some((camera_ray, eye_rays));
+                }
+                if let Some((_, eye_rays)) = batched.filter(|_| block_rays.is_none()) {
+                    for (group, points) in batch.chunks_exact(4).enumerate() {
+                        if points.iter().all(Option::is_none) {
+                            continue;
+                        }
+                        let coordinate =
+                            |i: usize, of: fn((f32, f32)) -> f32| points[i].map_or(0.5, of);
+                        let generated = eye_rays.rays4(
+                            std::array::from_fn(|i| coordinate(i, |uv| uv.0)),
+                            std::array::from_fn(|i| coordinate(i, |uv| uv.1)),
+                            lens,
+                        );
+                        for (i, camera_ray) in generated.into_iter().enumerate() {
+                            let lane = group * 4 + i;
+                            if points[i].is_some() {
+                                rays[lane] = traced(&camera_ray);
+                                camera_rays[lane] = Some((camera_ray, eye_rays));
+                            }
+                        }
+                    }
+                }
+                let subpixels = matches!(pixel_rays, PixelRays::Subpixel(_));
+                if map.stride() >= SINGLE_RAY_STRIDE || subpixels || work.plain_pixels {
+                    // Sparse lattices make incoherent packets, and a light field's neighbouring
+                    // subpixels look from eyes centimetres apart: ray by ray is cheaper there.
+                    for (hit, ray) in hits.iter_mut().zip(&rays) {
+                        *hit = setup.scene.bvh.intersect(ray);
+                    }
+                } else {
+                    setup
+                        .scene
+                        .bvh
+                        .intersect_packet_with(&mut scratch.packets, &rays, &mut hits);
+                }
+                for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
+                    let camera = match block_rays {
+                        Some(eye_rays) => Some((block.ray(lane), eye_rays)),
+                        None => camera_rays[lane],
+                    };
+                    let Some((camera_ray, eye_rays)) = camera else {
+                        continue;
+                    };
+                    let (sx, sy) = (bx + dx, by + dy);
+                    let (x, y) = map.pixel(sx, sy);
+                    // The sample's position in the frame places the background image.
+                    let screen = || {
+                        Vec2::new(
+                            (x as f32 + offset.x) / setup.width as f32,
+                            (y as f32 + offset.y) / setup.height as f32,
+                        )
+                    };
+                    let k = ((sy - ty) * tile_width + sx - tx) as usize;
+                    covered[k] = true;
+                    if work.fast_surfaces {
+                        let (scene, settings) = (&setup.scene, &setup.settings);
+                        let (ray, hit) = (&rays[lane], hits[lane].as_ref());
+                        if s == 0 && keeps_hits {
+                            let sample = fast_surface_sample(
+                                scene,
+                                settings,
+                                ray,
+                                hit,
+                                screen,
+                                camera_ray.cyclopean,
+                            );
+                            colors[k] += sample.color;
+                            records.record(k, sample.hit.as_ref(), &camera_ray, eye_rays);
+                        } else {
+                            colors[k] += fast_surface_color(
+                                scene,
+                                settings,
+                                ray,
+                                hit,
+                                screen,
+                                camera_ray.cyclopean,
+                            );
+                        }
+                        continue;
+                    }
+                    let sample = shade_primary_at(
+                        &setup.scene,
+                        &setup.settings,
+                        &rays[lane],
+                        hits[lane],
+                        Some(screen()),
+                        camera_ray.cyclopean,
+                        &LightSampling::for_pixel(index, x, y),
+                    );
+                    colors[k] += sample.color;
+                    if s == 0 && keeps_hits {
+                        records.record(k, sample.hit.as_ref(), &camera_ray, eye_rays);
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn packet_quadrants_are_4x4_pixel_blocks() {
+        // Frustum packets cull leaves per quadrant of groups; that pays only if each quadrant
+        // is a compact 4x4 block of the 8x8 block's pixels.
+        for groups in crate::accel::QUADRANT_GROUPS {
+            let pixels: Vec<(u32, u32)> = groups
+                .iter()
+                .flat_map(|group| PACKET_ORDER[4 * group..4 * group + 4].iter().copied())
+                .collect();
+            let (x0, y0) = (pixels[0].0 / 4 * 4, pixels[0].1 / 4 * 4);
+            let mut expected: Vec<(u32, u32)> = (0..16).map(|i| (x0 + i % 4, y0 + i / 4)).collect();
+            let mut sorted = pixels.clone();
+            sorted.sort();
+            expected.sort();
+            assert_eq!(sorted, expected, "{groups:?}");
+        }
+    }
+}
