@@ -567,8 +567,9 @@ impl GeometryBvh {
     }
 
     /// Tests a leaf's primitives against the packet's `lanes`; lanes that hit get their
-    /// `t_max` shrunk and their slot written to `closest`. Triangles are tested one at a time
-    /// against the four rays, in slot order; spheres and tubes lane by lane with the
+    /// `t_max` shrunk and their slot written to `closest`. Triangles: with fewer rays than
+    /// triangles each ray tests the whole group at once, else each triangle the four rays, in
+    /// slot order (the same hits either way); spheres and tubes lane by lane with the
     /// single-ray routines.
     #[inline(always)]
     fn test_leaf_packet(
@@ -596,8 +597,25 @@ impl GeometryBvh {
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
                 let group = &groups[first as usize];
+                let base = first * GROUP_LANES as u32;
+                if lanes.count_ones() < count {
+                    // Fewer rays than triangles: each ray takes the whole group in one pass
+                    // (lanes = triangles), the single-ray test with the same hits.
+                    let mut remaining = lanes;
+                    while remaining != 0 {
+                        let lane = remaining.trailing_zeros() as usize;
+                        remaining &= remaining - 1;
+                        if let Some((hit_lane, t, bary)) =
+                            group_closest(group, count, &packet.ray(lane))
+                        {
+                            packet.record_hit(lane, t, bary, group.triangle(hit_lane).normal());
+                            closest[lane] = Some(base + hit_lane as u32);
+                        }
+                    }
+                    return;
+                }
                 for triangle_lane in 0..count as usize {
-                    let slot = first * GROUP_LANES as u32 + triangle_lane as u32;
+                    let slot = base + triangle_lane as u32;
                     let triangle = group.triangle(triangle_lane);
                     let mut hits = triangle_packet(&triangle, packet, lanes);
                     while hits != 0 {
@@ -618,6 +636,7 @@ impl GeometryBvh {
                     per_lane(packet, closest, slot, &|ray| {
                         tube_hit(tube, ray).map(|hit| hit.0)
                     });
+                }
             }
             PrimitiveData::Procedural(slots) => {
                 for slot in first..first + count {

@@ -662,6 +662,23 @@ impl SharedOrigin {
     }
 }
 
+/// Bit `c` of `bits` (c < 8) moved to bit `4c`.
+#[inline(always)]
+fn spread_bits(bits: u32) -> u32 {
+    let bits = (bits | (bits << 12)) & 0x000f_000f;
+    let bits = (bits | (bits << 6)) & 0x0303_0303;
+    (bits | (bits << 3)) & 0x1111_1111
+}
+
+/// Bit `4c` of `bits` moved to bit `c` (`spread_bits` undone); other bits are ignored.
+#[inline(always)]
+fn gather_bits(bits: u32) -> u32 {
+    let bits = bits & 0x1111_1111;
+    let bits = (bits | (bits >> 3)) & 0x0303_0303;
+    let bits = (bits | (bits >> 6)) & 0x000f_000f;
+    (bits | (bits >> 12)) & 0xff
+}
+
 /// Lanes of a 4-bit mask as a SIMD mask.
 #[inline(always)]
 fn lane_mask(lanes: u32) -> BVec4A {
@@ -1005,19 +1022,46 @@ fn walk_frustum<const SPREAD: bool, F, P>(
 {
     let rows = PlaneRows::new(frustum.octant_inv);
     let order = (7 ^ frustum.octant_inv) as usize;
-    let mut stack: TraversalStack<u32> = TraversalStack::new();
-    stack.push(0);
-    let quadrant_active = QUADRANT_GROUPS.map(|groups| {
-        groups
+    let quadrant_bounds = *own_bounds.map_or(&frustum.quadrants, |bounds| bounds.0);
+    let mut active_quadrants = 0u32;
+    for (quadrant, groups) in QUADRANT_GROUPS.iter().enumerate() {
+        if groups
             .iter()
             .any(|group| *group < frustum.group_count && active[*group] != 0)
-    });
+        {
+            active_quadrants |= 1 << quadrant;
+        }
+    }
+    // Nodes with the quadrants whose frustum reaches them: a subtree only some quadrants
+    // reach is culled with their (narrower) frusta alone.
+    let mut stack: TraversalStack<(u32, u32)> = TraversalStack::new();
+    stack.push((0, active_quadrants));
     let mut t_max_high = frustum.t_max_high(active);
-    while let Some(index) = stack.pop() {
+    while let Some((index, quadrants)) = stack.pop() {
         let node = &nodes[index as usize];
-        let whole_high = t_max_high.into_iter().fold(f32::NEG_INFINITY, f32::max);
-        let whole = own_bounds.map_or(&frustum.whole, |bounds| bounds.1);
-        let hits = frustum_child_hits::<SPREAD>(node, &rows, whole, whole_high);
+        // Per child slot (4 bits each, as `child_lane_masks`), the quadrants reaching it.
+        let mut quadrant_masks = 0u32;
+        if quadrants.count_ones() > 1 {
+            let whole_high = t_max_high.into_iter().fold(f32::NEG_INFINITY, f32::max);
+            let whole = own_bounds.map_or(&frustum.whole, |bounds| bounds.1);
+            if frustum_child_hits::<SPREAD>(node, &rows, whole, whole_high) == 0 {
+                continue;
+            }
+        }
+        let mut hits = 0u32;
+        let mut remaining = quadrants;
+        while remaining != 0 {
+            let quadrant = remaining.trailing_zeros() as usize;
+            remaining &= remaining - 1;
+            let reached = frustum_child_hits::<SPREAD>(
+                node,
+                &rows,
+                &quadrant_bounds[quadrant],
+                t_max_high[quadrant],
+            );
+            hits |= reached;
+            quadrant_masks |= spread_bits(reached) << quadrant;
+        }
         let mut leaves = 0u32;
         let mut inner = 0u32;
         let mut remaining = hits;
@@ -1035,17 +1079,7 @@ fn walk_frustum<const SPREAD: bool, F, P>(
         if leaves != 0 {
             let mut masks = [0u32; FRUSTUM_GROUPS];
             for (quadrant, groups) in QUADRANT_GROUPS.iter().enumerate() {
-                if !quadrant_active[quadrant] {
-                    continue;
-                }
-                let quadrant_leaves = leaves
-                    & frustum_child_hits::<SPREAD>(
-                        node,
-                        &rows,
-                        own_bounds
-                            .map_or(&frustum.quadrants[quadrant], |bounds| &bounds.0[quadrant]),
-                        t_max_high[quadrant],
-                    );
+                let quadrant_leaves = leaves & gather_bits(quadrant_masks >> quadrant);
                 if quadrant_leaves == 0 {
                     continue;
                 }
@@ -1077,7 +1111,8 @@ fn walk_frustum<const SPREAD: bool, F, P>(
         while remaining != 0 {
             let i = 31 - remaining.leading_zeros();
             remaining &= !(1 << i);
-            stack.push(node.children[i as usize ^ order]);
+            let slot = i as usize ^ order;
+            stack.push((node.children[slot], (quadrant_masks >> (4 * slot)) & 0xf));
         }
     }
 }

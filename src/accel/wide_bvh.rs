@@ -446,9 +446,15 @@ fn wide_node(
 ) -> (WideNode, InnerChildren) {
     let binary = &bvh2.nodes;
     let children = wide_children(bvh2, binary_index, may_be_leaf, sizing);
+    let mut boxes = children.as_slice().map_boxes(bvh2);
+    let mut partners = [NO_PARTNER; WIDTH];
+    let mut children = children;
+    if alignment == LeafAlignment::Group {
+        pair_small_leaves(&mut children, &mut boxes, &mut partners);
+    }
     let children = children.as_slice();
     let parent_box = *binary[binary_index].aabb();
-    let slots = assign_slots(bvh2, children, &parent_box);
+    let slots = assign_slots(&boxes[..children.len()], &parent_box);
     let mut node = WideNode::default();
     let mut inner_children = InnerChildren::new((0, 0));
     for (slot, &position) in slots.iter().enumerate() {
@@ -456,7 +462,7 @@ fn wide_node(
             continue;
         }
         let child = children[position as usize];
-        let child_box = binary[child.index as usize].aabb();
+        let child_box = boxes[position as usize];
         for axis in 0..3 {
             node.planes[2 * axis][slot] = child_box.min[axis];
             node.planes[2 * axis + 1][slot] = child_box.max[axis];
@@ -464,6 +470,10 @@ fn wide_node(
         if child.leaf_count.is_some() {
             let before = primitive_order.len();
             collect_primitives(bvh2, child.index as usize, primitive_order);
+            let partner = partners[position as usize];
+            if partner != NO_PARTNER {
+                collect_primitives(bvh2, partner as usize, primitive_order);
+            }
             let count = (primitive_order.len() - before) as u32;
             node.children[slot] = match alignment {
                 LeafAlignment::Packed => leaf_code(before as u32, count),
@@ -477,6 +487,76 @@ fn wide_node(
         }
     }
     (node, inner_children)
+}
+
+/// No second binary subtree shares the leaf (see [`pair_small_leaves`]).
+const NO_PARTNER: u32 = u32::MAX;
+
+trait CandidateBoxes {
+    /// The boxes of the candidates, in order (unused entries empty).
+    fn map_boxes(&self, bvh2: &Bvh2) -> [Aabb; WIDTH];
+}
+
+impl CandidateBoxes for [Candidate] {
+    fn map_boxes(&self, bvh2: &Bvh2) -> [Aabb; WIDTH] {
+        let mut boxes = [Aabb::empty(); WIDTH];
+        for (aabb, child) in boxes.iter_mut().zip(self) {
+            *aabb = *bvh2.nodes[child.index as usize].aabb();
+        }
+        boxes
+    }
+}
+
+/// Joins sibling leaves whose primitives fit one group of four into one leaf (box: their
+/// union), the pair whose union has the smallest surface area first, so that triangle groups
+/// are fuller: fewer padding lanes and fewer leaves to test. `partners[i]` receives the binary
+/// node whose primitives follow those of candidate `i` in its leaf.
+fn pair_small_leaves(
+    children: &mut Candidates,
+    boxes: &mut [Aabb; WIDTH],
+    partners: &mut [u32; WIDTH],
+) {
+    // A wide node keeps at least two children.
+    while children.len > 2 {
+        let mut best: Option<(usize, usize, f32)> = None;
+        let list = children.as_slice();
+        for i in 0..list.len() {
+            let Some(first) = list[i].leaf_count else {
+                continue;
+            };
+            for j in i + 1..list.len() {
+                let Some(second) = list[j].leaf_count else {
+                    continue;
+                };
+                if first + second > MAX_PRIMS_PER_LEAF
+                    || partners[i] != NO_PARTNER
+                    || partners[j] != NO_PARTNER
+                {
+                    continue;
+                }
+                let area = boxes[i].union(&boxes[j]).half_area();
+                if best.is_none_or(|(_, _, best_area)| area < best_area) {
+                    best = Some((i, j, area));
+                }
+            }
+        }
+        let Some((i, j, _)) = best else {
+            return;
+        };
+        let (first, second) = (list[i], list[j]);
+        // Candidate `j` moves into `i`'s leaf; the last candidate takes `j`'s place.
+        let last = children.len - 1;
+        boxes[i] = boxes[i].union(&boxes[j]);
+        children.entries[i].leaf_count =
+            Some(first.leaf_count.unwrap_or(0) + second.leaf_count.unwrap_or(0));
+        partners[i] = second.index;
+        children.entries[j] = children.entries[last];
+        boxes[j] = boxes[last];
+        partners[j] = partners[last];
+        partners[last] = NO_PARTNER;
+        boxes[last] = Aabb::empty();
+        children.len = last;
+    }
 }
 
 /// The number of primitives below binary node `index` if it fits in one leaf (at most
@@ -618,14 +698,14 @@ fn wide_children(bvh2: &Bvh2, index: usize, may_be_leaf: bool, sizing: LeafSizin
 /// `slot ^ (7 - o)` visits near children first: slot `s` prefers the child that comes first
 /// along the direction whose signs are the bits of `s` (set = negative). Returns, per slot,
 /// the position of its child in `children` or [`EMPTY_SLOT`].
-fn assign_slots(bvh2: &Bvh2, children: &[Candidate], parent: &Aabb) -> [u8; WIDTH] {
+fn assign_slots(children: &[Aabb], parent: &Aabb) -> [u8; WIDTH] {
     let centre = parent.center();
     // costs[child][slot]: how far along slot's direction the child's centre lies, i.e. the dot
     // product of the offset with (+-1, +-1, +-1) summed as (x + y) + z, as `Vec3A::dot`
     // rounds it (the negations are exact).
     let mut costs = [[f32::INFINITY; WIDTH]; WIDTH];
     for (child, row) in children.iter().zip(costs.iter_mut()) {
-        let offset = bvh2.nodes[child.index as usize].aabb().center() - centre;
+        let offset = child.center() - centre;
         let y = Vec4::new(offset.y, offset.y, -offset.y, -offset.y);
         let z = Vec4::new(offset.z, -offset.z, offset.z, -offset.z);
         (Vec4::splat(offset.x) + y + z).write_to_slice(&mut row[..4]);
