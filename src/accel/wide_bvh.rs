@@ -259,8 +259,25 @@ struct Candidate {
     /// Index into the binary BVH's nodes.
     index: u32,
     half_area: f32,
-    /// Number of primitives below, if small enough for one leaf.
+    /// Number of primitives below, if small enough for one leaf (with the partners').
     leaf_count: Option<u32>,
+    /// The box (with the partners').
+    aabb: Aabb,
+    /// Binary subtrees sharing its leaf (see [`pair_small_leaves`]).
+    partners: Partners,
+}
+
+impl Candidate {
+    fn of(bvh2: &Bvh2, index: usize, leaf_count: Option<u32>) -> Candidate {
+        let aabb = *bvh2.nodes[index].aabb();
+        Candidate {
+            index: index as u32,
+            half_area: aabb.half_area(),
+            leaf_count,
+            aabb,
+            partners: Partners::default(),
+        }
+    }
 }
 
 /// Up to eight values (a wide node's children) without heap allocation.
@@ -445,16 +462,10 @@ fn wide_node(
     primitive_order: &mut Vec<u32>,
 ) -> (WideNode, InnerChildren) {
     let binary = &bvh2.nodes;
-    let children = wide_children(bvh2, binary_index, may_be_leaf, sizing);
-    let mut boxes = children.as_slice().map_boxes(bvh2);
-    let mut partners = [NO_PARTNER; WIDTH];
-    let mut children = children;
-    if alignment == LeafAlignment::Group {
-        pair_small_leaves(&mut children, &mut boxes, &mut partners);
-    }
+    let children = wide_children(bvh2, binary_index, may_be_leaf, sizing, alignment);
     let children = children.as_slice();
     let parent_box = *binary[binary_index].aabb();
-    let slots = assign_slots(&boxes[..children.len()], &parent_box);
+    let slots = assign_slots(children, &parent_box);
     let mut node = WideNode::default();
     let mut inner_children = InnerChildren::new((0, 0));
     for (slot, &position) in slots.iter().enumerate() {
@@ -462,7 +473,7 @@ fn wide_node(
             continue;
         }
         let child = children[position as usize];
-        let child_box = boxes[position as usize];
+        let child_box = child.aabb;
         for axis in 0..3 {
             node.planes[2 * axis][slot] = child_box.min[axis];
             node.planes[2 * axis + 1][slot] = child_box.max[axis];
@@ -470,8 +481,7 @@ fn wide_node(
         if child.leaf_count.is_some() {
             let before = primitive_order.len();
             collect_primitives(bvh2, child.index as usize, primitive_order);
-            let partner = partners[position as usize];
-            if partner != NO_PARTNER {
+            for &partner in &child.partners.indices[..child.partners.len] {
                 collect_primitives(bvh2, partner as usize, primitive_order);
             }
             let count = (primitive_order.len() - before) as u32;
@@ -489,74 +499,58 @@ fn wide_node(
     (node, inner_children)
 }
 
-/// No second binary subtree shares the leaf (see [`pair_small_leaves`]).
-const NO_PARTNER: u32 = u32::MAX;
-
-trait CandidateBoxes {
-    /// The boxes of the candidates, in order (unused entries empty).
-    fn map_boxes(&self, bvh2: &Bvh2) -> [Aabb; WIDTH];
+/// Binary subtrees sharing a leaf with a candidate (see [`pair_small_leaves`]): each leaf
+/// holds at least one primitive, so at most three join a candidate's.
+#[derive(Clone, Copy, Default)]
+struct Partners {
+    indices: [u32; MAX_PRIMS_PER_LEAF as usize - 1],
+    len: usize,
 }
 
-impl CandidateBoxes for [Candidate] {
-    fn map_boxes(&self, bvh2: &Bvh2) -> [Aabb; WIDTH] {
-        let mut boxes = [Aabb::empty(); WIDTH];
-        for (aabb, child) in boxes.iter_mut().zip(self) {
-            *aabb = *bvh2.nodes[child.index as usize].aabb();
-        }
-        boxes
-    }
-}
-
-/// Joins sibling leaves whose primitives fit one group of four into one leaf (box: their
-/// union), the pair whose union has the smallest surface area first, so that triangle groups
-/// are fuller: fewer padding lanes and fewer leaves to test. `partners[i]` receives the binary
-/// node whose primitives follow those of candidate `i` in its leaf.
-fn pair_small_leaves(
-    children: &mut Candidates,
-    boxes: &mut [Aabb; WIDTH],
-    partners: &mut [u32; WIDTH],
-) {
-    // A wide node keeps at least two children.
-    while children.len > 2 {
-        let mut best: Option<(usize, usize, f32)> = None;
-        let list = children.as_slice();
-        for i in 0..list.len() {
-            let Some(first) = list[i].leaf_count else {
+/// Joins the two sibling leaves whose primitives fit one group of four and whose union has the
+/// smallest surface area into one leaf (box: their union), so that triangle groups are fuller
+/// (fewer padding lanes, fewer leaves) and a slot is freed. Returns whether a pair was found.
+fn pair_small_leaves(children: &mut Candidates) -> bool {
+    let list = children.as_slice();
+    let mut best: Option<(usize, usize, f32)> = None;
+    for i in 0..list.len() {
+        let Some(first) = list[i].leaf_count else {
+            continue;
+        };
+        for j in i + 1..list.len() {
+            let Some(second) = list[j].leaf_count else {
                 continue;
             };
-            for j in i + 1..list.len() {
-                let Some(second) = list[j].leaf_count else {
-                    continue;
-                };
-                if first + second > MAX_PRIMS_PER_LEAF
-                    || partners[i] != NO_PARTNER
-                    || partners[j] != NO_PARTNER
-                {
-                    continue;
-                }
-                let area = boxes[i].union(&boxes[j]).half_area();
-                if best.is_none_or(|(_, _, best_area)| area < best_area) {
-                    best = Some((i, j, area));
-                }
+            if first + second > MAX_PRIMS_PER_LEAF {
+                continue;
+            }
+            let area = list[i].aabb.union(&list[j].aabb).half_area();
+            if best.is_none_or(|(_, _, best_area)| area < best_area) {
+                best = Some((i, j, area));
             }
         }
-        let Some((i, j, _)) = best else {
-            return;
-        };
-        let (first, second) = (list[i], list[j]);
-        // Candidate `j` moves into `i`'s leaf; the last candidate takes `j`'s place.
-        let last = children.len - 1;
-        boxes[i] = boxes[i].union(&boxes[j]);
-        children.entries[i].leaf_count =
-            Some(first.leaf_count.unwrap_or(0) + second.leaf_count.unwrap_or(0));
-        partners[i] = second.index;
-        children.entries[j] = children.entries[last];
-        boxes[j] = boxes[last];
-        partners[j] = partners[last];
-        partners[last] = NO_PARTNER;
-        boxes[last] = Aabb::empty();
-        children.len = last;
     }
+    let Some((i, j, area)) = best else {
+        return false;
+    };
+    let second = list[j];
+    let first = &mut children.entries[i];
+    first.aabb = first.aabb.union(&second.aabb);
+    first.half_area = area;
+    first.leaf_count = Some(first.leaf_count.unwrap_or(0) + second.leaf_count.unwrap_or(0));
+    let joined = &mut first.partners;
+    for index in std::iter::once(second.index).chain(
+        second.partners.indices[..second.partners.len]
+            .iter()
+            .copied(),
+    ) {
+        joined.indices[joined.len] = index;
+        joined.len += 1;
+    }
+    // The last candidate takes `j`'s place.
+    children.len -= 1;
+    children.entries[j] = children.entries[children.len];
+    true
 }
 
 /// The number of primitives below binary node `index` if it fits in one leaf (at most
@@ -626,11 +620,8 @@ fn prefetch_pair(nodes: &[Bvh2Node], first: usize) {
 #[inline(always)]
 fn candidate_pair(bvh2: &Bvh2, first: usize) -> [Candidate; 2] {
     let binary = &bvh2.nodes;
-    let candidates = [first, first + 1].map(|index| Candidate {
-        index: index as u32,
-        half_area: binary[index].aabb().half_area(),
-        leaf_count: leaf_sized_count(bvh2, index),
-    });
+    let candidates =
+        [first, first + 1].map(|index| Candidate::of(bvh2, index, leaf_sized_count(bvh2, index)));
     for candidate in &candidates {
         if candidate.leaf_count.is_none() {
             let children = binary[candidate.index as usize].first_index as usize;
@@ -646,33 +637,36 @@ fn candidate_pair(bvh2: &Bvh2, first: usize) -> [Candidate; 2] {
 
 /// Up to eight binary descendants that become the children of one wide node, each with its
 /// primitive count if it is small enough to be a leaf.
-fn wide_children(bvh2: &Bvh2, index: usize, may_be_leaf: bool, sizing: LeafSizing) -> Candidates {
+fn wide_children(
+    bvh2: &Bvh2,
+    index: usize,
+    may_be_leaf: bool,
+    sizing: LeafSizing,
+    alignment: LeafAlignment,
+) -> Candidates {
     let binary = &bvh2.nodes;
     let node = &binary[index];
-    let mut children = Candidates::new(Candidate {
-        index: 0,
-        half_area: 0.0,
-        leaf_count: None,
-    });
+    let mut children = Candidates::new(Candidate::of(bvh2, 0, None));
     if may_be_leaf && let Some(count) = leaf_sized_count(bvh2, index) {
         // Only for a tiny root: a single leaf child.
-        children.push(Candidate {
-            index: index as u32,
-            half_area: 0.0,
-            leaf_count: Some(count),
-        });
+        children.push(Candidate::of(bvh2, index, Some(count)));
         return children;
     }
+    // Grouped leaves share groups: small sibling leaves are joined, to free a slot for a
+    // subtree still to open, and at the end to fill the groups.
+    let join_leaves = alignment == LeafAlignment::Group;
     let [first, second] = candidate_pair(bvh2, node.first_index as usize);
     children.push(first);
     children.push(second);
-    while children.len < WIDTH {
+    loop {
         // Open the largest subtree too large for a leaf; with spare slots and
         // `LeafSizing::Split`, then the largest one that fits a leaf.
         let mut best: Option<(usize, bool, f32)> = None;
         for (position, child) in children.as_slice().iter().enumerate() {
             let must_open = child.leaf_count.is_none();
-            if binary[child.index as usize].is_leaf() || (!must_open && sizing == LeafSizing::Whole)
+            if binary[child.index as usize].is_leaf()
+                || child.partners.len > 0
+                || (!must_open && sizing == LeafSizing::Whole)
             {
                 continue;
             }
@@ -683,14 +677,30 @@ fn wide_children(bvh2: &Bvh2, index: usize, may_be_leaf: bool, sizing: LeafSizin
                 best = Some((position, must_open, child.half_area));
             }
         }
-        let Some((position, _, _)) = best else {
+        let Some((mut position, must_open, _)) = best else {
             break;
         };
+        if children.len == WIDTH {
+            let chosen = children.entries[position].index;
+            if !(must_open && join_leaves && pair_small_leaves(&mut children)) {
+                break;
+            }
+            // Joining moved candidates (never the chosen one, which is no leaf).
+            let Some(moved) = children
+                .as_slice()
+                .iter()
+                .position(|child| child.index == chosen)
+            else {
+                break;
+            };
+            position = moved;
+        }
         let opened = binary[children.entries[position].index as usize].first_index as usize;
         let [first, second] = candidate_pair(bvh2, opened);
         children.entries[position] = first;
         children.push(second);
     }
+    while join_leaves && children.len > 2 && pair_small_leaves(&mut children) {}
     children
 }
 
@@ -698,14 +708,14 @@ fn wide_children(bvh2: &Bvh2, index: usize, may_be_leaf: bool, sizing: LeafSizin
 /// `slot ^ (7 - o)` visits near children first: slot `s` prefers the child that comes first
 /// along the direction whose signs are the bits of `s` (set = negative). Returns, per slot,
 /// the position of its child in `children` or [`EMPTY_SLOT`].
-fn assign_slots(children: &[Aabb], parent: &Aabb) -> [u8; WIDTH] {
+fn assign_slots(children: &[Candidate], parent: &Aabb) -> [u8; WIDTH] {
     let centre = parent.center();
     // costs[child][slot]: how far along slot's direction the child's centre lies, i.e. the dot
     // product of the offset with (+-1, +-1, +-1) summed as (x + y) + z, as `Vec3A::dot`
     // rounds it (the negations are exact).
     let mut costs = [[f32::INFINITY; WIDTH]; WIDTH];
     for (child, row) in children.iter().zip(costs.iter_mut()) {
-        let offset = child.center() - centre;
+        let offset = child.aabb.center() - centre;
         let y = Vec4::new(offset.y, offset.y, -offset.y, -offset.y);
         let z = Vec4::new(offset.z, -offset.z, offset.z, -offset.z);
         (Vec4::splat(offset.x) + y + z).write_to_slice(&mut row[..4]);
