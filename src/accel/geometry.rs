@@ -514,10 +514,12 @@ impl GeometryBvh {
                 while groups != 0 {
                     let group = groups.trailing_zeros() as usize;
                     groups &= groups - 1;
+                    let candidates = self.leaf_candidates(code, frustum, group, lanes[group]);
                     self.test_leaf_packet(
                         code,
                         &mut frustum.groups[group],
                         lanes[group],
+                        candidates,
                         &mut closest_by_group[group],
                     );
                 }
@@ -535,8 +537,30 @@ impl GeometryBvh {
         closest: &mut [Option<u32>; LANES],
     ) {
         traverse_packet(&self.nodes, packet, lanes, |code, lanes, packet| {
-            self.test_leaf_packet(code, packet, lanes, closest);
+            self.test_leaf_packet(code, packet, lanes, u32::MAX, closest);
         });
+    }
+
+    /// The primitives of a leaf (bit per slot from its first) worth testing against the `lanes`
+    /// of a frustum packet's `group`: a triangle group's triangles whose boxes those rays may
+    /// reach, when that can spare triangle tests; every primitive otherwise.
+    #[inline(always)]
+    fn leaf_candidates(
+        &self,
+        code: u32,
+        frustum: &FrustumPacket,
+        group: usize,
+        lanes: u32,
+    ) -> u32 {
+        let (first, count) = leaf_range(code);
+        match &self.primitives {
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups)
+                if count > 1 && lanes.count_ones() > 1 =>
+            {
+                frustum.triangle_candidates(group, lanes, &groups[first as usize], count)
+            }
+            _ => u32::MAX,
+        }
     }
 
     /// Starts loading the primitives of a leaf.
@@ -567,7 +591,8 @@ impl GeometryBvh {
     }
 
     /// Tests a leaf's primitives against the packet's `lanes`; lanes that hit get their
-    /// `t_max` shrunk and their slot written to `closest`. Triangles: with fewer rays than
+    /// `t_max` shrunk and their slot written to `closest`. Triangles: only the `candidates`
+    /// (bit per triangle of the group; the others no lane can hit); with fewer rays than such
     /// triangles each ray tests the whole group at once, else each triangle the four rays, in
     /// slot order (the same hits either way); spheres and tubes lane by lane with the
     /// single-ray routines.
@@ -577,6 +602,7 @@ impl GeometryBvh {
         code: u32,
         packet: &mut RayPacket,
         lanes: u32,
+        candidates: u32,
         closest: &mut [Option<u32>; LANES],
     ) {
         let (first, count) = leaf_range(code);
@@ -598,7 +624,11 @@ impl GeometryBvh {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
                 let group = &groups[first as usize];
                 let base = first * GROUP_LANES as u32;
-                if lanes.count_ones() < count {
+                let mut triangles = candidates & ((1 << count) - 1);
+                if triangles == 0 {
+                    return;
+                }
+                if lanes.count_ones() < triangles.count_ones() {
                     // Fewer rays than triangles: each ray takes the whole group in one pass
                     // (lanes = triangles), the single-ray test with the same hits.
                     let mut remaining = lanes;
@@ -614,7 +644,9 @@ impl GeometryBvh {
                     }
                     return;
                 }
-                for triangle_lane in 0..count as usize {
+                while triangles != 0 {
+                    let triangle_lane = triangles.trailing_zeros() as usize;
+                    triangles &= triangles - 1;
                     let slot = base + triangle_lane as u32;
                     let triangle = group.triangle(triangle_lane);
                     let mut hits = triangle_packet(&triangle, packet, lanes);

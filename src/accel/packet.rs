@@ -15,7 +15,7 @@
 //! ray by ray by the callers.
 
 use crate::accel::geometry::prepare as prepare_one;
-use crate::accel::primitives::{PackedTriangle, triangle_t_uv};
+use crate::accel::primitives::{PackedTriangle, TriangleGroup, triangle_t_uv};
 use crate::accel::wide_bvh::{
     BoxRay, LEAF_BIT, MAX_INV_DIRECTION, ORDER, SLAB_ERROR, TraversalRay, TraversalStack, WideNode,
     child_hits, prefetch,
@@ -599,8 +599,8 @@ impl RayBounds {
     }
 }
 
-/// Ray bounds of the `active` lanes of `groups`, per quadrant and over all of them, written in
-/// place (they are large, and this runs for every packet).
+/// Ray bounds of the `active` lanes of `groups`, per quadrant and over all of them (and, when
+/// asked, per group), written in place (they are large, and this runs for every packet).
 #[inline]
 fn bounds_into(
     groups: &[RayPacket],
@@ -608,6 +608,7 @@ fn bounds_into(
     shared_origin: Option<Vec3A>,
     quadrants: &mut [RayBounds; QUADRANTS],
     whole: &mut RayBounds,
+    mut per_group: Option<&mut [RayBounds; FRUSTUM_GROUPS]>,
 ) {
     *whole = RayBounds::EMPTY;
     for (quadrant, members) in quadrants.iter_mut().zip(QUADRANT_GROUPS) {
@@ -618,6 +619,9 @@ fn bounds_into(
             {
                 let bounds = RayBounds::of_group(packet, active[group], shared_origin);
                 *quadrant = quadrant.union(bounds);
+                if let Some(per_group) = per_group.as_deref_mut() {
+                    per_group[group] = bounds.finished();
+                }
             }
         }
         *whole = whole.union(*quadrant);
@@ -718,6 +722,8 @@ pub(crate) struct FrustumPacket {
     pub group_count: usize,
     whole: RayBounds,
     quadrants: [RayBounds; QUADRANTS],
+    /// Bounds of every lane of each group, to cull a leaf's triangles before a group tests them.
+    group_bounds: [RayBounds; FRUSTUM_GROUPS],
     octant_inv: u32,
 }
 
@@ -745,6 +751,7 @@ impl FrustumPacket {
             group_count: 0,
             whole: RayBounds::EMPTY,
             quadrants: [RayBounds::EMPTY; QUADRANTS],
+            group_bounds: [RayBounds::EMPTY; FRUSTUM_GROUPS],
             octant_inv: 0,
         }
     }
@@ -836,6 +843,7 @@ impl FrustumPacket {
             shared_origin,
             &mut self.quadrants,
             &mut self.whole,
+            Some(&mut self.group_bounds),
         );
     }
 
@@ -849,6 +857,7 @@ impl FrustumPacket {
             None,
             &mut quadrants,
             &mut whole,
+            None,
         );
         (quadrants, whole)
     }
@@ -899,6 +908,39 @@ impl FrustumPacket {
             high.max_element()
         })
     }
+
+    /// Lanes of a leaf's `triangles` (the first `count`) whose box some of the `lanes` of
+    /// group `group` may reach within their intervals: the others cannot be hit by these rays
+    /// (conservative as [`frustum_child_hits`]), so they need not be tested.
+    #[inline(always)]
+    pub fn triangle_candidates(
+        &self,
+        group: usize,
+        lanes: u32,
+        triangles: &TriangleGroup,
+        count: u32,
+    ) -> u32 {
+        let packet = &self.groups[group];
+        let t_high = Vec4::select(lane_mask(lanes), packet.t_max, Vec4::NEG_INFINITY).max_element();
+        let bounds = &self.group_bounds[group];
+        let rows = PlaneRows::new(self.octant_inv);
+        let [a, b, c] = &triangles.vertices;
+        let low: [Vec4; 3] = std::array::from_fn(|axis| a[axis].min(b[axis]).min(c[axis]));
+        let high: [Vec4; 3] = std::array::from_fn(|axis| a[axis].max(b[axis]).max(c[axis]));
+        // Even plane rows are minima, odd ones maxima (see `WideNode::planes`).
+        let plane = |row: usize, axis: usize| if row % 2 == 0 { low[axis] } else { high[axis] };
+        let entry = std::array::from_fn(|axis| plane(rows.entry[axis], axis));
+        let exit = std::array::from_fn(|axis| plane(rows.exit[axis], axis));
+        let reached = frustum_box_hits(
+            &entry,
+            &exit,
+            bounds,
+            bounds.widening,
+            bounds.t_min_low,
+            t_high,
+        );
+        reached & ((1 << count) - 1)
+    }
 }
 
 /// Children of a node that some ray within `bounds` may reach within
@@ -916,8 +958,39 @@ fn frustum_child_hits<const SPREAD: bool>(
     bounds: &RayBounds,
     t_max_high: f32,
 ) -> u32 {
-    let mut near = [Vec4::splat(bounds.t_min_low); 2];
-    let mut far = [Vec4::splat(t_max_high); 2];
+    let widening = if SPREAD { bounds.widening } else { Vec3A::ZERO };
+    let mut mask = 0;
+    for half in 0..2 {
+        let lanes = 4 * half..4 * half + 4;
+        let plane = |row: usize| Vec4::from_slice(&node.planes[row][lanes.clone()]);
+        let entry = rows.entry.map(plane);
+        let exit = rows.exit.map(plane);
+        let reached = frustum_box_hits(
+            &entry,
+            &exit,
+            bounds,
+            widening,
+            bounds.t_min_low,
+            t_max_high,
+        );
+        mask |= reached << (4 * half);
+    }
+    mask
+}
+
+/// [`frustum_child_hits`] for four boxes given by their entry and exit planes per axis, with
+/// `widening` for the spread of the origins (zero when they all start at the centre).
+#[inline(always)]
+fn frustum_box_hits(
+    entry: &[Vec4; 3],
+    exit: &[Vec4; 3],
+    bounds: &RayBounds,
+    widening: Vec3A,
+    t_low: f32,
+    t_high: f32,
+) -> u32 {
+    let mut near = Vec4::splat(t_low);
+    let mut far = Vec4::splat(t_high);
     let error = Vec4::splat(SLAB_ERROR);
     let twice_error = Vec4::splat(2.0 * SLAB_ERROR);
     for axis in 0..3 {
@@ -926,28 +999,20 @@ fn frustum_child_hits<const SPREAD: bool>(
             Vec4::splat(bounds.inv_high[axis]),
         );
         let origin = Vec4::splat(bounds.origin_centre[axis]);
-        let widening = Vec4::splat(if SPREAD { bounds.widening[axis] } else { 0.0 });
-        for half in 0..2 {
-            let lanes = 4 * half..4 * half + 4;
-            let entry = Vec4::from_slice(&node.planes[rows.entry[axis]][lanes.clone()]) - origin;
-            let exit = Vec4::from_slice(&node.planes[rows.exit[axis]][lanes]) - origin;
-            let (entry_low, entry_high) = (entry * inv_low, entry * inv_high);
-            let (exit_low, exit_high) = (exit * inv_low, exit * inv_high);
-            let entry_margin =
-                (entry_low.abs().max(entry_high.abs()) + widening) * twice_error + widening;
-            let exit_margin =
-                (exit_low.abs().max(exit_high.abs()) + widening) * twice_error + widening;
-            near[half] = near[half].max(entry_low.min(entry_high) - entry_margin);
-            far[half] = far[half].min(exit_low.max(exit_high) + exit_margin);
-        }
+        let widening = Vec4::splat(widening[axis]);
+        let entry = entry[axis] - origin;
+        let exit = exit[axis] - origin;
+        let (entry_low, entry_high) = (entry * inv_low, entry * inv_high);
+        let (exit_low, exit_high) = (exit * inv_low, exit * inv_high);
+        let entry_margin =
+            (entry_low.abs().max(entry_high.abs()) + widening) * twice_error + widening;
+        let exit_margin = (exit_low.abs().max(exit_high.abs()) + widening) * twice_error + widening;
+        near = near.max(entry_low.min(entry_high) - entry_margin);
+        far = far.min(exit_low.max(exit_high) + exit_margin);
     }
-    let mut mask = 0;
-    for half in 0..2 {
-        let near = near[half] - near[half].abs() * error;
-        let far = far[half] + far[half].abs() * error;
-        mask |= near.cmple(far).bitmask() << (4 * half);
-    }
-    mask
+    let near = near - near.abs() * error;
+    let far = far + far.abs() * error;
+    near.cmple(far).bitmask()
 }
 
 /// Most distinct ray origins a frustum packet is split into before it is traced as one frustum
