@@ -1150,13 +1150,7 @@ fn walk_frustum<const SPREAD: bool, F, P>(
                 }
                 for &group in groups {
                     if group < frustum.group_count && active[group] != 0 {
-                        masks[group] = child_lane_masks(
-                            node,
-                            &rows,
-                            &frustum.groups[group],
-                            active[group],
-                            quadrant_leaves,
-                        );
+                        masks[group] = spread_bits(quadrant_leaves) * active[group];
                     }
                 }
             }
