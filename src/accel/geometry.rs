@@ -545,13 +545,7 @@ impl GeometryBvh {
     /// of a frustum packet's `group`: a triangle group's triangles whose boxes those rays may
     /// reach, when that can spare triangle tests; every primitive otherwise.
     #[inline(always)]
-    fn leaf_candidates(
-        &self,
-        code: u32,
-        frustum: &FrustumPacket,
-        group: usize,
-        lanes: u32,
-    ) -> u32 {
+    fn leaf_candidates(&self, code: u32, frustum: &FrustumPacket, group: usize, lanes: u32) -> u32 {
         let (first, count) = leaf_range(code);
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups)

@@ -6,8 +6,9 @@
 //! * [`FrustumPacket`]: up to sixteen such groups (an 8x8 tile). Inner nodes are culled once
 //!   for the whole tile with interval arithmetic over the rays' inverse directions and origins
 //!   (one shared eye point, or each ray its own: several viewers, a matrix camera's near
-//!   plane), leaf boxes once per quadrant of four groups the same way; only then are leaf
-//!   boxes and primitives tested per group, each lane with its own origin.
+//!   plane), inner nodes and leaf boxes also per quadrant of four groups the same way; only
+//!   then are leaf boxes tested per group, each lane with its own origin, and a leaf's
+//!   triangles culled by their boxes against the group's bounds before the group tests them.
 //!
 //! Triangles are tested against four rays with the same watertight arithmetic as the
 //! single-ray path, lane by lane in the same operation order, so every ray gets a
@@ -1150,7 +1151,13 @@ fn walk_frustum<const SPREAD: bool, F, P>(
                 }
                 for &group in groups {
                     if group < frustum.group_count && active[group] != 0 {
-                        masks[group] = spread_bits(quadrant_leaves) * active[group];
+                        masks[group] = child_lane_masks(
+                            node,
+                            &rows,
+                            &frustum.groups[group],
+                            active[group],
+                            quadrant_leaves,
+                        );
                     }
                 }
             }
