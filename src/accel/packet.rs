@@ -929,7 +929,13 @@ impl FrustumPacket {
         let low: [Vec4; 3] = std::array::from_fn(|axis| a[axis].min(b[axis]).min(c[axis]));
         let high: [Vec4; 3] = std::array::from_fn(|axis| a[axis].max(b[axis]).max(c[axis]));
         // Even plane rows are minima, odd ones maxima (see `WideNode::planes`).
-        let plane = |row: usize, axis: usize| if row % 2 == 0 { low[axis] } else { high[axis] };
+        let plane = |row: usize, axis: usize| {
+            if row.is_multiple_of(2) {
+                low[axis]
+            } else {
+                high[axis]
+            }
+        };
         let entry = std::array::from_fn(|axis| plane(rows.entry[axis], axis));
         let exit = std::array::from_fn(|axis| plane(rows.exit[axis], axis));
         let reached = frustum_box_hits(
