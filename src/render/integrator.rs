@@ -314,17 +314,18 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     }
 }
 
-/// How a ray started, which decides what it sees where it leaves the scene.
+/// How a ray started, which decides which lights it sees: where it leaves the scene, and the
+/// lights with extent it meets on the way.
 #[derive(Clone, Copy)]
 enum Leaving {
     /// A camera ray, or one that continues it straight through a transparent surface: the
-    /// environment lights that are `visible`, in the background's place.
+    /// lights that are `visible`, environments in the background's place.
     Camera,
-    /// A mirror reflection or a refraction: every environment light, in the background's
+    /// A mirror reflection or a refraction: every light, environments in the background's
     /// place.
     Mirror,
     /// A reflection drawn from a glossy lobe: as a mirror's, each environment light weighed
-    /// against its light samples.
+    /// against its light samples; no light with extent (its light samples stand for it).
     Lobe(Lobe),
 }
 
@@ -360,11 +361,19 @@ fn leaving_scene(
     }
 }
 
-/// The radiance of the nearest visible light with extent in the scene (a sphere, quad or ring
-/// light) that a camera ray meets before `t_end`.
-fn visible_light_in_front(scene: &SceneSnapshot, ray: &Ray, t_end: f32) -> Option<Vec3> {
+/// The radiance of the nearest light with extent in the scene (a sphere, quad or ring light)
+/// that a ray started as `leaving` says meets before `t_end`: a camera ray sees the `visible`
+/// ones, a mirror reflection or refraction every one (for a delta lobe this is the light's only
+/// way in, as light samples cannot reach it), a glossy reflection none (its light samples
+/// already count these lights, see [`Lobe`]).
+fn light_in_front(scene: &SceneSnapshot, ray: &Ray, t_end: f32, leaving: &Leaving) -> Option<Vec3> {
+    let seen = |light: &&Light| match leaving {
+        Leaving::Camera => light.visible(),
+        Leaving::Mirror => true,
+        Leaving::Lobe(_) => false,
+    };
     let mut nearest: Option<(f32, Vec3)> = None;
-    for light in scene.lights.iter().filter(|light| light.visible()) {
+    for light in scene.lights.iter().filter(seen) {
         let t_max = nearest.map_or(t_end, |(t, _)| t);
         if let Some(found) = light.hit_by(ray.origin, ray.direction, t_max) {
             nearest = Some(found);
@@ -447,12 +456,12 @@ fn trace_seeing(
     if let Some(volume) = volume.filter(|v| v.transmittance == 0.0) {
         return volume.over(Vec4::ZERO);
     }
-    let light = match leaving {
-        Leaving::Camera => {
-            visible_light_in_front(scene, ray, hit.as_ref().map_or(ray.t_max, |h| h.t))
-        }
-        _ => None,
-    };
+    let light = light_in_front(
+        scene,
+        ray,
+        hit.as_ref().map_or(ray.t_max, |h| h.t),
+        &leaving,
+    );
     let behind = match (light, hit) {
         (Some(radiance), _) => radiance.extend(1.0),
         (None, None) => leaving_scene(scene, settings, ray.direction, screen, leaving, beyond),
@@ -1123,8 +1132,12 @@ fn shade_surface_primary(
     // A visible light with extent in front of the surface shows instead (no channel
     // describes it, as none describes the background).
     if !settings.fast
-        && let Some(radiance) =
-            visible_light_in_front(scene, ray, hit.as_ref().map_or(ray.t_max, |h| h.t))
+        && let Some(radiance) = light_in_front(
+            scene,
+            ray,
+            hit.as_ref().map_or(ray.t_max, |h| h.t),
+            &Leaving::Camera,
+        )
     {
         return Sample {
             color: radiance.extend(1.0),
