@@ -130,6 +130,26 @@ pub(crate) fn image_region(region: [f32; 4]) -> Result<ImageRegion, CameraError>
     Ok(ImageRegion::from_box(region))
 }
 
+/// An imageRegion that may reach beyond `[0,1]²` and run backwards (upper < lower flips that
+/// axis), as the ANARI camera parameters allow; for cameras whose image continues past its
+/// edges. Finite, and not empty on either axis.
+pub(crate) fn unbounded_image_region(region: [f32; 4]) -> Result<ImageRegion, CameraError> {
+    let [lo_x, lo_y, hi_x, hi_y] = region;
+    if region.iter().any(|v| !v.is_finite()) {
+        return Err(CameraError::new(
+            "imageRegion",
+            format!("must be finite, got {region:?}"),
+        ));
+    }
+    if lo_x == hi_x || lo_y == hi_y {
+        return Err(CameraError::new(
+            "imageRegion",
+            format!("must not be empty (lower ≠ upper on both axes), got {region:?}"),
+        ));
+    }
+    Ok(ImageRegion::from_box(region))
+}
+
 /// near ≥ 0, far > 0, near < far when both are set.
 pub(crate) fn clip_range(near: Option<f32>, far: Option<f32>) -> Result<ClipRange, CameraError> {
     let near = near.map(|v| non_negative("near", v)).transpose()?;
