@@ -107,14 +107,19 @@ pub(crate) fn optional_positive(
     value.map(|v| positive(name, v)).transpose()
 }
 
-pub(crate) fn image_region(region: [f32; 4]) -> Result<ImageRegion, CameraError> {
-    let [lo_x, lo_y, hi_x, hi_y] = region;
+fn finite_region(region: [f32; 4]) -> Result<(), CameraError> {
     if region.iter().any(|v| !v.is_finite()) {
         return Err(CameraError::new(
             "imageRegion",
             format!("must be finite, got {region:?}"),
         ));
     }
+    Ok(())
+}
+
+pub(crate) fn image_region(region: [f32; 4]) -> Result<ImageRegion, CameraError> {
+    let [lo_x, lo_y, hi_x, hi_y] = region;
+    finite_region(region)?;
     if region.iter().any(|v| !(0.0..=1.0).contains(v)) {
         return Err(CameraError::new(
             "imageRegion",
@@ -135,12 +140,7 @@ pub(crate) fn image_region(region: [f32; 4]) -> Result<ImageRegion, CameraError>
 /// edges. Finite, and not empty on either axis.
 pub(crate) fn unbounded_image_region(region: [f32; 4]) -> Result<ImageRegion, CameraError> {
     let [lo_x, lo_y, hi_x, hi_y] = region;
-    if region.iter().any(|v| !v.is_finite()) {
-        return Err(CameraError::new(
-            "imageRegion",
-            format!("must be finite, got {region:?}"),
-        ));
-    }
+    finite_region(region)?;
     if lo_x == hi_x || lo_y == hi_y {
         return Err(CameraError::new(
             "imageRegion",
