@@ -2,7 +2,8 @@
 //! file holds the committed volume and the ray march (the informative algorithm of the ANARI
 //! specification): samples one every half cell, and a sample of opacity `o` over a step of
 //! world length `s` passes `(1 − o)^(s / unitDistance)` of the light behind it. Stretches over
-//! macrocells the transfer function makes transparent are skipped. The fast renderer draws the
+//! macrocells the transfer function makes transparent are skipped, and steps grow where it
+//! makes them nearly transparent (see [`Stepping`]). The fast renderer draws the
 //! march as emission–absorption ([`integrate`]); the default renderer lights it
 //! ([`crate::render::volume_lighting`]).
 
