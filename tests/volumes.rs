@@ -662,7 +662,7 @@ fn slab_ambient_share(sigma: f64, above: f64, below: f64, reach: f64, floor_belo
 }
 
 #[test]
-fn ambient_light_inside_a_slab_is_occluded_by_its_transmittance() {
+fn ambient_light_in_and_under_a_slab_is_occluded_by_its_transmittance() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     // A slab 2 deep (z in [−1, 1]) and 100 wide, opacity 0.5 per unit distance 1: σ = ln 2.
@@ -681,6 +681,8 @@ fn ambient_light_inside_a_slab_is_occluded_by_its_transmittance() {
     let floor = rectangle(dev, [-50.0, 50.0], [-50.0, 50.0], -1.2, 0.0, 9);
     let open_world = world_with(dev, &[volume], &[]);
     let floored_world = world_with(dev, &[volume], &[floor]);
+    let grey_floor = rectangle(dev, [-50.0, 50.0], [-50.0, 50.0], -1.2, 0.5, 9);
+    let grey_floored_world = world_with(dev, &[volume], &[grey_floor]);
     let r = lit_renderer(dev, 64);
     set(dev, r, "ambientRadiance", ANARI_FLOAT32, &1.0f32);
 
@@ -717,6 +719,31 @@ fn ambient_light_inside_a_slab_is_occluded_by_its_transmittance() {
             "{what}: {got} vs {expected}"
         );
     }
+    // A grey floor (albedo 0.5) under the slab gathers the ambient light through it: the
+    // cosine-weighted mean of e^{−σd/μ}, 2·∫₀¹ μ·e^{−σd/μ} dμ; seen through the slab's
+    // transmittance, behind the light the slab scatters.
+    set(dev, r, "ambientOcclusionDistance", ANARI_FLOAT32, &1e30f32);
+    commit(dev, r);
+    let n = 4000;
+    let floor_share = 2.0
+        * (0..n)
+            .map(|k| {
+                let mu = (k as f64 + 0.5) / n as f64;
+                mu * (-sigma * depth / mu).exp()
+            })
+            .sum::<f64>()
+        / n as f64;
+    let through = (-sigma * depth).exp();
+    let expected = expected_share(f64::INFINITY, true) + through * 0.5 * floor_share;
+    let got = mean_red(grey_floored_world);
+    println!(
+        "grey floor under the slab: {got:.5} against {expected:.5} (unoccluded floor {:.5})",
+        expected_share(f64::INFINITY, true) + through * 0.5
+    );
+    assert!(
+        (got - expected).abs() < 0.01 * expected,
+        "grey floor: {got} vs {expected}"
+    );
     // Distance 0: not occluded, the emission–absorption value exactly (up to rounding).
     set(dev, r, "ambientOcclusionDistance", ANARI_FLOAT32, &0.0f32);
     commit(dev, r);
@@ -725,7 +752,19 @@ fn ambient_light_inside_a_slab_is_occluded_by_its_transmittance() {
     for color in &out.color {
         assert_relative(*color, albedo.map(|a| a * unoccluded), 1e-4, "unoccluded");
     }
-    release_all(dev, &[open_world, floored_world, floor, volume, slab, r]);
+    release_all(
+        dev,
+        &[
+            open_world,
+            floored_world,
+            grey_floored_world,
+            floor,
+            grey_floor,
+            volume,
+            slab,
+            r,
+        ],
+    );
     release_device(lib, dev);
     assert!(log.errors().is_empty());
 }

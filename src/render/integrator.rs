@@ -208,9 +208,9 @@ fn direct_light(
 
 /// The share of the ambient light that reaches `point` on a surface of unit `normal`: one
 /// ray, drawn in proportion to the cosine (as a diffuse surface gathers uniform light), that
-/// either leaves unoccluded within the renderer's `ambientOcclusionDistance` (1) or meets an
-/// opaque surface (0), so the mean over samples is the cosine-weighted unoccluded fraction of
-/// the hemisphere.
+/// either leaves unoccluded within the renderer's `ambientOcclusionDistance` (the volumes'
+/// transmittance on the way) or meets an opaque surface (0), so the mean over samples is the
+/// cosine-weighted share of the hemisphere's light that gets through.
 fn ambient_visibility(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
@@ -232,11 +232,10 @@ fn ambient_visibility(
         + normal * (1.0 - u.x).max(0.0).sqrt())
     .normalize_or(normal);
     let ray = offset_ray(point, direction, reach);
-    if reaches_ambient(scene, &ray) {
-        1.0
-    } else {
-        0.0
+    if !reaches_ambient(scene, &ray) {
+        return 0.0;
     }
+    shadow_transmittance(scene, point, direction, ray.t_min, reach, sampling)
 }
 
 /// A glossy lobe that drew a reflection: GGX of `alpha` around `normal`, seen from
