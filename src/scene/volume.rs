@@ -97,7 +97,7 @@ pub enum Stepping {
 
 impl Stepping {
     /// What the renderers use.
-    pub const DEFAULT: Stepping = Stepping::Adaptive;
+    pub(crate) const DEFAULT: Stepping = Stepping::Adaptive;
 }
 
 /// The committed colour and opacity mapping of a `transferFunction1D` volume.
