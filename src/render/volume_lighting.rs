@@ -189,8 +189,9 @@ pub fn lit_volumes(
 /// (camera, shadow and ambient rays).
 ///
 /// The march runs twice. The first pass finds the transmittance, the ambient light scattered
-/// where it is not occluded, and the fraction W of the light from behind that the volumes take out. The second places
-/// `LIGHTING_POINTS` points where the fraction taken out so far, 1 − T(s), reaches
+/// where it is not occluded, and the fraction W of the light from behind that the volumes take
+/// out. The second places `LIGHTING_POINTS` points where the fraction taken out so far,
+/// 1 − T(s), reaches
 /// W·(k + u)/K: points drawn in proportion to T·σ (stratified, offset u per sample), so each
 /// stands for W/K of the scattering integral ∫ T(s)·σ(s)·colour(s)·L_in(s) ds. Within a
 /// marching stretch the optical depth grows linearly, so the point is placed exactly. Where
