@@ -5,6 +5,7 @@
 use glam::{Vec2, Vec3, Vec4};
 
 use crate::accel::{Ray, SceneHit, surface_epsilon};
+use crate::render::ambient::reaches_ambient;
 use crate::render::bsdf::{
     clearcoat_fresnel, dielectric_f0, fallback_tangent, ggx_distribution, microfacet_albedo,
     microfacet_alpha, multiple_scattering, sample_glossy, schlick, sheen_albedo, sheen_brdf,
@@ -207,9 +208,9 @@ fn direct_light(
 
 /// The share of the ambient light that reaches `point` on a surface of unit `normal`: one
 /// ray, drawn in proportion to the cosine (as a diffuse surface gathers uniform light), that
-/// either leaves unoccluded within the renderer's `ambientOcclusionDistance` (1) or meets an
-/// opaque surface (0), so the mean over samples is the cosine-weighted unoccluded fraction of
-/// the hemisphere.
+/// either leaves unoccluded within the renderer's `ambientOcclusionDistance` (the volumes'
+/// transmittance on the way) or meets an opaque surface (0), so the mean over samples is the
+/// cosine-weighted share of the hemisphere's light that gets through.
 fn ambient_visibility(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
@@ -230,36 +231,12 @@ fn ambient_visibility(
         + bitangent * (radius * angle.sin())
         + normal * (1.0 - u.x).max(0.0).sqrt())
     .normalize_or(normal);
-    let mut ray = offset_ray(point, direction, reach);
-    if !scene.see_through {
-        // Cluster hook: ambient-occlusion rays see every rank's surfaces.
-        return if cluster::occluded(scene, &ray) {
-            0.0
-        } else {
-            1.0
-        };
+    let ray = offset_ray(point, direction, reach);
+    if !reaches_ambient(scene, &ray) {
+        return 0.0;
     }
-    // Surfaces that let light through do not hide the ambient light (it stands for light
-    // from everywhere, which fills what they enclose).
-    for _ in 0..MAX_SEE_THROUGH {
-        let Some(hit) = scene.bvh.intersect(&ray) else {
-            return 1.0;
-        };
-        let instance = &scene.instances[hit.instance as usize];
-        if !instance.surfaces[hit.geometry as usize]
-            .material
-            .lets_light_through()
-        {
-            return 0.0;
-        }
-        let at = ray.origin + ray.direction * hit.t;
-        ray.t_min = hit.t + surface_epsilon(at);
-    }
-    1.0
+    shadow_transmittance(scene, point, direction, ray.t_min, reach, sampling)
 }
-
-/// Most surfaces that let light through an ambient-occlusion ray looks past.
-const MAX_SEE_THROUGH: u32 = 16;
 
 /// A glossy lobe that drew a reflection: GGX of `alpha` around `normal`, seen from
 /// `to_viewer`, whose draws are distributed as D·V·(n·l) / E (see
