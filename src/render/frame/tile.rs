@@ -25,15 +25,9 @@ impl Job {
             (tile % self.tiles_x) * TILE_SIZE,
             (tile / self.tiles_x) * TILE_SIZE,
         );
-        InterleavedTile {
-            set,
-            s0,
-            t0,
-            s1: (s0 + TILE_SIZE).min(width),
-            t1: (t0 + TILE_SIZE).min(height),
-            width: self.setup.width,
-            height: self.setup.height,
-        }
+        let end = ((s0 + TILE_SIZE).min(width), (t0 + TILE_SIZE).min(height));
+        let frame = (self.setup.width, self.setup.height);
+        InterleavedTile::new(set, (s0, t0), end, frame)
     }
 
     /// Tile `tile` of an unbudgeted render: a square of the whole frame.
@@ -68,19 +62,6 @@ pub(super) const PACKET_ORDER: [(u32, u32); 64] = {
     }
     order
 };
-
-/// The lattice points a packet takes, (across, up): an 8×8 block, or for an interleaved eye
-/// the half of it that covers 8×8 pixels of the frame (its points lie two pixels apart one
-/// way). A packet then spans the frame area of a mono packet with half its lanes: each ray
-/// meets the leaves a mono ray meets, where a full packet of the eye's points would span
-/// twice the area and test each ray against the leaves of both halves.
-fn packet_shape(pixels: PixelSet) -> (u32, u32) {
-    match pixels {
-        PixelSet::Rows(_) => (PACKET_SIDE, PACKET_SIDE / 2),
-        PixelSet::Columns(_) | PixelSet::Checkerboard(_) => (PACKET_SIDE / 2, PACKET_SIDE),
-        PixelSet::All | PixelSet::Anaglyph => (PACKET_SIDE, PACKET_SIDE),
-    }
-}
 
 /// A ray that hits nothing (zero direction): fills packet lanes outside the frame or any eye.
 pub(super) const NO_RAY: Ray = Ray {
@@ -280,12 +261,9 @@ pub(super) fn trace_blocks(
     let mut camera_rays = [None; 64];
     let mut hits = [None; 64];
     let mut block = BlockRays::default();
-    let (across, up) = packet_shape(map.pixels());
-    // Lanes outside the packet's shape stay empty.
-    let in_shape = |(dx, dy): (u32, u32)| dx < across && dy < up;
-    for by in (ty..y_end).step_by(up as usize) {
-        for bx in (tx..x_end).step_by(across as usize) {
-            let (bx_end, by_end) = ((bx + across).min(x_end), (by + up).min(y_end));
+    for by in (ty..y_end).step_by(PACKET_SIDE as usize) {
+        for bx in (tx..x_end).step_by(PACKET_SIDE as usize) {
+            let (bx_end, by_end) = ((bx + PACKET_SIDE).min(x_end), (by + PACKET_SIDE).min(y_end));
             let (x0, y0) = map.pixel(bx, by);
             let (x1, y1) = map.pixel(bx_end - 1, by_end - 1);
             // Usually one eye's viewport holds the whole block; otherwise look per pixel.
@@ -302,8 +280,8 @@ pub(super) fn trace_blocks(
             // blended positions): its rays are made together, lane by lane.
             let whole_block = !work.plain_pixels
                 && matches!(pixel_rays, PixelRays::All)
-                && bx_end - bx == across
-                && by_end - by == up;
+                && bx_end - bx == PACKET_SIDE
+                && by_end - by == PACKET_SIDE;
             let block_maker =
                 block_eye.filter(|(_, eye_rays)| whole_block && eye_rays.makes_block_rays());
             for s in 0..samples {
@@ -314,10 +292,7 @@ pub(super) fn trace_blocks(
                     let (width, height) = (viewport.width as f32, viewport.height as f32);
                     let mut s_lanes = [0.0; BLOCK_RAYS];
                     let mut t_lanes = [0.0; BLOCK_RAYS];
-                    for (lane, &(dx, dy)) in PACKET_ORDER.iter().enumerate() {
-                        // Lanes outside the shape make a ray of the block's first point, not
-                        // traced.
-                        let (dx, dy) = if in_shape((dx, dy)) { (dx, dy) } else { (0, 0) };
+                    for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
                         let (sx, sy) = (bx + dx, by + dy);
                         if map.skips(sx, sy) {
                             return None;
@@ -331,11 +306,7 @@ pub(super) fn trace_blocks(
                         return None;
                     }
                     for (lane, ray) in rays.iter_mut().enumerate() {
-                        *ray = if in_shape(PACKET_ORDER[lane]) {
-                            traced(&block.ray(lane))
-                        } else {
-                            NO_RAY
-                        };
+                        *ray = traced(&block.ray(lane));
                     }
                     Some(eye_rays)
                 });
@@ -345,11 +316,11 @@ pub(super) fn trace_blocks(
                 } else {
                     &PACKET_ORDER[..]
                 };
-                for (lane, &(dx, dy)) in per_lane.iter().enumerate() {
+                for (lane, (dx, dy)) in per_lane.iter().enumerate() {
                     let (sx, sy) = (bx + dx, by + dy);
                     rays[lane] = NO_RAY;
                     camera_rays[lane] = None;
-                    if !in_shape((dx, dy)) || sx >= x_end || sy >= y_end || map.skips(sx, sy) {
+                    if sx >= x_end || sy >= y_end || map.skips(sx, sy) {
                         continue;
                     }
                     let (x, y) = map.pixel(sx, sy);
@@ -413,10 +384,9 @@ pub(super) fn trace_blocks(
                         .bvh
                         .intersect_packet_with(&mut scratch.packets, &rays, &mut hits);
                 }
-                for (lane, &(dx, dy)) in PACKET_ORDER.iter().enumerate() {
+                for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
                     let camera = match block_rays {
-                        Some(eye_rays) if in_shape((dx, dy)) => Some((block.ray(lane), eye_rays)),
-                        Some(_) => None,
+                        Some(eye_rays) => Some((block.ray(lane), eye_rays)),
                         None => camera_rays[lane],
                     };
                     let Some((camera_ray, eye_rays)) = camera else {
