@@ -211,6 +211,9 @@ impl LatticeValues {
     }
 }
 
+/// A cell corner: its frame pixel index and its value.
+type Corner<'a> = (usize, &'a [u8]);
+
 fn fill<B: Blend>(
     v: &EyeViewport,
     width: u32,
@@ -263,7 +266,7 @@ fn fill_band<B: Blend>(
     for j in first_row / stride..(first_row + band_height).div_ceil(stride) {
         let j1 = (j + 1).min(last_j);
         // Per cell of the row: its corners, and whether they all show one surface.
-        let cells: Vec<([(usize, &[u8]); 4], bool)> = (0..lattice.columns)
+        let cells: Vec<([Corner; 4], bool)> = (0..lattice.columns)
             .map(|i| {
                 let i1 = (i + 1).min(last_i);
                 let corners = [
