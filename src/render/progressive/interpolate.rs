@@ -111,9 +111,42 @@ impl Blend for Unorm8 {
         let (left, right) = (column(a, c), column(b, d));
         let step: [i32; 4] = std::array::from_fn(|k| right[k] - left[k]);
         let half = (total / 2) as i32;
-        let mut sum: [i32; 4] = std::array::from_fn(|k| {
+        let sum: [i32; 4] = std::array::from_fn(|k| {
             (stride - first) as i32 * left[k] + first as i32 * right[k] + half
         });
+        shifted_run(sum, step, shift, out);
+    }
+}
+
+/// Writes `sum >> shift` (four lanes, each in 0..=255 after the shift) as one pixel of `out`
+/// after another, adding `step` to `sum` between pixels. On x86-64 a pixel is a few SSE2
+/// instructions (the plain loop took about 2 ns per pixel, most of a budgeted frame's fill).
+#[inline(always)]
+fn shifted_run(sum: [i32; 4], step: [i32; 4], shift: u32, out: &mut [u8]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{
+            _mm_add_epi32, _mm_cvtsi32_si128, _mm_cvtsi128_si32, _mm_packs_epi32, _mm_packus_epi16,
+            _mm_setr_epi32, _mm_sra_epi32,
+        };
+        // SAFETY: SSE2 is part of every x86-64 CPU (the baseline this crate is built for);
+        // the intrinsics only compute on registers.
+        unsafe {
+            let step = _mm_setr_epi32(step[0], step[1], step[2], step[3]);
+            let count = _mm_cvtsi32_si128(shift as i32);
+            let mut sum = _mm_setr_epi32(sum[0], sum[1], sum[2], sum[3]);
+            for pixel in out.chunks_exact_mut(4) {
+                let lanes = _mm_sra_epi32(sum, count);
+                let words = _mm_packs_epi32(lanes, lanes);
+                let bytes = _mm_packus_epi16(words, words);
+                pixel.copy_from_slice(&_mm_cvtsi128_si32(bytes).to_le_bytes());
+                sum = _mm_add_epi32(sum, step);
+            }
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let mut sum = sum;
         for pixel in out.chunks_exact_mut(4) {
             for k in 0..4 {
                 pixel[k] = (sum[k] >> shift) as u8;
