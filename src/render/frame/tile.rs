@@ -7,7 +7,7 @@ use crate::accel::{PacketScratch, Ray};
 use crate::camera::{BLOCK_RAYS, BlockRays, CameraRay, EyeRays, PixelSet};
 use crate::render::integrator::{fast_surface_color, fast_surface_sample, shade_primary_at};
 use crate::render::interleave::{InterleavedTile, lattice_size};
-use crate::render::progressive::{FrameTile, TileMap};
+use crate::render::progressive::{FrameTile, SINGLE_RAY_STRIDE, TileMap};
 use crate::scene::light::LightSampling;
 
 use super::anaglyph::{anaglyph, anaglyph_eyes};
@@ -25,15 +25,9 @@ impl Job {
             (tile % self.tiles_x) * TILE_SIZE,
             (tile / self.tiles_x) * TILE_SIZE,
         );
-        InterleavedTile {
-            set,
-            s0,
-            t0,
-            s1: (s0 + TILE_SIZE).min(width),
-            t1: (t0 + TILE_SIZE).min(height),
-            width: self.setup.width,
-            height: self.setup.height,
-        }
+        let end = ((s0 + TILE_SIZE).min(width), (t0 + TILE_SIZE).min(height));
+        let frame = (self.setup.width, self.setup.height);
+        InterleavedTile::new(set, (s0, t0), end, frame)
     }
 
     /// Tile `tile` of an unbudgeted render: a square of the whole frame.
@@ -100,11 +94,6 @@ pub(super) struct TileScratch {
     /// One channel's pixels of a tile, encoded.
     encoded: Vec<u8>,
 }
-
-/// Lattices this sparse are traced ray by ray: their packets are too incoherent to pay
-/// (measured on the 1M-triangle benchmark: the coarsest level 32 → 22 ms at stride ≥ 4, no
-/// better at stride 2).
-pub(super) const SINGLE_RAY_STRIDE: u32 = 4;
 
 pub(super) fn render_tile(
     job: &Job,
