@@ -9,8 +9,8 @@ use glam::Vec4;
 use rayon::prelude::*;
 
 use super::{
-    Answers, KeySet, NO_RANK, Pending, PrimaryRecord, RayKey, SAMPLE_WORDS, TraceKey,
-    decode_sample, encode_sample, evaluate, key_ray, trace_inputs,
+    Answers, KeySet, MISSED, NO_RANK, Pending, PrimaryPass, RayKey, TraceKey, UNVISITED,
+    evaluate, key_ray, trace_inputs,
 };
 use crate::render::integrator::{self, Sample};
 use crate::render::renderer::RendererSettings;
@@ -76,12 +76,11 @@ pub struct Traffic {
     pub words_sent: u64,
     /// Seconds spent in collectives and in testing other ranks' rays.
     pub exchange_seconds: f64,
-    /// Primary samples this rank shaded.
-    pub shaded: u64,
 }
 
 /// The outcome of the rays one rank shaded, by the task that asked.
 enum Task {
+    /// The primary sample of `owned[i]`.
     Primary(usize),
     Child { requester: u32, key: TraceKey },
 }
@@ -91,31 +90,18 @@ enum Outcome {
     Radiance(Vec4),
 }
 
-/// The results of a data-parallel render: per record (sorted primary samples), what the ranks
-/// shaded — every sample on rank 0 (on every rank with `everywhere`), this rank's own elsewhere.
-pub fn resolve(
+/// Depth compositing of every slot of the pass: per slot the rank whose part holds the
+/// closest hit (ties to the lower rank; rank 0 where no part is hit, which shades the
+/// background). Checks first that every rank asks for the same samples.
+pub fn composite(
     exchange: &dyn Exchange,
-    scene: &SceneSnapshot,
-    settings: &RendererSettings,
-    records: &[PrimaryRecord],
-    max_rounds: u32,
-    everywhere: bool,
-) -> Result<(Vec<Option<Sample>>, Traffic), ClusterError> {
+    pass: &PrimaryPass,
+    traffic: &mut Traffic,
+) -> Result<Vec<u32>, ClusterError> {
     let me = exchange.rank();
-    let mut traffic = Traffic::default();
     let started = Instant::now();
-    // Every rank must ask for the same samples; a count and a digest of the keys tell.
-    let digest = records.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, r| {
-        r.key
-            .iter()
-            .fold(h, |h, w| (h ^ u64::from(*w)).wrapping_mul(0x100_0000_01b3))
-    });
-    let mut check = [
-        records.len() as u64,
-        !(records.len() as u64),
-        digest,
-        !digest,
-    ];
+    let (slots, digest) = (pass.slots() as u64, pass.digest());
+    let mut check = [slots, !slots, digest, !digest];
     exchange.all_min(&mut check)?;
     if check[0] != !check[1] || check[2] != !check[3] {
         return Err(ClusterError::Mismatch(
@@ -124,27 +110,42 @@ pub fn resolve(
                 .into(),
         ));
     }
-    // Depth compositing: the smallest t of every rank wins, ties to the lower rank.
-    let mut winners: Vec<u64> = records
-        .iter()
-        .map(|r| match r.local_t {
-            u32::MAX => u64::MAX,
-            t => (u64::from(t) << 32) | u64::from(me),
+    let mut winners: Vec<u64> = (0..pass.slots())
+        .into_par_iter()
+        .map(|slot| match pass.local(slot) {
+            UNVISITED | MISSED => u64::MAX,
+            local => (u64::from(local - 1) << 32) | u64::from(me),
         })
         .collect();
     exchange.all_min(&mut winners)?;
     traffic.words_sent += 2 * winners.len() as u64 + 8;
     traffic.exchange_seconds += started.elapsed().as_secs_f64();
-    // A sample that misses every part is shaded (the background) by rank 0.
-    let owner = |winner: u64| if winner == u64::MAX { 0 } else { winner as u32 };
-    let mut tasks: Vec<(Task, Option<Pending>)> = winners
-        .iter()
-        .enumerate()
-        .filter(|(_, w)| owner(**w) == me)
-        .map(|(i, _)| (Task::Primary(i), None))
+    Ok(winners
+        .into_par_iter()
+        .map(|w| if w == u64::MAX { 0 } else { w as u32 })
+        .collect())
+}
+
+/// Shades the primary samples this rank owns (`owners`, from [`composite`]) in bulk, asking
+/// every rank's part what the shading asks of the scene, in rounds. Returns the owned slots in
+/// order and their samples.
+pub fn resolve(
+    exchange: &dyn Exchange,
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    pass: &PrimaryPass,
+    owners: &[u32],
+    max_rounds: u32,
+    traffic: &mut Traffic,
+) -> Result<(Vec<usize>, Vec<Sample>), ClusterError> {
+    let me = exchange.rank();
+    let owned: Vec<usize> = (0..owners.len())
+        .into_par_iter()
+        .filter(|slot| owners[*slot] == me && pass.local(*slot) != UNVISITED)
         .collect();
-    traffic.shaded = tasks.len() as u64;
-    let mut samples: Vec<Option<Sample>> = vec![None; records.len()];
+    let mut tasks: Vec<(Task, Option<Pending>)> =
+        (0..owned.len()).map(|i| (Task::Primary(i), None)).collect();
+    let mut samples: Vec<Option<Sample>> = vec![None; owned.len()];
     let mut answers = Answers {
         rank: me,
         ..Answers::default()
@@ -164,8 +165,9 @@ pub fn resolve(
         let evaluated: Vec<(usize, Outcome, Pending)> = ready
             .into_par_iter()
             .map(|i| {
-                let (outcome, pending) =
-                    evaluate(&shared, || shade(&tasks[i].0, scene, settings, records));
+                let (outcome, pending) = evaluate(&shared, || {
+                    shade(&tasks[i].0, scene, settings, pass, &owned)
+                });
                 (i, outcome, pending)
             })
             .collect();
@@ -348,27 +350,14 @@ pub fn resolve(
         }
         traffic.exchange_seconds += exchange_started.elapsed().as_secs_f64();
     }
-    // The shaded samples go to rank 0 (or every rank).
-    let gather_started = Instant::now();
-    let mut mine = Vec::new();
-    for (index, sample) in samples.iter().enumerate() {
-        if let Some(sample) = sample {
-            mine.push(index as u32);
-            encode_sample(sample, &mut mine);
-        }
-    }
-    traffic.words_sent += mine.len() as u64;
-    if let Some(all) = exchange.gather(&mine, everywhere)? {
-        for words in all {
-            for entry in words.chunks_exact(1 + SAMPLE_WORDS) {
-                if let Some(slot) = samples.get_mut(entry[0] as usize) {
-                    *slot = Some(decode_sample(&entry[1..]));
-                }
-            }
-        }
-    }
-    traffic.exchange_seconds += gather_started.elapsed().as_secs_f64();
-    Ok((samples, traffic))
+    let samples = samples
+        .into_iter()
+        .map(|s| s.unwrap_or(Sample {
+            color: Vec4::ZERO,
+            hit: None,
+        }))
+        .collect();
+    Ok((owned, samples))
 }
 
 /// Words of a result: requester, trace key, colour.
@@ -402,11 +391,12 @@ fn shade(
     task: &Task,
     scene: &SceneSnapshot,
     settings: &RendererSettings,
-    records: &[PrimaryRecord],
+    pass: &PrimaryPass,
+    owned: &[usize],
 ) -> Outcome {
     match task {
         Task::Primary(index) => {
-            let record = &records[*index];
+            let record = pass.record(owned[*index]);
             let ray = record.ray();
             let hit = scene.bvh.intersect(&ray);
             if record.fast {
