@@ -3,6 +3,8 @@
  *
  *   mpirun -np 4 cluster-tests/build/mpi_render          the image tests
  *   mpirun -np 4 cluster-tests/build/mpi_render kill     the last rank dies mid-frame
+ *   mpirun -np 3 -x CAVETRACE_TEST_FAIL_RANK=2 cluster-tests/build/mpi_render fail
+ *                                       rank 2's own render fails (a test-only trigger)
  *   mpirun -np 4 cluster-tests/build/mpi_render bench 1600 [mode]   costs per frame (docs/cluster.md)
  *
  * The scene: a floor (a mesh), a sphere casting its shadow on the floor, a mirror, an instanced
@@ -28,6 +30,8 @@ enum { WIDTH = 96, HEIGHT = 64, OBJECTS = 6 };
 static int rank, ranks, failures;
 /* Whether the frames ask for the whole image on every rank (mpiImageOnEveryRank). */
 static int everywhere;
+/* The renderers' pixelSamples. */
+static uint32_t pixel_samples = 1;
 static char last_error[1024];
 static int error_count;
 
@@ -239,6 +243,7 @@ static ANARIRenderer renderer_of(ANARIDevice d, const char *subtype) {
   const float background[4] = {0.1f, 0.15f, 0.3f, 1};
   anariSetParameter(d, r, "background", ANARI_FLOAT32_VEC4, background);
   set_f32(d, r, "ambientRadiance", 0.3f);
+  set_u32(d, r, "pixelSamples", pixel_samples);
   anariCommitParameters(d, r);
   return r;
 }
@@ -331,8 +336,8 @@ static Image got, alone;
 static void image_test(ANARIDevice d, const int *mine, const int *all, const char *mode,
                        const char *renderer_name, enum Camera camera_kind, int tolerance) {
   char name[160], detail[512] = "";
-  snprintf(name, sizeof name, "%s, %s renderer, %s camera, %d ranks: %s = one device", mode,
-           renderer_name, CAMERA_NAME[camera_kind], ranks,
+  snprintf(name, sizeof name, "%s, %s renderer, %s camera, %u sample%s per pixel, %d ranks: %s = one device", mode,
+           renderer_name, CAMERA_NAME[camera_kind], pixel_samples, pixel_samples > 1 ? "s" : "", ranks,
            everywhere ? "every rank" : "rank 0");
   int replicated = strcmp(mode, "replicated") == 0;
   ANARIWorld world = world_of(d, replicated ? all : mine);
@@ -428,6 +433,66 @@ static int kill_test(ANARIDevice d, const int *mine) {
   _exit(ok ? 0 : 1);
 }
 
+/* The rank named by CAVETRACE_TEST_FAIL_RANK (a trigger read only by the device's cluster code,
+ * for this test) fails its own part of every render, as an allocation failure would: every rank
+ * reports "rank N reported a failure" through the status callback and returns, in both modes;
+ * without the trigger the same frame renders again without an error. */
+static int fail_test(ANARIDevice d, const int *mine, const int *all) {
+  const char *failing = getenv("CAVETRACE_TEST_FAIL_RANK");
+  char expected[64];
+  snprintf(expected, sizeof expected, "rank %s reported a failure", failing ? failing : "?");
+  const char *modes[] = {"dataParallel", "replicated"};
+  int ok = failing != NULL;
+  char detail[1200] = "";
+  for (int m = 0; m < 2; m++) {
+    ANARIWorld world = world_of(d, m == 1 ? all : mine);
+    ANARICamera camera = camera_of(d, PERSPECTIVE);
+    ANARIRenderer renderer = renderer_of(d, "default");
+    ANARIFrame frame = anariNewFrame(d);
+    const uint32_t size[2] = {WIDTH, HEIGHT};
+    anariSetParameter(d, frame, "size", ANARI_UINT32_VEC2, size);
+    anariSetParameter(d, frame, "world", ANARI_WORLD, &world);
+    anariSetParameter(d, frame, "camera", ANARI_CAMERA, &camera);
+    anariSetParameter(d, frame, "renderer", ANARI_RENDERER, &renderer);
+    anariSetParameter(d, frame, "mpiMode", ANARI_STRING, modes[m]);
+    set_f32(d, frame, "mpiTimeout", 20.0f);
+    anariCommitParameters(d, frame);
+    if (failing)
+      setenv("CAVETRACE_TEST_FAIL_RANK", failing, 1);
+    error_count = 0;
+    last_error[0] = 0;
+    double started = MPI_Wtime();
+    anariRenderFrame(d, frame);
+    anariFrameReady(d, frame, ANARI_WAIT);
+    double took = MPI_Wtime() - started;
+    /* Well within mpiTimeout: the failure is told, not waited out. */
+    if (error_count == 0 || strstr(last_error, expected) == NULL || took > 10.0) {
+      if (ok)
+        snprintf(detail, sizeof detail, "%s: rank %d after %.1f s, %d errors, last: %s",
+                 modes[m], rank, took, error_count, last_error);
+      ok = 0;
+    }
+    unsetenv("CAVETRACE_TEST_FAIL_RANK");
+    error_count = 0;
+    anariRenderFrame(d, frame);
+    anariFrameReady(d, frame, ANARI_WAIT);
+    if (error_count) {
+      if (ok)
+        snprintf(detail, sizeof detail, "%s: rank %d, the render after the failure: %s",
+                 modes[m], rank, last_error);
+      ok = 0;
+    }
+    anariRelease(d, frame);
+    anariRelease(d, renderer);
+    anariRelease(d, camera);
+    anariRelease(d, world);
+  }
+  printf("%s rank %d of %d: a rank whose render fails is reported by every rank%s%s\n",
+         ok ? "ok  " : "FAIL", rank, ranks, ok ? "" : ": ", detail);
+  fflush(stdout);
+  return ok ? 0 : 1;
+}
+
 /* Figures for docs/cluster.md: a size×size frame of the test scene, median of 3 renders after
  * one to warm up; the exchange time is the slowest rank's, the bytes all ranks' together. */
 static int bench(ANARIDevice d, const int *mine, const int *all, uint32_t size,
@@ -509,6 +574,12 @@ int main(int argc, char **argv) {
   }
   if (argc > 1 && strcmp(argv[1], "kill") == 0)
     return kill_test(d, mine);
+  if (argc > 1 && strcmp(argv[1], "fail") == 0) {
+    int failed = fail_test(d, mine, all);
+    anariRelease(d, d);
+    MPI_Finalize();
+    return failed;
+  }
   if (argc > 2 && strcmp(argv[1], "bench") == 0) {
     bench(d, mine, all, (uint32_t)atoi(argv[2]), argc > 3 ? argv[3] : NULL);
     anariRelease(d, d);
@@ -526,6 +597,11 @@ int main(int argc, char **argv) {
   image_test(d, mine, all, "dataParallel", "default", OFFAXIS_STEREO, 1);
   image_test(d, mine, all, "replicated", "default", PERSPECTIVE, 0);
   everywhere = 0;
+  /* Several samples per pixel: a pixel's samples may be shaded on different ranks. */
+  pixel_samples = 3;
+  image_test(d, mine, all, "dataParallel", "default", PERSPECTIVE, 1);
+  image_test(d, mine, all, "dataParallel", "fast", OFFAXIS_STEREO, 1);
+  pixel_samples = 1;
   anariRelease(d, d);
   anariUnloadLibrary(library);
   if (rank == 0)
