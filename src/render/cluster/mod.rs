@@ -471,6 +471,7 @@ pub fn occluded(scene: &SceneSnapshot, ray: &Ray) -> bool {
             None => {
                 evaluation.pending.occlusion.push(key);
                 evaluation.pending.incomplete = true;
+                // Assumed unblocked: when every rank agrees, this evaluation stands.
                 false
             }
         }

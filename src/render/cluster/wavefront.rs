@@ -12,6 +12,7 @@ use super::{
     Answers, KeySet, MISSED, NO_RANK, Pending, PrimaryPass, RayKey, TraceKey, UNVISITED,
     evaluate, key_ray, trace_inputs,
 };
+use crate::accel::SceneHit;
 use crate::render::integrator::{self, Sample};
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
@@ -85,6 +86,7 @@ enum Task {
     Child { requester: u32, key: TraceKey },
 }
 
+#[derive(Clone, Copy)]
 enum Outcome {
     Sample(Sample),
     Radiance(Vec4),
@@ -143,7 +145,13 @@ pub fn resolve(
         .into_par_iter()
         .filter(|slot| owners[*slot] == me && pass.local(*slot) != UNVISITED)
         .collect();
-    let mut tasks: Vec<(Task, Option<Pending>)> =
+    // The primary hits, traced once for every evaluation of their shading.
+    let hits: Vec<Option<SceneHit>> = owned
+        .par_iter()
+        .map(|slot| scene.bvh.intersect(&pass.record(*slot).ray()))
+        .collect();
+    // Each task with what its last evaluation lacked and gave.
+    let mut tasks: Vec<(Task, Option<(Pending, Outcome)>)> =
         (0..owned.len()).map(|i| (Task::Primary(i), None)).collect();
     let mut samples: Vec<Option<Sample>> = vec![None; owned.len()];
     let mut answers = Answers {
@@ -156,19 +164,20 @@ pub fn resolve(
     loop {
         // Shade what can progress: new tasks, and tasks whose every missing answer has come.
         let shared = Arc::new(std::mem::take(&mut answers));
-        let ready: Vec<usize> = tasks
-            .iter()
+        let evaluated: Vec<(usize, Outcome, Pending)> = tasks
+            .par_iter()
             .enumerate()
-            .filter(|(_, (_, pending))| pending.as_ref().is_none_or(|p| answered(p, &shared)))
-            .map(|(i, _)| i)
-            .collect();
-        let evaluated: Vec<(usize, Outcome, Pending)> = ready
-            .into_par_iter()
-            .map(|i| {
-                let (outcome, pending) = evaluate(&shared, || {
-                    shade(&tasks[i].0, scene, settings, pass, &owned)
-                });
-                (i, outcome, pending)
+            .filter_map(|(i, (task, waiting))| {
+                if let Some((pending, outcome)) = waiting {
+                    match progress(pending, &shared)? {
+                        // Evaluated with the right answers already.
+                        Progress::AsAssumed => return Some((i, *outcome, Pending::default())),
+                        Progress::Answered => {}
+                    }
+                }
+                let (outcome, pending) =
+                    evaluate(&shared, || shade(task, scene, settings, pass, &owned, &hits));
+                Some((i, outcome, pending))
             })
             .collect();
         answers = Arc::try_unwrap(shared).unwrap_or_else(|shared| (*shared).clone());
@@ -179,9 +188,7 @@ pub fn resolve(
         let mut results: Vec<u32> = Vec::new();
         let mut done = Vec::new();
         {
-            let mut seen_rays: KeySet<RayKey> = KeySet::default();
-            let mut seen_traces: KeySet<TraceKey> = KeySet::default();
-            for (i, outcome, mut pending) in evaluated {
+            for (i, outcome, pending) in evaluated {
                 if !pending.incomplete {
                     match (&tasks[i].0, outcome) {
                         (Task::Primary(index), Outcome::Sample(sample)) => {
@@ -197,23 +204,15 @@ pub fn resolve(
                     done.push(i);
                     continue;
                 }
-                for key in &pending.occlusion {
-                    if seen_rays.insert(*key) {
-                        occlusion.push(*key);
-                    }
-                }
-                for key in &pending.closest {
-                    if seen_traces.insert(*key) {
-                        closest.push(*key);
-                    }
-                }
+                // Rays asked twice are rare (two samples of one pixel); they are answered twice.
+                occlusion.extend_from_slice(&pending.occlusion);
+                closest.extend_from_slice(&pending.closest);
                 for (key, owner) in &pending.remote {
                     if requested.insert(*key) {
                         remote.push((*key, *owner));
                     }
                 }
-                pending.occlusion.sort_unstable();
-                tasks[i].1 = Some(pending);
+                tasks[i].1 = Some((pending, outcome));
             }
         }
         // Finished tasks leave the list (highest index first keeps the others' indices).
@@ -286,6 +285,8 @@ pub fn resolve(
         exchange.all_min(&mut values)?;
         traffic.words_sent += 2 * values.len() as u64;
         let mut value = values.into_iter();
+        let mine = messages.get(me as usize).map_or(0, |m| m.counts[0]);
+        answers.occluded.reserve(mine);
         for (rank, m) in messages.iter().enumerate() {
             for key in m.occlusion() {
                 let occluded = value.next() == Some(0);
@@ -371,20 +372,34 @@ fn trace_of(words: &[u32]) -> TraceKey {
     std::array::from_fn(|i| words[i])
 }
 
-/// Whether every answer an evaluation lacked has come.
-fn answered(pending: &Pending, answers: &Answers) -> bool {
-    pending
-        .occlusion
+/// What the answers an evaluation lacked change, once they have all come.
+enum Progress {
+    /// Each is what the evaluation assumed (a shadow ray no rank blocks): its result stands,
+    /// as shading is a pure function of its answers.
+    AsAssumed,
+    /// The shading must be evaluated again.
+    Answered,
+}
+
+/// `None` while an answer the evaluation lacked has not come.
+fn progress(pending: &Pending, answers: &Answers) -> Option<Progress> {
+    let mut as_assumed = pending.closest.is_empty() && pending.remote.is_empty();
+    for key in &pending.occlusion {
+        as_assumed &= !*answers.occluded.get(key)?;
+    }
+    let answered = pending
+        .closest
         .iter()
-        .all(|k| answers.occluded.contains_key(k))
-        && pending
-            .closest
-            .iter()
-            .all(|k| answers.closest.contains_key(&ray_of(k)))
+        .all(|k| answers.closest.contains_key(&ray_of(k)))
         && pending
             .remote
             .iter()
-            .all(|(k, _)| answers.radiance.contains_key(k))
+            .all(|(k, _)| answers.radiance.contains_key(k));
+    match (answered, as_assumed) {
+        (false, _) => None,
+        (true, true) => Some(Progress::AsAssumed),
+        (true, false) => Some(Progress::Answered),
+    }
 }
 
 fn shade(
@@ -393,12 +408,13 @@ fn shade(
     settings: &RendererSettings,
     pass: &PrimaryPass,
     owned: &[usize],
+    hits: &[Option<SceneHit>],
 ) -> Outcome {
     match task {
         Task::Primary(index) => {
             let record = pass.record(owned[*index]);
             let ray = record.ray();
-            let hit = scene.bvh.intersect(&ray);
+            let hit = hits[*index];
             if record.fast {
                 let screen = record.screen().unwrap_or_default();
                 Outcome::Sample(integrator::fast_surface_sample(
