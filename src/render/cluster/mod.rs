@@ -403,8 +403,6 @@ pub type KeySet<K> = HashSet<K, BuildHasherDefault<KeyHasher>>;
 #[derive(Default, Clone)]
 pub struct Answers {
     pub rank: u32,
-    /// Shadow rays: whether any rank's part blocks them.
-    pub occluded: KeyMap<RayKey, bool>,
     /// Secondary rays: the rank whose part holds the closest hit ([`NO_RANK`] on a miss).
     pub closest: KeyMap<RayKey, u32>,
     /// Radiance along secondary rays shaded by other ranks.
@@ -428,6 +426,8 @@ pub struct Pending {
 
 struct Evaluation {
     answers: Arc<Answers>,
+    /// The shading's shadow rays answered so far: whether any rank's part blocks them.
+    blocked: Vec<(RayKey, bool)>,
     pending: Pending,
 }
 
@@ -439,20 +439,26 @@ fn evaluating() -> bool {
     EVALUATION.with(|e| e.borrow().is_some())
 }
 
-/// Runs `shading` with the rank's answers: every scene query it makes goes through the hooks
-/// below; returns its result and what it lacked.
-pub fn evaluate<T>(answers: &Arc<Answers>, shading: impl FnOnce() -> T) -> (T, Pending) {
+/// Runs `shading` with the rank's answers and the answers to this shading's own shadow rays
+/// (`blocked`, given back): every scene query it makes goes through the hooks below; returns
+/// its result and what it lacked.
+pub fn evaluate<T>(
+    answers: &Arc<Answers>,
+    blocked: Vec<(RayKey, bool)>,
+    shading: impl FnOnce() -> T,
+) -> (T, Pending, Vec<(RayKey, bool)>) {
     EVALUATION.with(|e| {
         *e.borrow_mut() = Some(Evaluation {
             answers: Arc::clone(answers),
+            blocked,
             pending: Pending::default(),
         })
     });
     let result = shading();
-    let pending = EVALUATION
+    let (pending, blocked) = EVALUATION
         .with(|e| e.borrow_mut().take())
-        .map_or_else(Pending::default, |e| e.pending);
-    (result, pending)
+        .map_or_else(Default::default, |e| (e.pending, e.blocked));
+    (result, pending, blocked)
 }
 
 /// Hook of the shadow-ray test: while a rank shades, the answer of every rank.
@@ -466,8 +472,8 @@ pub fn occluded(scene: &SceneSnapshot, ray: &Ray) -> bool {
             return scene.bvh.occluded(ray);
         };
         let key = ray_key(ray);
-        match evaluation.answers.occluded.get(&key) {
-            Some(answer) => *answer,
+        match evaluation.blocked.iter().find(|(k, _)| *k == key) {
+            Some((_, answer)) => *answer,
             None => {
                 evaluation.pending.occlusion.push(key);
                 evaluation.pending.incomplete = true;

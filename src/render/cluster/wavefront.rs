@@ -9,8 +9,8 @@ use glam::Vec4;
 use rayon::prelude::*;
 
 use super::{
-    Answers, KeySet, MISSED, NO_RANK, Pending, PrimaryPass, RayKey, TraceKey, UNVISITED,
-    evaluate, key_ray, trace_inputs,
+    Answers, KeySet, MISSED, NO_RANK, Pending, PrimaryPass, RayKey, TraceKey, UNVISITED, evaluate,
+    key_ray, trace_inputs,
 };
 use crate::accel::SceneHit;
 use crate::render::integrator::{self, Sample};
@@ -79,11 +79,41 @@ pub struct Traffic {
     pub exchange_seconds: f64,
 }
 
-/// The outcome of the rays one rank shaded, by the task that asked.
+/// What a rank shades: a primary sample it owns, or a secondary ray another rank (the
+/// requester) asked of it.
 enum Task {
-    /// The primary sample of `owned[i]`.
-    Primary(usize),
-    Child { requester: u32, key: TraceKey },
+    Primary,
+    Child(Box<(u32, TraceKey)>),
+}
+
+/// A task and how far it got, kept in place between rounds.
+struct TaskState {
+    task: Task,
+    /// What its last evaluation lacked (`None`: not evaluated yet, or done).
+    pending: Option<Box<Pending>>,
+    /// The answers to its shadow rays so far: whether any rank's part blocks them.
+    blocked: Vec<(RayKey, bool)>,
+    /// A child's radiance from its last evaluation.
+    radiance: Vec4,
+    done: bool,
+    /// Evaluated this round and lacking answers: its rays go out.
+    asking: bool,
+    /// A child's radiance has gone to its requester.
+    sent: bool,
+}
+
+impl TaskState {
+    fn new(task: Task) -> TaskState {
+        TaskState {
+            task,
+            pending: None,
+            blocked: Vec::new(),
+            radiance: Vec4::ZERO,
+            done: false,
+            asking: false,
+            sent: false,
+        }
+    }
 }
 
 #[derive(Clone, Copy)]
@@ -150,10 +180,16 @@ pub fn resolve(
         .par_iter()
         .map(|slot| scene.bvh.intersect(&pass.record(*slot).ray()))
         .collect();
-    // Each task with what its last evaluation lacked and gave.
-    let mut tasks: Vec<(Task, Option<(Pending, Outcome)>)> =
-        (0..owned.len()).map(|i| (Task::Primary(i), None)).collect();
-    let mut samples: Vec<Option<Sample>> = vec![None; owned.len()];
+    let mut tasks: Vec<TaskState> = (0..owned.len())
+        .map(|_| TaskState::new(Task::Primary))
+        .collect();
+    let mut samples: Vec<Sample> = vec![
+        Sample {
+            color: Vec4::ZERO,
+            hit: None,
+        };
+        owned.len()
+    ];
     let mut answers = Answers {
         rank: me,
         ..Answers::default()
@@ -162,65 +198,78 @@ pub fn resolve(
     let mut children: KeySet<(u32, TraceKey)> = KeySet::default();
     let mut quiet_rounds = 0;
     loop {
-        // Shade what can progress: new tasks, and tasks whose every missing answer has come.
+        // Shade what can progress, in place: new tasks, and tasks whose every missing answer
+        // has come.
         let shared = Arc::new(std::mem::take(&mut answers));
-        let evaluated: Vec<(usize, Outcome, Pending)> = tasks
-            .par_iter()
-            .enumerate()
-            .filter_map(|(i, (task, waiting))| {
-                if let Some((pending, outcome)) = waiting {
-                    match progress(pending, &shared)? {
-                        // Evaluated with the right answers already.
-                        Progress::AsAssumed => return Some((i, *outcome, Pending::default())),
-                        Progress::Answered => {}
+        let step = |index: usize, state: &mut TaskState, sample: Option<&mut Sample>| {
+            state.asking = false;
+            if state.done {
+                return;
+            }
+            if let Some(pending) = &state.pending {
+                match progress(pending, &state.blocked, &shared) {
+                    None => return,
+                    // Evaluated with the right answers already.
+                    Some(Progress::AsAssumed) => {
+                        state.done = true;
+                        state.pending = None;
+                        return;
                     }
+                    Some(Progress::Answered) => {}
                 }
-                let (outcome, pending) =
-                    evaluate(&shared, || shade(task, scene, settings, pass, &owned, &hits));
-                Some((i, outcome, pending))
-            })
-            .collect();
+            }
+            let blocked = std::mem::take(&mut state.blocked);
+            let (outcome, pending, blocked) = evaluate(&shared, blocked, || {
+                shade(&state.task, index, scene, settings, pass, &owned, &hits)
+            });
+            state.blocked = blocked;
+            match (outcome, sample) {
+                (Outcome::Sample(shaded), Some(sample)) => *sample = shaded,
+                (Outcome::Radiance(radiance), _) => state.radiance = radiance,
+                _ => {}
+            }
+            state.done = !pending.incomplete;
+            state.asking = pending.incomplete;
+            state.pending = pending.incomplete.then(|| Box::new(pending));
+        };
+        let (primaries, others) = tasks.split_at_mut(owned.len());
+        primaries
+            .par_iter_mut()
+            .zip(samples.par_iter_mut())
+            .enumerate()
+            .for_each(|(index, (state, sample))| step(index, state, Some(sample)));
+        others
+            .par_iter_mut()
+            .for_each(|state| step(usize::MAX, state, None));
         answers = Arc::try_unwrap(shared).unwrap_or_else(|shared| (*shared).clone());
         let exchange_started = Instant::now();
         let mut occlusion: Vec<RayKey> = Vec::new();
         let mut closest: Vec<TraceKey> = Vec::new();
         let mut remote: Vec<(TraceKey, u32)> = Vec::new();
         let mut results: Vec<u32> = Vec::new();
-        let mut done = Vec::new();
-        {
-            for (i, outcome, pending) in evaluated {
-                if !pending.incomplete {
-                    match (&tasks[i].0, outcome) {
-                        (Task::Primary(index), Outcome::Sample(sample)) => {
-                            samples[*index] = Some(sample)
-                        }
-                        (Task::Child { requester, key }, Outcome::Radiance(radiance)) => {
-                            results.push(*requester);
-                            results.extend_from_slice(key);
-                            results.extend(radiance.to_array().map(f32::to_bits));
-                        }
-                        _ => {}
-                    }
-                    done.push(i);
-                    continue;
-                }
+        // Which task asked each shadow ray: the answers come back in the same order.
+        let mut askers: Vec<u32> = Vec::new();
+        for (task, state) in tasks.iter_mut().enumerate() {
+            if let (Some(pending), true) = (&state.pending, state.asking) {
                 // Rays asked twice are rare (two samples of one pixel); they are answered twice.
                 occlusion.extend_from_slice(&pending.occlusion);
+                askers.extend(pending.occlusion.iter().map(|_| task as u32));
                 closest.extend_from_slice(&pending.closest);
                 for (key, owner) in &pending.remote {
                     if requested.insert(*key) {
                         remote.push((*key, *owner));
                     }
                 }
-                tasks[i].1 = Some((pending, outcome));
+            }
+            if let (Task::Child(child), true, false) = (&state.task, state.done, state.sent) {
+                let (requester, key) = &**child;
+                results.push(*requester);
+                results.extend_from_slice(key);
+                results.extend(state.radiance.to_array().map(f32::to_bits));
+                state.sent = true;
             }
         }
-        // Finished tasks leave the list (highest index first keeps the others' indices).
-        done.sort_unstable();
-        for i in done.into_iter().rev() {
-            tasks.swap_remove(i);
-        }
-        let busy = !tasks.is_empty();
+        let busy = tasks.iter().any(|t| !t.done);
         let mut message = vec![
             u32::from(busy),
             0,
@@ -284,17 +333,15 @@ pub fn resolve(
             .collect();
         exchange.all_min(&mut values)?;
         traffic.words_sent += 2 * values.len() as u64;
-        let mut value = values.into_iter();
-        let mine = messages.get(me as usize).map_or(0, |m| m.counts[0]);
-        answers.occluded.reserve(mine);
-        for (rank, m) in messages.iter().enumerate() {
-            for key in m.occlusion() {
-                let occluded = value.next() == Some(0);
-                if rank as u32 == me {
-                    answers.occluded.insert(ray_of(key), occluded);
-                }
+        // This rank's shadow rays' answers go to the tasks that asked them.
+        let shadow_rays: usize = messages.iter().map(|m| m.counts[0]).sum();
+        let before: usize = messages[..me as usize].iter().map(|m| m.counts[0]).sum();
+        for ((key, task), value) in occlusion.iter().zip(&askers).zip(&values[before..]) {
+            if let Some(state) = tasks.get_mut(*task as usize) {
+                state.blocked.push((*key, *value == 0));
             }
         }
+        let mut value = values.into_iter().skip(shadow_rays);
         for (rank, m) in messages.iter().enumerate() {
             let rank = rank as u32;
             for key in m.closest() {
@@ -315,13 +362,7 @@ pub fn resolve(
                 if hit_rank == me {
                     answers.closest.insert(ray_of(key), me);
                     if rank != me && children.insert((rank, trace)) {
-                        tasks.push((
-                            Task::Child {
-                                requester: rank,
-                                key: trace,
-                            },
-                            None,
-                        ));
+                        tasks.push(TaskState::new(Task::Child(Box::new((rank, trace)))));
                     }
                 }
             }
@@ -330,13 +371,7 @@ pub fn resolve(
                     answers.closest.insert(ray_of(key), me);
                     let trace = trace_of(key);
                     if children.insert((rank, trace)) {
-                        tasks.push((
-                            Task::Child {
-                                requester: rank,
-                                key: trace,
-                            },
-                            None,
-                        ));
+                        tasks.push(TaskState::new(Task::Child(Box::new((rank, trace)))));
                     }
                 }
             }
@@ -351,13 +386,6 @@ pub fn resolve(
         }
         traffic.exchange_seconds += exchange_started.elapsed().as_secs_f64();
     }
-    let samples = samples
-        .into_iter()
-        .map(|s| s.unwrap_or(Sample {
-            color: Vec4::ZERO,
-            hit: None,
-        }))
-        .collect();
     Ok((owned, samples))
 }
 
@@ -381,11 +409,13 @@ enum Progress {
     Answered,
 }
 
-/// `None` while an answer the evaluation lacked has not come.
-fn progress(pending: &Pending, answers: &Answers) -> Option<Progress> {
+/// `None` while an answer the evaluation lacked has not come (`blocked`: the answers to the
+/// shading's shadow rays).
+fn progress(pending: &Pending, blocked: &[(RayKey, bool)], answers: &Answers) -> Option<Progress> {
     let mut as_assumed = pending.closest.is_empty() && pending.remote.is_empty();
     for key in &pending.occlusion {
-        as_assumed &= !*answers.occluded.get(key)?;
+        let (_, answer) = blocked.iter().find(|(k, _)| k == key)?;
+        as_assumed &= !*answer;
     }
     let answered = pending
         .closest
@@ -402,8 +432,10 @@ fn progress(pending: &Pending, answers: &Answers) -> Option<Progress> {
     }
 }
 
+/// Shades a task; `index`: a primary task's position in `owned`.
 fn shade(
     task: &Task,
+    index: usize,
     scene: &SceneSnapshot,
     settings: &RendererSettings,
     pass: &PrimaryPass,
@@ -411,10 +443,10 @@ fn shade(
     hits: &[Option<SceneHit>],
 ) -> Outcome {
     match task {
-        Task::Primary(index) => {
-            let record = pass.record(owned[*index]);
+        Task::Primary => {
+            let record = pass.record(owned[index]);
             let ray = record.ray();
-            let hit = hits[*index];
+            let hit = hits[index];
             if record.fast {
                 let screen = record.screen().unwrap_or_default();
                 Outcome::Sample(integrator::fast_surface_sample(
@@ -437,8 +469,8 @@ fn shade(
                 ))
             }
         }
-        Task::Child { key, .. } => {
-            let (ray, depth, from_camera, screen, sampling) = trace_inputs(key);
+        Task::Child(child) => {
+            let (ray, depth, from_camera, screen, sampling) = trace_inputs(&child.1);
             Outcome::Radiance(integrator::trace_continuing(
                 scene,
                 settings,

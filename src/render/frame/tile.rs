@@ -165,7 +165,17 @@ pub(super) fn render_tile(
                 let green = channels[k] == 1;
                 let rays = PixelRays::Subpixel(k as u32);
                 let variant = k as u32;
-                trace_blocks(job, eyes, map, scratch, pass, &mut covered, green, rays, variant);
+                trace_blocks(
+                    job,
+                    eyes,
+                    map,
+                    scratch,
+                    pass,
+                    &mut covered,
+                    green,
+                    rays,
+                    variant,
+                );
             }
             let green = channels.iter().position(|c| *c == 1).unwrap_or(1);
             for (index, color) in colors[..pixel_count].iter_mut().enumerate() {
