@@ -191,6 +191,7 @@ pub struct Replay {
 }
 
 /// A slot without a sample in a replay: its rank's part is blank in this rank's frame.
+#[cfg_attr(not(feature = "mpi"), allow(dead_code))]
 pub(crate) const NO_SAMPLE: u32 = u32::MAX;
 
 const BLANK: Sample = Sample {
@@ -625,6 +626,7 @@ impl FrameTraffic {
 }
 
 /// A sample as 18 words: colour, then (hit flag, t, point, ids, albedo, normal).
+#[cfg_attr(not(feature = "mpi"), allow(dead_code))]
 pub(crate) const SAMPLE_WORDS: usize = 18;
 
 pub fn encode_sample(sample: &Sample, out: &mut Vec<u32>) {
