@@ -5,7 +5,8 @@
  *   mpirun -np 4 cluster-tests/build/mpi_render kill     the last rank dies mid-frame
  *   mpirun -np 3 -x CAVETRACE_TEST_FAIL_RANK=2 cluster-tests/build/mpi_render fail
  *                                       rank 2's own render fails (a test-only trigger)
- *   mpirun -np 4 cluster-tests/build/mpi_render bench 1600 [mode]   costs per frame (docs/cluster.md)
+ *   mpirun -np 4 cluster-tests/build/mpi_render bench 1600 [mode [renderer]]
+ *                                       costs per frame (docs/cluster.md)
  *
  * The scene: a floor (a mesh), a sphere casting its shadow on the floor, a mirror, an instanced
  * mesh, a few spheres in one geometry and a half-transparent pane, under one directional light.
@@ -414,7 +415,7 @@ static int kill_test(ANARIDevice d, const int *mine) {
   anariSetParameter(d, frame, "world", ANARI_WORLD, &world);
   anariSetParameter(d, frame, "camera", ANARI_CAMERA, &camera);
   anariSetParameter(d, frame, "renderer", ANARI_RENDERER, &renderer);
-  set_f32(d, frame, "mpiTimeout", 2.0f);
+  set_f32(d, frame, "mpiTimeout", 1.0f);
   anariCommitParameters(d, frame);
   MPI_Barrier(MPI_COMM_WORLD);
   if (rank == ranks - 1) {
@@ -506,13 +507,15 @@ static double cpu_seconds(void) {
  * one to warm up (wall time, and CPU time summed over the ranks); the exchange time is the
  * slowest rank's, the bytes all ranks' together. */
 static int bench(ANARIDevice d, const int *mine, const int *all, uint32_t size,
-                 const char *only_mode) {
+                 const char *only_mode, const char *only_renderer) {
   const char *modes[] = {"dataParallel", "replicated"};
   const char *renderers[] = {"default", "fast"};
   for (int m = 0; m < 2; m++) {
     if (only_mode && strcmp(only_mode, modes[m]) != 0)
       continue;
     for (int r = 0; r < 2; r++) {
+      if (only_renderer && strcmp(only_renderer, renderers[r]) != 0)
+        continue;
       ANARIWorld world = world_of(d, m == 1 ? all : mine);
       ANARICamera camera = camera_of(d, PERSPECTIVE);
       ANARIRenderer renderer = renderer_of(d, renderers[r]);
@@ -600,7 +603,8 @@ int main(int argc, char **argv) {
     return failed;
   }
   if (argc > 2 && strcmp(argv[1], "bench") == 0) {
-    bench(d, mine, all, (uint32_t)atoi(argv[2]), argc > 3 ? argv[3] : NULL);
+    bench(d, mine, all, (uint32_t)atoi(argv[2]), argc > 3 ? argv[3] : NULL,
+          argc > 4 ? argv[4] : NULL);
     anariRelease(d, d);
     MPI_Finalize();
     return 0;

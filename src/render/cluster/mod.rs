@@ -3,14 +3,16 @@
 //! [`Exchange`], and the replicated mode's tile split. `mpi` (the cargo feature) binds them to
 //! a communicator.
 //!
-//! Data-parallel renders are a wavefront over the shading tree: every rank traces every
-//! primary ray against its own part and the closest hit of all ranks wins (ties go to the
-//! lower rank); the winning rank shades it. Whatever the shading asks of the scene — shadow
-//! rays, reflection and transparency rays — is asked of every rank in rounds: shadow rays are
+//! Data-parallel renders index every primary sample by its slot (plane × pixels + pixel): every
+//! rank traces every primary ray against its own part and the closest hit of all ranks wins
+//! (ties go to the lower rank); the winning rank shades it. The fast renderer's shading asks
+//! nothing of the scene, so each rank shades its own hits at once and the closest rank's pixel
+//! is the image's (sort-last). Otherwise whatever the shading asks of the scene — shadow rays,
+//! reflection and transparency rays — is asked of every rank in rounds: shadow rays are
 //! OR-reduced, secondary rays min-reduced, and a secondary hit on another rank is shaded there
 //! and its radiance sent back. A shading that lacks an answer is evaluated again, whole, once
-//! the round has brought it; shading is a pure function of the answers, so the result is what
-//! one device holding every part computes.
+//! the round has brought it (unless every answer is what it assumed); shading is a pure
+//! function of the answers, so the result is what one device holding every part computes.
 
 #[cfg(feature = "mpi")]
 mod mpi;
