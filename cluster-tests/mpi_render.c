@@ -338,9 +338,10 @@ static Image got, alone;
 static void image_test(ANARIDevice d, const int *mine, const int *all, const char *mode,
                        const char *renderer_name, enum Camera camera_kind, int tolerance) {
   char name[160], detail[512] = "";
-  snprintf(name, sizeof name, "%s, %s renderer, %s camera, %u sample%s per pixel, %d ranks: %s = one device", mode,
-           renderer_name, CAMERA_NAME[camera_kind], pixel_samples, pixel_samples > 1 ? "s" : "", ranks,
-           everywhere ? "every rank" : "rank 0");
+  snprintf(name, sizeof name,
+           "%s, %s renderer, %s camera, %u sample%s per pixel, %d ranks: %s = one device", mode,
+           renderer_name, CAMERA_NAME[camera_kind], pixel_samples, pixel_samples > 1 ? "s" : "",
+           ranks, everywhere ? "every rank" : "rank 0");
   int replicated = strcmp(mode, "replicated") == 0;
   ANARIWorld world = world_of(d, replicated ? all : mine);
   ANARICamera camera = camera_of(d, camera_kind);

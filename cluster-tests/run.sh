@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Rendering across MPI ranks (docs/cluster.md): builds the library with the `mpi` feature and
 # runs the C and Python tests under mpirun with 1, 2 and 4 ranks, then the tests in which a rank
-# is killed mid-frame and in which a rank's own render fails. Skips, saying why, when mpirun, mpicc or mpi4py is missing (.ci/run
-# installs them). Closes with "total: N passed, M failed"; exits non-zero on a failure.
+# is killed mid-frame and in which a rank's own render fails. Skips, saying why, when mpirun,
+# mpicc or mpi4py is missing (.ci/run installs them). Closes with "total: N passed, M failed";
+# exits non-zero on a failure.
 set -euo pipefail
 
 here=$(cd "$(dirname "$0")" && pwd)
