@@ -511,6 +511,23 @@ pub(crate) fn interleaved_sets(setup: &RenderSetup) -> Option<[PixelSet; 2]> {
     }
 }
 
+/// Cluster hook: the rays a pixel's sample traces — both eyes of an anaglyph frame, the three
+/// subpixels of a light-field display, else one.
+#[cfg_attr(not(feature = "mpi"), allow(dead_code))]
+pub(crate) fn rays_per_pixel_sample(setup: &RenderSetup) -> u32 {
+    let eyes = prepare_eyes(setup);
+    if anaglyph::anaglyph_eyes(&eyes).is_some() {
+        2
+    } else if eyes
+        .first()
+        .is_some_and(|(_, rays)| rays.subpixel_channels().is_some())
+    {
+        3
+    } else {
+        1
+    }
+}
+
 /// Per-eye ray generators for the frame's viewports.
 fn prepare_eyes(setup: &RenderSetup) -> Vec<(crate::camera::EyeViewport, EyeRays)> {
     match &setup.camera {
