@@ -32,7 +32,7 @@ const UNIT_TILE: u32 = 32;
 /// Lattices this sparse are traced ray by ray: their packets are too incoherent to pay
 /// (measured on the 1M-triangle benchmark: the coarsest level 32 → 22 ms at stride ≥ 4, no
 /// better at stride 2).
-pub const SINGLE_RAY_STRIDE: u32 = 4;
+pub(crate) const SINGLE_RAY_STRIDE: u32 = 4;
 
 /// Side of the units of lattices traced ray by ray (stride 4 and more): a ray there costs
 /// several times a packet's, and a unit still in flight when time is up should end soon.
@@ -181,7 +181,7 @@ const LEVELS: [u32; 7] = [64, 32, 16, 8, 4, 2, 1];
 
 /// The stride of the first level a render with a fixed pixel count (`budgetPixels`) traces
 /// whole: one pixel per 16×16 block.
-pub const FIXED_FIRST_STRIDE: u32 = 16;
+pub(crate) const FIXED_FIRST_STRIDE: u32 = 16;
 
 /// The units of a budgeted render of `viewports`, in tracing order: level by level, each
 /// level's lattice of every viewport cut into tiles (the eyes' tiles alternating, so a render
