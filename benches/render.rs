@@ -328,7 +328,16 @@ fn budget_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: 
             "budget, {renderer} renderer: full frame {full_ms:.1} ms; first level alone (1/256 \
              of the pixels traced, the rest filled) {coarsest_ms:.1} ms"
         );
-        for budget_ms in [16.0f32, 33.0, 50.0] {
+        // `CAVETRACE_BENCH_BUDGETS=16,33` measures only those budgets (ms).
+        let budgets: Vec<f32> = std::env::var("CAVETRACE_BENCH_BUDGETS")
+            .ok()
+            .map(|list| {
+                list.split(',')
+                    .filter_map(|b| b.trim().parse().ok())
+                    .collect()
+            })
+            .unwrap_or_else(|| vec![16.0, 33.0, 50.0]);
+        for budget_ms in budgets {
             set(s.dev, s.frame, "budget", ANARI_FLOAT32, &(budget_ms / 1e3));
             commit(s.dev, s.frame);
             let mut times = Vec::new();
@@ -369,17 +378,28 @@ fn budget_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: 
             }
             let converged_error = full.iter().zip(&colors(&s)).filter(|(a, b)| a != b).count();
             println!(
-                "  budget {budget_ms:.0} ms, moving head: median {median_ms:.1} ms, p95 {p95:.1} ms \
-                 ({:.2}× budget), {:.1} % of pixels traced; first frame of a pose: {:.1} % traced, \
-                 mean |colour error| {error:.2}/255; head still: complete after {renders} renders \
-                 ({still_ms:.0} ms more), {converged_error} pixels differ from the full frame",
+                "  budget {budget_ms:.0} ms, moving head: p50 {median_ms:.1} ms ({:.2}× budget), \
+                 p95 {p95:.1} ms ({:.2}× budget), {:.1} % of pixels traced (load average {}); \
+                 first frame of a pose: {:.1} % traced, mean |colour error| {error:.2}/255; head \
+                 still: complete after {renders} renders ({still_ms:.0} ms more), \
+                 {converged_error} pixels differ from the full frame",
+                median_ms / f64::from(budget_ms),
                 p95 / f64::from(budget_ms),
                 100.0 * mean_traced,
+                load_average(),
                 100.0 * first_traced,
             );
         }
         release(s);
     }
+}
+
+/// The machine's one-minute load average (Linux), to say how busy it was during a figure.
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|text| text.split_whitespace().next().map(str::to_owned))
+        .unwrap_or_else(|| "unknown".to_owned())
 }
 
 /// A screen 1 m in front of the benchmark's head, filling its 0.9 rad field of view: the
@@ -618,11 +638,38 @@ fn stereo_section(dev: ANARIDevice, scenes: &[(&str, ANARIGeometry)], size: u32,
         ("sideBySide", "sideBySide", [2 * size, size]),
         ("topBottom", "topBottom", [size, 2 * size]),
         ("rowInterleaved", "rowInterleaved", [size, size]),
+        ("columnInterleaved", "columnInterleaved", [size, size]),
         ("checkerboard", "checkerboard", [size, size]),
         ("anaglyph", "anaglyph", [size, size]),
     ];
-    for (scene, geometry) in scenes {
+    // `CAVETRACE_BENCH_STEREO_CASES=rowInterleaved,checkerboard` runs those beside mono (for
+    // profiling and quicker runs); `CAVETRACE_BENCH_RENDERER` and `CAVETRACE_BENCH_SCENE`
+    // (0 height field, 1 spheres) pick one renderer and one scene.
+    let chosen = std::env::var("CAVETRACE_BENCH_STEREO_CASES").ok();
+    let cases: Vec<_> = cases
+        .into_iter()
+        .filter(|(label, _, _)| {
+            *label == "mono"
+                || chosen
+                    .as_deref()
+                    .is_none_or(|list| list.split(',').any(|c| c == *label))
+        })
+        .collect();
+    let renderer_only = std::env::var("CAVETRACE_BENCH_RENDERER").ok();
+    let scene_only: Option<usize> = std::env::var("CAVETRACE_BENCH_SCENE")
+        .ok()
+        .and_then(|v| v.parse().ok());
+    for (index, (scene, geometry)) in scenes.iter().enumerate() {
+        if scene_only.is_some_and(|only| only != index) {
+            continue;
+        }
         for renderer in ["fast", "default"] {
+            if renderer_only
+                .as_deref()
+                .is_some_and(|only| only != renderer)
+            {
+                continue;
+            }
             let setups: Vec<Setup> = cases
                 .iter()
                 .map(|(_, mode, frame_size)| {

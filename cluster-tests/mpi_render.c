@@ -3,7 +3,10 @@
  *
  *   mpirun -np 4 cluster-tests/build/mpi_render          the image tests
  *   mpirun -np 4 cluster-tests/build/mpi_render kill     the last rank dies mid-frame
- *   mpirun -np 4 cluster-tests/build/mpi_render bench 1600 [mode]   costs per frame (docs/cluster.md)
+ *   mpirun -np 3 -x CAVETRACE_TEST_FAIL_RANK=2 cluster-tests/build/mpi_render fail
+ *                                       rank 2's own render fails (a test-only trigger)
+ *   mpirun -np 4 cluster-tests/build/mpi_render bench 1600 [mode [renderer]]
+ *                                       costs per frame (docs/cluster.md)
  *
  * The scene: a floor (a mesh), a sphere casting its shadow on the floor, a mirror, an instanced
  * mesh, a few spheres in one geometry and a half-transparent pane, under one directional light.
@@ -15,6 +18,7 @@
  */
 #include <mpi.h>
 #include <signal.h>
+#include <sys/resource.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -28,6 +32,8 @@ enum { WIDTH = 96, HEIGHT = 64, OBJECTS = 6 };
 static int rank, ranks, failures;
 /* Whether the frames ask for the whole image on every rank (mpiImageOnEveryRank). */
 static int everywhere;
+/* The renderers' pixelSamples. */
+static uint32_t pixel_samples = 1;
 static char last_error[1024];
 static int error_count;
 
@@ -239,6 +245,7 @@ static ANARIRenderer renderer_of(ANARIDevice d, const char *subtype) {
   const float background[4] = {0.1f, 0.15f, 0.3f, 1};
   anariSetParameter(d, r, "background", ANARI_FLOAT32_VEC4, background);
   set_f32(d, r, "ambientRadiance", 0.3f);
+  set_u32(d, r, "pixelSamples", pixel_samples);
   anariCommitParameters(d, r);
   return r;
 }
@@ -331,9 +338,10 @@ static Image got, alone;
 static void image_test(ANARIDevice d, const int *mine, const int *all, const char *mode,
                        const char *renderer_name, enum Camera camera_kind, int tolerance) {
   char name[160], detail[512] = "";
-  snprintf(name, sizeof name, "%s, %s renderer, %s camera, %d ranks: %s = one device", mode,
-           renderer_name, CAMERA_NAME[camera_kind], ranks,
-           everywhere ? "every rank" : "rank 0");
+  snprintf(name, sizeof name,
+           "%s, %s renderer, %s camera, %u sample%s per pixel, %d ranks: %s = one device", mode,
+           renderer_name, CAMERA_NAME[camera_kind], pixel_samples, pixel_samples > 1 ? "s" : "",
+           ranks, everywhere ? "every rank" : "rank 0");
   int replicated = strcmp(mode, "replicated") == 0;
   ANARIWorld world = world_of(d, replicated ? all : mine);
   ANARICamera camera = camera_of(d, camera_kind);
@@ -408,7 +416,7 @@ static int kill_test(ANARIDevice d, const int *mine) {
   anariSetParameter(d, frame, "world", ANARI_WORLD, &world);
   anariSetParameter(d, frame, "camera", ANARI_CAMERA, &camera);
   anariSetParameter(d, frame, "renderer", ANARI_RENDERER, &renderer);
-  set_f32(d, frame, "mpiTimeout", 2.0f);
+  set_f32(d, frame, "mpiTimeout", 1.0f);
   anariCommitParameters(d, frame);
   MPI_Barrier(MPI_COMM_WORLD);
   if (rank == ranks - 1) {
@@ -428,16 +436,87 @@ static int kill_test(ANARIDevice d, const int *mine) {
   _exit(ok ? 0 : 1);
 }
 
+/* The rank named by CAVETRACE_TEST_FAIL_RANK (a trigger read only by the device's cluster code,
+ * for this test) fails its own part of every render, as an allocation failure would: every rank
+ * reports "rank N reported a failure" through the status callback and returns, in both modes;
+ * without the trigger the same frame renders again without an error. */
+static int fail_test(ANARIDevice d, const int *mine, const int *all) {
+  const char *failing = getenv("CAVETRACE_TEST_FAIL_RANK");
+  char expected[64];
+  snprintf(expected, sizeof expected, "rank %s reported a failure", failing ? failing : "?");
+  const char *modes[] = {"dataParallel", "replicated"};
+  int ok = failing != NULL;
+  char detail[1200] = "";
+  for (int m = 0; m < 2; m++) {
+    ANARIWorld world = world_of(d, m == 1 ? all : mine);
+    ANARICamera camera = camera_of(d, PERSPECTIVE);
+    ANARIRenderer renderer = renderer_of(d, "default");
+    ANARIFrame frame = anariNewFrame(d);
+    const uint32_t size[2] = {WIDTH, HEIGHT};
+    anariSetParameter(d, frame, "size", ANARI_UINT32_VEC2, size);
+    anariSetParameter(d, frame, "world", ANARI_WORLD, &world);
+    anariSetParameter(d, frame, "camera", ANARI_CAMERA, &camera);
+    anariSetParameter(d, frame, "renderer", ANARI_RENDERER, &renderer);
+    anariSetParameter(d, frame, "mpiMode", ANARI_STRING, modes[m]);
+    set_f32(d, frame, "mpiTimeout", 20.0f);
+    anariCommitParameters(d, frame);
+    if (failing)
+      setenv("CAVETRACE_TEST_FAIL_RANK", failing, 1);
+    error_count = 0;
+    last_error[0] = 0;
+    double started = MPI_Wtime();
+    anariRenderFrame(d, frame);
+    anariFrameReady(d, frame, ANARI_WAIT);
+    double took = MPI_Wtime() - started;
+    /* Well within mpiTimeout: the failure is told, not waited out. */
+    if (error_count == 0 || strstr(last_error, expected) == NULL || took > 10.0) {
+      if (ok)
+        snprintf(detail, sizeof detail, "%s: rank %d after %.1f s, %d errors, last: %s",
+                 modes[m], rank, took, error_count, last_error);
+      ok = 0;
+    }
+    unsetenv("CAVETRACE_TEST_FAIL_RANK");
+    error_count = 0;
+    anariRenderFrame(d, frame);
+    anariFrameReady(d, frame, ANARI_WAIT);
+    if (error_count) {
+      if (ok)
+        snprintf(detail, sizeof detail, "%s: rank %d, the render after the failure: %s",
+                 modes[m], rank, last_error);
+      ok = 0;
+    }
+    anariRelease(d, frame);
+    anariRelease(d, renderer);
+    anariRelease(d, camera);
+    anariRelease(d, world);
+  }
+  printf("%s rank %d of %d: a rank whose render fails is reported by every rank%s%s\n",
+         ok ? "ok  " : "FAIL", rank, ranks, ok ? "" : ": ", detail);
+  fflush(stdout);
+  return ok ? 0 : 1;
+}
+
+/* CPU time of this process (every thread) so far. */
+static double cpu_seconds(void) {
+  struct rusage usage;
+  getrusage(RUSAGE_SELF, &usage);
+  return (double)(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+         1e-6 * (double)(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+}
+
 /* Figures for docs/cluster.md: a size×size frame of the test scene, median of 3 renders after
- * one to warm up; the exchange time is the slowest rank's, the bytes all ranks' together. */
+ * one to warm up (wall time, and CPU time summed over the ranks); the exchange time is the
+ * slowest rank's, the bytes all ranks' together. */
 static int bench(ANARIDevice d, const int *mine, const int *all, uint32_t size,
-                 const char *only_mode) {
+                 const char *only_mode, const char *only_renderer) {
   const char *modes[] = {"dataParallel", "replicated"};
   const char *renderers[] = {"default", "fast"};
   for (int m = 0; m < 2; m++) {
     if (only_mode && strcmp(only_mode, modes[m]) != 0)
       continue;
     for (int r = 0; r < 2; r++) {
+      if (only_renderer && strcmp(only_renderer, renderers[r]) != 0)
+        continue;
       ANARIWorld world = world_of(d, m == 1 ? all : mine);
       ANARICamera camera = camera_of(d, PERSPECTIVE);
       ANARIRenderer renderer = renderer_of(d, renderers[r]);
@@ -451,14 +530,15 @@ static int bench(ANARIDevice d, const int *mine, const int *all, uint32_t size,
         anariSetParameter(d, frame, CHANNEL[c], ANARI_DATA_TYPE, &CHANNEL_TYPE[c]);
       anariSetParameter(d, frame, "mpiMode", ANARI_STRING, modes[m]);
       anariCommitParameters(d, frame);
-      double seconds[4];
+      double seconds[4], cpu[4];
       float exchange = 0;
       uint64_t bytes = 0;
       for (int i = 0; i < 4; i++) {
         MPI_Barrier(MPI_COMM_WORLD);
-        double started = MPI_Wtime();
+        double started = MPI_Wtime(), cpu_started = cpu_seconds();
         anariRenderFrame(d, frame);
         anariFrameReady(d, frame, ANARI_WAIT);
+        cpu[i] = cpu_seconds() - cpu_started;
         MPI_Barrier(MPI_COMM_WORLD);
         seconds[i] = MPI_Wtime() - started;
         anariGetProperty(d, frame, "mpiExchangeTime", ANARI_FLOAT32, &exchange, sizeof exchange,
@@ -467,21 +547,29 @@ static int bench(ANARIDevice d, const int *mine, const int *all, uint32_t size,
                          ANARI_WAIT);
       }
       for (int i = 1; i < 4; i++) /* sort the timed three */
-        for (int j = i + 1; j < 4; j++)
+        for (int j = i + 1; j < 4; j++) {
           if (seconds[j] < seconds[i]) {
             double t = seconds[i];
             seconds[i] = seconds[j];
             seconds[j] = t;
           }
+          if (cpu[j] < cpu[i]) {
+            double t = cpu[i];
+            cpu[i] = cpu[j];
+            cpu[j] = t;
+          }
+        }
+      double cpu_all = 0;
+      MPI_Reduce(&cpu[2], &cpu_all, 1, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
       float slowest = 0;
       uint64_t total = 0;
       MPI_Reduce(&exchange, &slowest, 1, MPI_FLOAT, MPI_MAX, 0, MPI_COMM_WORLD);
       MPI_Reduce(&bytes, &total, 1, MPI_UINT64_T, MPI_SUM, 0, MPI_COMM_WORLD);
       if (rank == 0)
-        printf("%-12s %-7s %u×%u, %d ranks: %.1f ms per frame, exchange %.1f ms (slowest rank), "
-               "%.2f MB sent by all ranks\n",
-               modes[m], renderers[r], size, size, ranks, 1e3 * seconds[2], 1e3 * slowest,
-               total / 1e6);
+        printf("%-12s %-7s %u×%u, %d ranks: %.1f ms per frame, CPU %.1f ms (all ranks), exchange "
+               "%.1f ms (slowest rank), %.2f MB sent by all ranks\n",
+               modes[m], renderers[r], size, size, ranks, 1e3 * seconds[2], 1e3 * cpu_all,
+               1e3 * slowest, total / 1e6);
       fflush(stdout);
       anariRelease(d, frame);
       anariRelease(d, renderer);
@@ -509,8 +597,15 @@ int main(int argc, char **argv) {
   }
   if (argc > 1 && strcmp(argv[1], "kill") == 0)
     return kill_test(d, mine);
+  if (argc > 1 && strcmp(argv[1], "fail") == 0) {
+    int failed = fail_test(d, mine, all);
+    anariRelease(d, d);
+    MPI_Finalize();
+    return failed;
+  }
   if (argc > 2 && strcmp(argv[1], "bench") == 0) {
-    bench(d, mine, all, (uint32_t)atoi(argv[2]), argc > 3 ? argv[3] : NULL);
+    bench(d, mine, all, (uint32_t)atoi(argv[2]), argc > 3 ? argv[3] : NULL,
+          argc > 4 ? argv[4] : NULL);
     anariRelease(d, d);
     MPI_Finalize();
     return 0;
@@ -526,6 +621,11 @@ int main(int argc, char **argv) {
   image_test(d, mine, all, "dataParallel", "default", OFFAXIS_STEREO, 1);
   image_test(d, mine, all, "replicated", "default", PERSPECTIVE, 0);
   everywhere = 0;
+  /* Several samples per pixel: a pixel's samples may be shaded on different ranks. */
+  pixel_samples = 3;
+  image_test(d, mine, all, "dataParallel", "default", PERSPECTIVE, 1);
+  image_test(d, mine, all, "dataParallel", "fast", OFFAXIS_STEREO, 1);
+  pixel_samples = 1;
   anariRelease(d, d);
   anariUnloadLibrary(library);
   if (rank == 0)

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Rendering across MPI ranks (docs/cluster.md): builds the library with the `mpi` feature and
-# runs the C and Python tests under mpirun with 1, 2 and 4 ranks, then the test in which a rank
-# is killed mid-frame. Skips, saying why, when mpirun, mpicc or mpi4py is missing (.ci/run
-# installs them). Closes with "total: N passed, M failed"; exits non-zero on a failure.
+# runs the C and Python tests under mpirun with 1, 2 and 4 ranks, then the tests in which a rank
+# is killed mid-frame and in which a rank's own render fails. Skips, saying why, when mpirun,
+# mpicc or mpi4py is missing (.ci/run installs them). Closes with "total: N passed, M failed";
+# exits non-zero on a failure.
 set -euo pipefail
 
 here=$(cd "$(dirname "$0")" && pwd)
@@ -73,6 +74,21 @@ if [ "$(grep -c '^ok' "$log" || true)" -eq 2 ]; then
   passed=$((passed + 1))
 else
   echo "FAIL a rank killed mid-frame: the two other ranks did not both report it"
+  tail -20 "$log"
+  failed=$((failed + 1))
+fi
+
+# A rank whose own render fails (CAVETRACE_TEST_FAIL_RANK, a test-only trigger read by the
+# device's cluster code): every rank, the failing one included, reports it and returns.
+log=$build/fail.log
+status=0
+timeout 120 "${mpirun[@]}" -np 3 -x CAVETRACE_TEST_FAIL_RANK=2 "$build/mpi_render" fail \
+  >"$log" 2>&1 || status=$?
+grep -E '^(ok|FAIL)' "$log" || true
+if [ "$(grep -c '^ok' "$log" || true)" -eq 3 ] && [ "$status" -eq 0 ]; then
+  passed=$((passed + 1))
+else
+  echo "FAIL a rank whose render fails: not every rank reported it and returned (status $status)"
   tail -20 "$log"
   failed=$((failed + 1))
 fi

@@ -2,7 +2,9 @@
  * A lit volume: a cloud (a structured field) over a floor, lit by a low sun. The default
  * renderer scatters the sun's light in the cloud (single scattering, shadow rays through the
  * cloud itself) and the cloud casts a soft-edged shadow on the floor: the floor receives the
- * sun's light attenuated by the cloud's transmittance. Written to a PNG file.
+ * sun's light attenuated by the cloud's transmittance. The sky's ambient light reaches the
+ * cloud's inside through the cloud and past the floor (ambient occlusion). Written to a PNG
+ * file.
  *
  *   cc -std=c99 lit_volume.c $(pkg-config --cflags --libs cavetrace) -lm -o lit_volume
  *   ./lit_volume [output.png]

@@ -122,9 +122,9 @@ fn off_axis(dev: ANARIDevice, stereo: &str) -> ANARICamera {
     camera
 }
 
-/// Two viewers in front of the screen of [`off_axis`], blended `mode`.
-fn viewers(dev: ANARIDevice, mode: &str) -> ANARICamera {
-    let camera = off_axis(dev, "none");
+/// Two viewers in front of the screen of [`off_axis`], blended `mode`, in `stereo` mode.
+fn viewers(dev: ANARIDevice, mode: &str, stereo: &str) -> ANARICamera {
+    let camera = off_axis(dev, stereo);
     let arrays = [
         ("viewer.position", [[-0.3f32, 0.1, 1.4], [0.4, -0.05, 1.6]]),
         ("viewer.direction", [[0.2f32, 0.0, -1.0], [-0.3, 0.1, -1.0]]),
@@ -195,8 +195,20 @@ fn cameras(dev: ANARIDevice) -> Vec<(&'static str, ANARICamera)> {
     ] {
         cameras.push((stereo, off_axis(dev, stereo)));
     }
-    cameras.push(("two viewers, perPixel", viewers(dev, "perPixel")));
-    cameras.push(("two viewers, tiles", viewers(dev, "tiles")));
+    cameras.push(("two viewers, perPixel", viewers(dev, "perPixel", "none")));
+    cameras.push(("two viewers, tiles", viewers(dev, "tiles", "none")));
+    cameras.push(("two viewers, zones", viewers(dev, "zones", "none")));
+    // Interleaved eyes of blended cameras: rays made four at a time into half packets.
+    for (name, stereo) in [
+        ("two viewers, perPixel, rowInterleaved", "rowInterleaved"),
+        ("two viewers, perPixel, checkerboard", "checkerboard"),
+    ] {
+        cameras.push((name, viewers(dev, "perPixel", stereo)));
+    }
+    cameras.push((
+        "two viewers, perPixel, sideBySide",
+        viewers(dev, "perPixel", "sideBySide"),
+    ));
     cameras.push(("light field", light_field(dev)));
     cameras
 }

@@ -625,6 +625,46 @@ fn classify(inside_by: f64, margin: f64) -> Option<bool> {
     }
 }
 
+/// Checks every pixel of a `size`² `image` from the camera at the origin looking along −z
+/// (fovy 60°) against `expected` of the pixel centre's unit direction: `Ok(Some((light,
+/// radiance)))` where a light shows (in every colour channel), `Ok(None)` where the background
+/// does, `Err(())` where it is too near an edge to tell. Returns how many pixels showed each light
+/// and the background.
+fn check_lights_seen<const N: usize>(
+    image: &[[f32; 4]],
+    size: u32,
+    expected: impl Fn(V) -> Result<Option<(usize, f64)>, ()>,
+) -> ([usize; N], usize) {
+    let mut seen = [0; N];
+    let mut background = 0;
+    let half = (PI / 6.0).tan();
+    for j in 0..size {
+        for i in 0..size {
+            let u = (2.0 * (f64::from(i) + 0.5) / f64::from(size) - 1.0) * half;
+            let v = (2.0 * (f64::from(j) + 0.5) / f64::from(size) - 1.0) * half;
+            let Ok(expected) = expected(normalize([u, v, -1.0])) else {
+                continue;
+            };
+            let p = image[(j * size + i) as usize];
+            match expected {
+                Some((light, radiance)) => {
+                    seen[light] += 1;
+                    for value in &p[..3] {
+                        let error = (f64::from(*value) - radiance).abs() / radiance;
+                        assert!(error < 1e-4, "pixel ({i}, {j}): {p:?} vs {radiance}");
+                    }
+                    assert_eq!(p[3], 1.0);
+                }
+                None => {
+                    background += 1;
+                    assert_eq!(p, BACKGROUND, "pixel ({i}, {j})");
+                }
+            }
+        }
+    }
+    (seen, background)
+}
+
 #[test]
 fn visible_lights_with_extent_are_seen_by_camera_rays_with_their_radiance() {
     let log = Log::new();
@@ -706,63 +746,43 @@ fn visible_lights_with_extent_are_seen_by_camera_rays_with_their_radiance() {
         let lights = lights(visible);
         let world = world_with_lights(dev, &[], &lights);
         let image = render(dev, world, camera, size, (1, 1), BACKGROUND, &[]);
-        let mut seen = [0; 4];
-        for j in 0..size {
-            for i in 0..size {
-                let half = (PI / 6.0).tan();
-                let u = (2.0 * (f64::from(i) + 0.5) / f64::from(size) - 1.0) * half;
-                let v = (2.0 * (f64::from(j) + 0.5) / f64::from(size) - 1.0) * half;
-                let d = normalize([u, v, -1.0]);
-                // Where the ray crosses the lights' plane z = −5.
-                let p = d.map(|x| x * 5.0 / -d[2]);
-                let m = 0.05;
-                let quad = classify(
-                    (p[0] + 2.5)
-                        .min(-1.5 - p[0])
-                        .min(p[1] + 0.5)
-                        .min(0.5 - p[1]),
-                    m,
-                );
-                let centre = [1.5, 1.0, -5.0];
-                let along = dot(centre, d);
-                let miss = (dot(centre, centre) - along * along).sqrt();
-                let sphere = classify(0.5 - miss, m / 5.0);
-                let rho = ((p[0] - 1.5).powi(2) + (p[1] + 1.2).powi(2)).sqrt();
-                let ring = classify((rho - ring_inner).min(ring_outer - rho), m);
-                let disk = classify(0.1 - dot(d, sun).clamp(-1.0, 1.0).acos(), 0.01);
-                let shapes = [quad, sphere, ring, disk];
-                if shapes.contains(&None) {
-                    continue;
-                }
-                let p = image[(j * size + i) as usize];
-                let expected = if !visible {
-                    None
-                } else if quad == Some(true) {
-                    Some((0, 3.0))
-                } else if sphere == Some(true) {
-                    Some((1, 4.0))
-                } else if ring == Some(true) {
-                    // The ring's intensity per area over the projected area.
-                    let area = PI * (ring_outer.powi(2) - ring_inner.powi(2));
-                    Some((2, ring_intensity / (area * -d[2])))
-                } else if disk == Some(true) {
-                    Some((3, 5.0))
-                } else {
-                    None
-                };
-                match expected {
-                    Some((shape, radiance)) => {
-                        seen[shape] += 1;
-                        for value in &p[..3] {
-                            let error = (f64::from(*value) - radiance).abs() / radiance;
-                            assert!(error < 1e-4, "pixel ({i}, {j}): {p:?} vs {radiance}");
-                        }
-                        assert_eq!(p[3], 1.0);
-                    }
-                    None => assert_eq!(p, BACKGROUND, "visible {visible}: pixel ({i}, {j})"),
-                }
+        let (seen, _) = check_lights_seen::<4>(&image, size, |d| {
+            // Where the ray crosses the lights' plane z = −5.
+            let p = d.map(|x| x * 5.0 / -d[2]);
+            let m = 0.05;
+            let quad = classify(
+                (p[0] + 2.5)
+                    .min(-1.5 - p[0])
+                    .min(p[1] + 0.5)
+                    .min(0.5 - p[1]),
+                m,
+            );
+            let centre = [1.5, 1.0, -5.0];
+            let along = dot(centre, d);
+            let miss = (dot(centre, centre) - along * along).sqrt();
+            let sphere = classify(0.5 - miss, m / 5.0);
+            let rho = ((p[0] - 1.5).powi(2) + (p[1] + 1.2).powi(2)).sqrt();
+            let ring = classify((rho - ring_inner).min(ring_outer - rho), m);
+            let disk = classify(0.1 - dot(d, sun).clamp(-1.0, 1.0).acos(), 0.01);
+            if [quad, sphere, ring, disk].contains(&None) {
+                return Err(());
             }
-        }
+            Ok(if !visible {
+                None
+            } else if quad == Some(true) {
+                Some((0, 3.0))
+            } else if sphere == Some(true) {
+                Some((1, 4.0))
+            } else if ring == Some(true) {
+                // The ring's intensity per area over the projected area.
+                let area = PI * (ring_outer.powi(2) - ring_inner.powi(2));
+                Some((2, ring_intensity / (area * -d[2])))
+            } else if disk == Some(true) {
+                Some((3, 5.0))
+            } else {
+                None
+            })
+        });
         if visible {
             assert!(seen.iter().all(|&n| n >= 8), "{seen:?}");
         }
@@ -770,6 +790,140 @@ fn visible_lights_with_extent_are_seen_by_camera_rays_with_their_radiance() {
         anariRelease(dev, world);
     }
     anariRelease(dev, camera);
+    let errors = log.errors();
+    assert!(errors.is_empty(), "{errors:?}");
+    release_device(lib, dev);
+}
+
+/// Which of the mirrored lights of the test below a camera ray along unit `d` sees, and its
+/// radiance there (None: the background); `Err(())` too near an edge to tell. A mirror in the
+/// plane z = −4 shows a point (x, y, z) at (x, y, −8 − z), so each light is looked up where the
+/// ray meets its mirror image.
+fn mirrored_light_towards(d: V, ring: (f64, f64, f64)) -> Result<Option<(usize, f64)>, ()> {
+    let at_depth = |z: f64| d.map(|x| x * z / d[2]);
+    let m = 0.05;
+    // The front-facing quad: x ∈ [−2, −1], y ∈ [−1.5, −0.5] at z = 1, seen at z = −9.
+    let p = at_depth(-9.0);
+    let quad = classify(
+        (p[0] + 2.0)
+            .min(-1.0 - p[0])
+            .min(p[1] + 1.5)
+            .min(-0.5 - p[1]),
+        m,
+    );
+    // The back-facing quad: x ∈ [0, 1], y ∈ [−1.5, −0.5], also at z = 1: never seen.
+    let away = classify(p[0].min(1.0 - p[0]).min(p[1] + 1.5).min(-0.5 - p[1]), m);
+    // The sphere light of radius 0.5 at (1.5, 1, 2), seen at (1.5, 1, −10).
+    let centre = [1.5, 1.0, -10.0];
+    let along = dot(centre, d);
+    let miss = (dot(centre, centre) - along * along).sqrt();
+    let sphere = classify(0.5 - miss, m / 10.0);
+    // The ring around (−1.5, 1.2, 1.5) facing −z, seen at z = −9.5.
+    let (inner, outer, intensity) = ring;
+    let p = at_depth(-9.5);
+    let rho = ((p[0] + 1.5).powi(2) + (p[1] - 1.2).powi(2)).sqrt();
+    let annulus = classify((rho - inner).min(outer - rho), m);
+    if [quad, away, sphere, annulus].contains(&None) {
+        return Err(());
+    }
+    Ok(if quad == Some(true) {
+        Some((0, 3.0))
+    } else if sphere == Some(true) {
+        Some((1, 4.0))
+    } else if annulus == Some(true) {
+        // The reflected ray meets the ring at the angle the camera ray meets the mirror.
+        let area = PI * (outer * outer - inner * inner);
+        Some((2, intensity / (area * -d[2])))
+    } else {
+        None
+    })
+}
+
+#[test]
+fn a_flat_mirror_shows_quad_sphere_and_ring_lights_where_their_images_are() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let camera = perspective_camera(dev, [0.0; 3], [0.0, 0.0, -1.0], (PI / 3.0) as f32);
+    // A perfect mirror filling the view at z = −4, facing the camera.
+    let s = 10.0f32;
+    let mirror = triangle_geometry(
+        dev,
+        &[
+            [-s, -s, -4.0],
+            [s, -s, -4.0],
+            [s, s, -4.0],
+            [-s, -s, -4.0],
+            [s, s, -4.0],
+            [-s, s, -4.0],
+        ],
+    );
+    let material = metal(dev, 0.0);
+    let surface = surface_of(dev, mirror, material);
+    let ring = (0.3f64, 0.6f64, 2.0f64);
+    // Behind the camera, facing the mirror, so only the mirror can show them.
+    let lights = |visible: bool| {
+        vec![
+            // edge1 × edge2 = −z: its front faces the mirror.
+            light_with(
+                dev,
+                "quad",
+                &[("radiance", 3.0)],
+                &[
+                    ("position", [-2.0, -1.5, 1.0]),
+                    ("edge1", [0.0, 1.0, 0.0]),
+                    ("edge2", [1.0, 0.0, 0.0]),
+                ],
+                visible,
+            ),
+            // edge1 × edge2 = +z: its front faces away from the mirror.
+            light_with(
+                dev,
+                "quad",
+                &[("radiance", 7.0)],
+                &[
+                    ("position", [0.0, -1.5, 1.0]),
+                    ("edge1", [1.0, 0.0, 0.0]),
+                    ("edge2", [0.0, 1.0, 0.0]),
+                ],
+                visible,
+            ),
+            light_with(
+                dev,
+                "point",
+                &[("radius", 0.5), ("radiance", 4.0)],
+                &[("position", [1.5, 1.0, 2.0])],
+                visible,
+            ),
+            light_with(
+                dev,
+                "ring",
+                &[
+                    ("radius", ring.1 as f32),
+                    ("innerRadius", ring.0 as f32),
+                    ("intensity", ring.2 as f32),
+                ],
+                &[
+                    ("position", [-1.5, 1.2, 1.5]),
+                    ("direction", [0.0, 0.0, -1.0]),
+                ],
+                visible,
+            ),
+        ]
+    };
+    let size = 96;
+    // `visible` is primary visibility: the mirror shows the lights either way.
+    for visible in [true, false] {
+        let lights = lights(visible);
+        let world = world_with_lights(dev, &[surface], &lights);
+        let image = render(dev, world, camera, size, (1, 1), BACKGROUND, &[]);
+        let (seen, background) =
+            check_lights_seen::<3>(&image, size, |d| mirrored_light_towards(d, ring));
+        assert!(seen.iter().all(|&n| n >= 8), "{seen:?}");
+        assert!(background > (size * size / 2) as usize, "{background}");
+        release_all(dev, &lights);
+        anariRelease(dev, world);
+    }
+    release_all(dev, &[surface, material, mirror, camera]);
     let errors = log.errors();
     assert!(errors.is_empty(), "{errors:?}");
     release_device(lib, dev);

@@ -433,8 +433,9 @@ fn budget_zero_renders_every_pixel_and_a_timed_budget_converges() {
     // A budget far below what the frame needs, timed: each render traces at least the
     // coarsest level or one more unit, and the image still converges to the exact one.
     let timed = frame(dev, world, camera, renderer, size, Some((1e-6, 0)));
-    // Levels of 1, 1, 1, 1 and 4 units per eye: at most 15 renders.
-    let steps = refine(dev, timed, 15);
+    // Levels of 1, 1, 1, 1, 1, 1 and 4 units per eye: the coarsest level of both eyes,
+    // then a unit per render, at most 19 renders.
+    let steps = refine(dev, timed, 19);
     assert!(steps[0] > 0.0 && steps[0] < 1.0, "{steps:?}");
     assert_same_channels(&channels(dev, timed), &expected, "timed budget");
     release_all(dev, &[plain, zero, timed, camera, renderer, world]);

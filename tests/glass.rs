@@ -1,6 +1,7 @@
 //! physicallyBased transmission (glTF KHR_materials_transmission, _ior, _volume) in the default
 //! renderer: a glass ball refracts what lies behind it as Snell's law says, its volume absorbs
-//! by Beer–Lambert, and no material returns more light than arrives (a white furnace).
+//! by Beer–Lambert, a glass slab shows the quad and sphere lights behind it with the Fresnel
+//! transmittance of its faces, and no material returns more light than arrives (a white furnace).
 
 mod common;
 use common::*;
@@ -42,10 +43,21 @@ fn glass(
     material
 }
 
-/// The red channel of the default renderer's image: no lights, ambient radiance 1 (a matte
+/// The default renderer's image of `surfaces` under `lights`: ambient radiance 1 (a matte
 /// surface shows its albedo), background `background`.
-fn render(dev: ANARIDevice, surfaces: &[ANARISurface], background: [f32; 4]) -> Vec<[f32; 4]> {
+fn render(
+    dev: ANARIDevice,
+    surfaces: &[ANARISurface],
+    lights: &[ANARILight],
+    background: [f32; 4],
+) -> Vec<[f32; 4]> {
     let world = world_of(dev, surfaces);
+    if !lights.is_empty() {
+        let array = object_array(dev, ANARI_LIGHT, lights);
+        set_object(dev, world, "light", ANARI_ARRAY1D, array);
+        anariRelease(dev, array);
+        commit(dev, world);
+    }
     let camera = orthographic_camera(dev, [0.0, 0.0, 5.0], VIEW_HEIGHT);
     let renderer = anariNewRenderer(dev, c("default").as_ptr());
     set(dev, renderer, "ambientRadiance", ANARI_FLOAT32, &1.0f32);
@@ -104,7 +116,12 @@ fn a_glass_ball_shows_the_board_behind_it_where_snells_law_sends_each_ray() {
     let ball = sphere_geometry(dev, &[[0.0, 0.0, 0.0]], radius as f32);
     let material = glass(dev, ior as f32, 1.0, None);
     let ball_surface = surface_of(dev, ball, material);
-    let image = render(dev, &[board_surface, ball_surface], [0.0, 0.0, 0.0, 1.0]);
+    let image = render(
+        dev,
+        &[board_surface, ball_surface],
+        &[],
+        [0.0, 0.0, 0.0, 1.0],
+    );
     let mut checked = 0;
     let mut flipped = 0;
     for j in 0..SIZE {
@@ -171,7 +188,7 @@ fn the_volume_absorbs_by_beer_lambert_along_the_path_inside() {
         ],
     );
     let wall_surface = matte_surface(dev, wall, [1.0, 1.0, 1.0]);
-    let image = render(dev, &[surface, wall_surface], [0.0, 0.0, 0.0, 1.0]);
+    let image = render(dev, &[surface, wall_surface], &[], [0.0, 0.0, 0.0, 1.0]);
     // The central ray crosses 2r of glass at normal incidence.
     let centre = image[(SIZE / 2 * SIZE + SIZE / 2) as usize];
     let (x, y) = pixel_xy(SIZE / 2, SIZE / 2);
@@ -213,7 +230,7 @@ fn no_material_returns_more_light_than_arrives() {
                     commit(dev, material);
                     let surface = surface_of(dev, ball, material);
                     // White everywhere: the background and the ambient light.
-                    let image = render(dev, &[surface], [1.0, 1.0, 1.0, 1.0]);
+                    let image = render(dev, &[surface], &[], [1.0, 1.0, 1.0, 1.0]);
                     let what = format!(
                         "metallic {metallic} roughness {roughness} transmission {transmission} ior {ior}"
                     );
@@ -244,5 +261,130 @@ fn no_material_returns_more_light_than_arrives() {
     }
     assert!(log.errors().is_empty(), "{:?}", log.errors());
     anariRelease(dev, ball);
+    release_device(lib, dev);
+}
+
+/// The two triangles of the quad a, b, c, d (counter-clockwise seen from where its normal
+/// points).
+fn quad_triangles(a: [f32; 3], b: [f32; 3], c: [f32; 3], d: [f32; 3]) -> [[f32; 3]; 6] {
+    [a, b, c, a, c, d]
+}
+
+#[test]
+fn a_glass_slab_shows_the_quad_and_sphere_lights_behind_it() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    // A closed slab x, y ∈ [−1, 1], z ∈ [−1.5, −1], its faces wound outwards.
+    let (z0, z1) = (-1.5f32, -1.0f32);
+    let faces = [
+        quad_triangles(
+            [-1.0, -1.0, z1],
+            [1.0, -1.0, z1],
+            [1.0, 1.0, z1],
+            [-1.0, 1.0, z1],
+        ),
+        quad_triangles(
+            [-1.0, -1.0, z0],
+            [-1.0, 1.0, z0],
+            [1.0, 1.0, z0],
+            [1.0, -1.0, z0],
+        ),
+        quad_triangles(
+            [1.0, -1.0, z0],
+            [1.0, 1.0, z0],
+            [1.0, 1.0, z1],
+            [1.0, -1.0, z1],
+        ),
+        quad_triangles(
+            [-1.0, -1.0, z0],
+            [-1.0, -1.0, z1],
+            [-1.0, 1.0, z1],
+            [-1.0, 1.0, z0],
+        ),
+        quad_triangles(
+            [-1.0, 1.0, z0],
+            [-1.0, 1.0, z1],
+            [1.0, 1.0, z1],
+            [1.0, 1.0, z0],
+        ),
+        quad_triangles(
+            [-1.0, -1.0, z0],
+            [1.0, -1.0, z0],
+            [1.0, -1.0, z1],
+            [-1.0, -1.0, z1],
+        ),
+    ];
+    let slab = triangle_geometry(dev, faces.as_flattened());
+    let material = glass(dev, 1.5, 0.5, None);
+    let surface = surface_of(dev, slab, material);
+    // Below the slab, facing it (and the camera above).
+    let quad = anariNewLight(dev, c("quad").as_ptr());
+    set(
+        dev,
+        quad,
+        "position",
+        ANARI_FLOAT32_VEC3,
+        &[-0.5f32, -0.5, -3.0],
+    );
+    set(dev, quad, "edge1", ANARI_FLOAT32_VEC3, &[1.0f32, 0.0, 0.0]);
+    set(dev, quad, "edge2", ANARI_FLOAT32_VEC3, &[0.0f32, 1.0, 0.0]);
+    set(dev, quad, "radiance", ANARI_FLOAT32, &3.0f32);
+    commit(dev, quad);
+    let sphere = anariNewLight(dev, c("point").as_ptr());
+    set(
+        dev,
+        sphere,
+        "position",
+        ANARI_FLOAT32_VEC3,
+        &[0.75f32, -0.75, -3.0],
+    );
+    set(dev, sphere, "radius", ANARI_FLOAT32, &0.15f32);
+    set(dev, sphere, "radiance", ANARI_FLOAT32, &4.0f32);
+    commit(dev, sphere);
+    let image = render(dev, &[surface], &[quad, sphere], [0.0, 0.0, 0.0, 1.0]);
+    // At normal incidence each face reflects R = ((n − 1)/(n + 1))² = 0.04 and passes T = 0.96;
+    // light from below comes through both faces after any even number of reflections inside:
+    // T² (1 + R² + R⁴ + …) = T² / (1 − R²) of it.
+    let (r, t) = (0.04f64, 0.96f64);
+    let through = t * t / (1.0 - r * r);
+    let margin = 0.03;
+    let mut seen = [0; 2];
+    for j in 0..SIZE {
+        for i in 0..SIZE {
+            let (x, y) = pixel_xy(i, j);
+            let in_quad = (x + 0.5).min(0.5 - x).min(y + 0.5).min(0.5 - y);
+            let in_sphere = 0.15 - ((x - 0.75).powi(2) + (y + 0.75).powi(2)).sqrt();
+            let in_slab = (1.0 - x.abs()).min(1.0 - y.abs());
+            if [in_quad, in_sphere, in_slab]
+                .iter()
+                .any(|v| v.abs() < margin)
+            {
+                continue;
+            }
+            let expected = if in_slab < 0.0 {
+                0.0
+            } else if in_quad > 0.0 {
+                seen[0] += 1;
+                3.0 * through
+            } else if in_sphere > 0.0 {
+                seen[1] += 1;
+                4.0 * through
+            } else {
+                0.0
+            };
+            let p = image[(j * SIZE + i) as usize];
+            for value in &p[..3] {
+                let error = (f64::from(*value) - expected).abs();
+                assert!(
+                    error < 1e-4 * expected.max(1.0),
+                    "pixel ({i}, {j}): {p:?} vs {expected}"
+                );
+            }
+        }
+    }
+    assert!(seen.iter().all(|&n| n >= 8), "{seen:?}");
+    release_all(dev, &[slab, material, surface, quad, sphere]);
+    let errors = log.errors();
+    assert!(errors.is_empty(), "{errors:?}");
     release_device(lib, dev);
 }

@@ -22,6 +22,15 @@ fn renderer(dev: ANARIDevice, subtype: &str, background: [f32; 4]) -> ANARIRende
     set(dev, renderer, "background", ANARI_FLOAT32_VEC4, &background);
     if subtype == "default" {
         set(dev, renderer, "ambientRadiance", ANARI_FLOAT32, &1.0f32);
+        // Unoccluded ambient light: the emission–absorption model these scenes are checked
+        // against.
+        set(
+            dev,
+            renderer,
+            "ambientOcclusionDistance",
+            ANARI_FLOAT32,
+            &0.0f32,
+        );
     }
     commit(dev, renderer);
     renderer
@@ -628,6 +637,134 @@ fn a_surface_behind_a_volume_is_shadowed_by_its_transmittance() {
     );
     assert_eq!(out.object[pixel(2, 8)], 9);
     release_all(dev, &[world, floor, volume, field, r]);
+    release_device(lib, dev);
+    assert!(log.errors().is_empty());
+}
+
+/// The mean over the sphere of the light reaching a point inside a slab along its normal
+/// axis, `above` below its top and `below` above its bottom: each ray crosses the slab with
+/// extinction σ for at most `reach`, and, with `floor_below`, rays going down meet an opaque
+/// floor (within reach). Half the sphere goes up, half down; over each half the cosine μ to
+/// the axis is uniform, and the path to the face at distance a is a/μ:
+/// ½·∫₀¹ e^{−σ·min(a/μ, reach)} dμ per half (midpoint rule).
+fn slab_ambient_share(sigma: f64, above: f64, below: f64, reach: f64, floor_below: bool) -> f64 {
+    let n = 2000;
+    let half = |a: f64| {
+        (0..n)
+            .map(|k| {
+                let mu = (k as f64 + 0.5) / n as f64;
+                (-sigma * (a / mu).min(reach)).exp()
+            })
+            .sum::<f64>()
+            / n as f64
+    };
+    0.5 * half(above) + if floor_below { 0.0 } else { 0.5 * half(below) }
+}
+
+#[test]
+fn ambient_light_in_and_under_a_slab_is_occluded_by_its_transmittance() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    // A slab 2 deep (z in [−1, 1]) and 100 wide, opacity 0.5 per unit distance 1: σ = ln 2.
+    let slab = field(
+        dev,
+        [2, 2, 2],
+        &[0.5; 8],
+        [-50.0, -50.0, -1.0],
+        [100.0, 100.0, 2.0],
+        None,
+    );
+    let albedo = [1.0f32, 0.5, 0.25];
+    let volume = uniform_volume(dev, slab, albedo, 0.5, 1.0, 3);
+    let (sigma, depth) = (2f64.ln(), 2.0f64);
+    // A black floor below the slab: it hides the ambient light from below and adds nothing.
+    let floor = rectangle(dev, [-50.0, 50.0], [-50.0, 50.0], -1.2, 0.0, 9);
+    let open_world = world_with(dev, &[volume], &[]);
+    let floored_world = world_with(dev, &[volume], &[floor]);
+    let grey_floor = rectangle(dev, [-50.0, 50.0], [-50.0, 50.0], -1.2, 0.5, 9);
+    let grey_floored_world = world_with(dev, &[volume], &[grey_floor]);
+    let r = lit_renderer(dev, 64);
+    set(dev, r, "ambientRadiance", ANARI_FLOAT32, &1.0f32);
+
+    // Seen along the normal from above: L = A·albedo·∫₀ᵈ σ·e^{−σs}·V(s) ds, V(s) the share of
+    // the ambient light reaching depth s (quadrature over s, midpoint rule).
+    let expected_share = |reach: f64, floor_below: bool| {
+        let n = 400;
+        (0..n)
+            .map(|k| {
+                let s = (k as f64 + 0.5) / n as f64 * depth;
+                let v = slab_ambient_share(sigma, s, depth - s, reach, floor_below);
+                sigma * (-sigma * s).exp() * v * depth / n as f64
+            })
+            .sum::<f64>()
+    };
+    let mean_red = |world: ANARIWorld| {
+        let out = render(dev, world, r);
+        out.color.iter().map(|c| c[0] as f64).sum::<f64>() / out.color.len() as f64
+    };
+    for (what, world, reach, floor_below) in [
+        ("open, unbounded", open_world, f64::INFINITY, false),
+        ("open, reach 0.5", open_world, 0.5, false),
+        ("on a floor, unbounded", floored_world, f64::INFINITY, true),
+    ] {
+        let distance = reach.min(1e30) as f32;
+        set(dev, r, "ambientOcclusionDistance", ANARI_FLOAT32, &distance);
+        commit(dev, r);
+        let got = mean_red(world);
+        let expected = expected_share(reach, floor_below);
+        let unoccluded = 1.0 - (-sigma * depth).exp();
+        println!("{what}: {got:.5} against {expected:.5} (unoccluded {unoccluded:.5})");
+        assert!(
+            (got - expected).abs() < 0.01 * expected,
+            "{what}: {got} vs {expected}"
+        );
+    }
+    // A grey floor (albedo 0.5) under the slab gathers the ambient light through it: the
+    // cosine-weighted mean of e^{−σd/μ}, 2·∫₀¹ μ·e^{−σd/μ} dμ; seen through the slab's
+    // transmittance, behind the light the slab scatters.
+    set(dev, r, "ambientOcclusionDistance", ANARI_FLOAT32, &1e30f32);
+    commit(dev, r);
+    let n = 4000;
+    let floor_share = 2.0
+        * (0..n)
+            .map(|k| {
+                let mu = (k as f64 + 0.5) / n as f64;
+                mu * (-sigma * depth / mu).exp()
+            })
+            .sum::<f64>()
+        / n as f64;
+    let through = (-sigma * depth).exp();
+    let expected = expected_share(f64::INFINITY, true) + through * 0.5 * floor_share;
+    let got = mean_red(grey_floored_world);
+    println!(
+        "grey floor under the slab: {got:.5} against {expected:.5} (unoccluded floor {:.5})",
+        expected_share(f64::INFINITY, true) + through * 0.5
+    );
+    assert!(
+        (got - expected).abs() < 0.01 * expected,
+        "grey floor: {got} vs {expected}"
+    );
+    // Distance 0: not occluded, the emission–absorption value exactly (up to rounding).
+    set(dev, r, "ambientOcclusionDistance", ANARI_FLOAT32, &0.0f32);
+    commit(dev, r);
+    let out = render(dev, open_world, r);
+    let unoccluded = 1.0 - (-sigma * depth).exp() as f32;
+    for color in &out.color {
+        assert_relative(*color, albedo.map(|a| a * unoccluded), 1e-4, "unoccluded");
+    }
+    release_all(
+        dev,
+        &[
+            open_world,
+            floored_world,
+            grey_floored_world,
+            floor,
+            grey_floor,
+            volume,
+            slab,
+            r,
+        ],
+    );
     release_device(lib, dev);
     assert!(log.errors().is_empty());
 }

@@ -606,7 +606,14 @@ pub const OMNIDIRECTIONAL: ObjectSpec = ObjectSpec::new(
         POSITION,
         DIRECTION,
         UP,
-        IMAGE_REGION,
+        ParamSpec::new(
+            "imageRegion",
+            &[ANARI_FLOAT32_BOX2],
+            "region of the panorama mapped to the frame, [lo.x, lo.y, hi.x, hi.y]; may reach \
+             beyond [0,1]² (the mapping continues round and over the poles) and run backwards \
+             (hi < lo flips)",
+        )
+        .default(SpecValue::Floats(&[0.0, 0.0, 1.0, 1.0])),
         ParamSpec::new("layout", &[ANARI_STRING], "pixel layout")
             .default(SpecValue::Str("equirectangular"))
             .values(&OmnidirectionalLayout::VALUES),

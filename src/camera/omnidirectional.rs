@@ -6,7 +6,14 @@
 //! `direction = cos φ (sin λ · right + cos λ · forward) + sin φ · up`, with
 //! `right = direction × up` and `up` made perpendicular to `direction`. So the image centre
 //! looks along `direction`, the top row at `up`, the right half to the camera's right, and the
-//! left and right edges meet behind the camera (the seam).
+//! left and right edges meet behind the camera (the seam). The ANARI specification leaves the
+//! mapping to "latitude/longitude"; this is OSPRay's panoramic camera, which ANARI's
+//! `omnidirectional` camera is mapped to there (docs/cameras.md).
+//!
+//! imageRegion picks the part of that image the frame shows. ANARI allows regions beyond
+//! `[0,1]²` and reversed ones (a flip), and leaves the omnidirectional image outside `[0,1]`
+//! undefined: here the mapping simply continues (longitude wraps round, latitude goes on over
+//! the pole).
 //!
 //! In stereo each column is seen by eyes on a circle of diameter `interpupillaryDistance`
 //! around `position`, perpendicular to the column's longitude (omni-directional stereo, ODS):
@@ -95,7 +102,7 @@ impl OmnidirectionalCamera {
             forward,
             right,
             up,
-            region: validate::image_region(desc.image_region)?,
+            region: validate::unbounded_image_region(desc.image_region)?,
             stereo_mode: desc.stereo_mode,
             interpupillary_distance: validate::non_negative(
                 "interpupillaryDistance",
@@ -263,6 +270,40 @@ mod tests {
     }
 
     #[test]
+    fn reversed_and_overhanging_image_regions_flip_and_continue_the_panorama() {
+        let full = rays(OmnidirectionalDesc::default(), Eye::Mono, 64, 32);
+        let with_region = |image_region| {
+            rays(
+                OmnidirectionalDesc {
+                    image_region,
+                    ..OmnidirectionalDesc::default()
+                },
+                Eye::Mono,
+                64,
+                32,
+            )
+        };
+        // Upper < lower on x: the panorama mirrored left to right.
+        let flipped = with_region([1.0, 0.0, 0.0, 1.0]);
+        // [0.5, 1.5] on x: the right half, then past the seam the left half.
+        let shifted = with_region([0.5, 0.0, 1.5, 1.0]);
+        for (x, y, s, t) in pixel_centres(64, 32) {
+            let mirrored = full.ray(1.0 - s, t, Vec2::ZERO).direction;
+            let a = flipped.ray(s, t, Vec2::ZERO).direction;
+            assert!((a - mirrored).length() < 1e-6, "flipped ({x}, {y})");
+            // Looking along −z with up +y, mirroring left to right negates x.
+            let b = full.ray(s, t, Vec2::ZERO).direction;
+            assert!(
+                (a - Vec3::new(-b.x, b.y, b.z)).length() < 1e-6,
+                "({x}, {y})"
+            );
+            let wrapped = full.ray((s + 0.5).fract(), t, Vec2::ZERO).direction;
+            let c = shifted.ray(s, t, Vec2::ZERO).direction;
+            assert!((c - wrapped).length() < 1e-5, "shifted ({x}, {y})");
+        }
+    }
+
+    #[test]
     fn stereo_eyes_sit_on_the_ods_circle_perpendicular_to_each_column() {
         let ipd = 0.064;
         let desc = OmnidirectionalDesc {
@@ -341,6 +382,11 @@ mod tests {
             ..OmnidirectionalDesc::default()
         };
         assert_eq!(error(bad_region).parameter, "imageRegion");
+        let not_finite = OmnidirectionalDesc {
+            image_region: [0.0, 0.0, f32::NAN, 1.0],
+            ..OmnidirectionalDesc::default()
+        };
+        assert_eq!(error(not_finite).parameter, "imageRegion");
         let bad_ipd = OmnidirectionalDesc {
             interpupillary_distance: -0.1,
             ..OmnidirectionalDesc::default()

@@ -27,7 +27,7 @@ pub(crate) struct ImageRegion {
 }
 
 impl ImageRegion {
-    /// `region` must already be validated (finite, inside `[0,1]²`, non-empty).
+    /// `region` must already be validated (finite, non-empty).
     pub(crate) fn from_box(region: [f32; 4]) -> ImageRegion {
         let lo = DVec2::new(f64::from(region[0]), f64::from(region[1]));
         let hi = DVec2::new(f64::from(region[2]), f64::from(region[3]));

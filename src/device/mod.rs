@@ -793,6 +793,11 @@ impl Device {
                         .lock()
                         .unwrap_or_else(|e| e.into_inner())
                         .remove(&handle);
+                    // Nobody can read a released frame: its render in flight stops at the next
+                    // tile (the device's release then has nothing left to wait for).
+                    if let Some(frame) = &object.frame {
+                        frame.discard();
+                    }
                     // Still used by another object: stop relying on application memory.
                     if Arc::strong_count(&object) > 1
                         && let Some(store) = &object.array

@@ -288,8 +288,7 @@ impl FrameState {
                     }
                     let started = Instant::now();
                     render_tile(job, &eyes, run.plan.units[index], &mut scratch);
-                    let nanos = started.elapsed().as_nanos() as u64;
-                    run.tracing_nanos.fetch_add(nanos, Ordering::Relaxed);
+                    run.unit_traced(started.elapsed().as_nanos() as u64);
                 }
             }
         }
@@ -305,7 +304,14 @@ impl FrameState {
         // How far a budgeted render got, and the untraced pixels filled.
         let refined = job.budgeted.as_ref().map(|run| {
             let done = run.first_declined.load(Ordering::Acquire);
-            fill_untraced(&run.plan, setup.width, (run.start, done), &mut channels);
+            let threads = job.workers;
+            fill_untraced(
+                &run.plan,
+                setup.width,
+                (run.start, done),
+                &mut channels,
+                threads,
+            );
             (run, done)
         });
         let parallax_range = channels
@@ -348,10 +354,9 @@ impl FrameState {
                     let traced_now = pixels - run.plan.traced_pixels(run.start);
                     let thread_seconds = run.tracing_nanos.load(Ordering::Relaxed) as f64 * 1e-9;
                     inner.throughput.record(traced_now, thread_seconds);
-                    // What the render took beyond its threads' tracing time.
-                    let threads = job.workers as f64;
-                    inner.throughput.overhead_seconds =
-                        (job.started.elapsed().as_secs_f64() - thread_seconds / threads).max(0.0);
+                    inner
+                        .throughput
+                        .record_overhead(run.seconds_after_tracing());
                     inner.refinement = (!cancelled).then_some(Refinement {
                         scene_version: setup.scene_version,
                         width: setup.width,
@@ -506,6 +511,23 @@ pub(crate) fn interleaved_sets(setup: &RenderSetup) -> Option<[PixelSet; 2]> {
     }
 }
 
+/// Cluster hook: the rays a pixel's sample traces — both eyes of an anaglyph frame, the three
+/// subpixels of a light-field display, else one.
+#[cfg_attr(not(feature = "mpi"), allow(dead_code))]
+pub(crate) fn rays_per_pixel_sample(setup: &RenderSetup) -> u32 {
+    let eyes = prepare_eyes(setup);
+    if anaglyph::anaglyph_eyes(&eyes).is_some() {
+        2
+    } else if eyes
+        .first()
+        .is_some_and(|(_, rays)| rays.subpixel_channels().is_some())
+    {
+        3
+    } else {
+        1
+    }
+}
+
 /// Per-eye ray generators for the frame's viewports.
 fn prepare_eyes(setup: &RenderSetup) -> Vec<(crate::camera::EyeViewport, EyeRays)> {
     match &setup.camera {
@@ -522,7 +544,13 @@ fn prepare_eyes(setup: &RenderSetup) -> Vec<(crate::camera::EyeViewport, EyeRays
 /// Fills the pixels a budgeted render left untraced: colour blended from traced neighbours of
 /// the same surface (told apart by the depth and id channels when requested), every other
 /// channel copied from the nearest traced pixel.
-fn fill_untraced(plan: &Plan, width: u32, units: (usize, usize), channels: &mut [Channel]) {
+fn fill_untraced(
+    plan: &Plan,
+    width: u32,
+    units: (usize, usize),
+    channels: &mut [Channel],
+    threads: usize,
+) {
     let color_pixels = |format: &ChannelFormat| match (format.kind, format.data_type) {
         (ChannelKind::Color, ANARI_FLOAT32_VEC4) => Some(ColorPixels::Float32),
         (ChannelKind::Color, _) if format.pixel_bytes == 4 => Some(ColorPixels::Unorm8),
@@ -553,7 +581,7 @@ fn fill_untraced(plan: &Plan, width: u32, units: (usize, usize), channels: &mut 
         instance_id: of_kind(ChannelKind::InstanceId),
     };
     if let Some(pixels) = color_pixels(&channels[index].format) {
-        plan.fill_color(width, units, pixels, &mut color, &guide);
+        plan.fill_color(width, units, pixels, &mut color, &guide, threads);
     }
     channels[index].bytes = color;
 }

@@ -5,6 +5,7 @@
 use glam::{Vec2, Vec3, Vec4};
 
 use crate::accel::{Ray, SceneHit, surface_epsilon};
+use crate::render::ambient::reaches_ambient;
 use crate::render::bsdf::{
     clearcoat_fresnel, dielectric_f0, fallback_tangent, ggx_distribution, microfacet_albedo,
     microfacet_alpha, multiple_scattering, sample_glossy, schlick, sheen_albedo, sheen_brdf,
@@ -207,9 +208,9 @@ fn direct_light(
 
 /// The share of the ambient light that reaches `point` on a surface of unit `normal`: one
 /// ray, drawn in proportion to the cosine (as a diffuse surface gathers uniform light), that
-/// either leaves unoccluded within the renderer's `ambientOcclusionDistance` (1) or meets an
-/// opaque surface (0), so the mean over samples is the cosine-weighted unoccluded fraction of
-/// the hemisphere.
+/// either leaves unoccluded within the renderer's `ambientOcclusionDistance` (the volumes'
+/// transmittance on the way) or meets an opaque surface (0), so the mean over samples is the
+/// cosine-weighted share of the hemisphere's light that gets through.
 fn ambient_visibility(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
@@ -230,36 +231,12 @@ fn ambient_visibility(
         + bitangent * (radius * angle.sin())
         + normal * (1.0 - u.x).max(0.0).sqrt())
     .normalize_or(normal);
-    let mut ray = offset_ray(point, direction, reach);
-    if !scene.see_through {
-        // Cluster hook: ambient-occlusion rays see every rank's surfaces.
-        return if cluster::occluded(scene, &ray) {
-            0.0
-        } else {
-            1.0
-        };
+    let ray = offset_ray(point, direction, reach);
+    if !reaches_ambient(scene, &ray) {
+        return 0.0;
     }
-    // Surfaces that let light through do not hide the ambient light (it stands for light
-    // from everywhere, which fills what they enclose).
-    for _ in 0..MAX_SEE_THROUGH {
-        let Some(hit) = scene.bvh.intersect(&ray) else {
-            return 1.0;
-        };
-        let instance = &scene.instances[hit.instance as usize];
-        if !instance.surfaces[hit.geometry as usize]
-            .material
-            .lets_light_through()
-        {
-            return 0.0;
-        }
-        let at = ray.origin + ray.direction * hit.t;
-        ray.t_min = hit.t + surface_epsilon(at);
-    }
-    1.0
+    shadow_transmittance(scene, point, direction, ray.t_min, reach, sampling)
 }
-
-/// Most surfaces that let light through an ambient-occlusion ray looks past.
-const MAX_SEE_THROUGH: u32 = 16;
 
 /// A glossy lobe that drew a reflection: GGX of `alpha` around `normal`, seen from
 /// `to_viewer`, whose draws are distributed as D·V·(n·l) / E (see
@@ -314,17 +291,18 @@ fn power_heuristic(a: f32, b: f32) -> f32 {
     }
 }
 
-/// How a ray started, which decides what it sees where it leaves the scene.
+/// How a ray started, which decides which lights it sees: where it leaves the scene, and the
+/// lights with extent it meets on the way.
 #[derive(Clone, Copy)]
 enum Leaving {
     /// A camera ray, or one that continues it straight through a transparent surface: the
-    /// environment lights that are `visible`, in the background's place.
+    /// lights that are `visible`, environments in the background's place.
     Camera,
-    /// A mirror reflection or a refraction: every environment light, in the background's
+    /// A mirror reflection or a refraction: every light, environments in the background's
     /// place.
     Mirror,
     /// A reflection drawn from a glossy lobe: as a mirror's, each environment light weighed
-    /// against its light samples.
+    /// against its light samples; no light with extent (its light samples stand for it).
     Lobe(Lobe),
 }
 
@@ -360,11 +338,19 @@ fn leaving_scene(
     }
 }
 
-/// The radiance of the nearest visible light with extent in the scene (a sphere, quad or ring
-/// light) that a camera ray meets before `t_end`.
-fn visible_light_in_front(scene: &SceneSnapshot, ray: &Ray, t_end: f32) -> Option<Vec3> {
+/// The radiance of the nearest light with extent in the scene (a sphere, quad or ring light)
+/// that a ray started as `leaving` says meets before `t_end`: a camera ray sees the `visible`
+/// ones, a mirror reflection or refraction every one (for a delta lobe this is the light's only
+/// way in, as light samples cannot reach it), a glossy reflection none (its light samples
+/// already count these lights, see [`Lobe`]).
+fn light_in_front(scene: &SceneSnapshot, ray: &Ray, t_end: f32, leaving: &Leaving) -> Option<Vec3> {
+    let seen = |light: &&Light| match leaving {
+        Leaving::Camera => light.visible(),
+        Leaving::Mirror => true,
+        Leaving::Lobe(_) => false,
+    };
     let mut nearest: Option<(f32, Vec3)> = None;
-    for light in scene.lights.iter().filter(|light| light.visible()) {
+    for light in scene.lights.iter().filter(seen) {
         let t_max = nearest.map_or(t_end, |(t, _)| t);
         if let Some(found) = light.hit_by(ray.origin, ray.direction, t_max) {
             nearest = Some(found);
@@ -447,12 +433,12 @@ fn trace_seeing(
     if let Some(volume) = volume.filter(|v| v.transmittance == 0.0) {
         return volume.over(Vec4::ZERO);
     }
-    let light = match leaving {
-        Leaving::Camera => {
-            visible_light_in_front(scene, ray, hit.as_ref().map_or(ray.t_max, |h| h.t))
-        }
-        _ => None,
-    };
+    let light = light_in_front(
+        scene,
+        ray,
+        hit.as_ref().map_or(ray.t_max, |h| h.t),
+        &leaving,
+    );
     let behind = match (light, hit) {
         (Some(radiance), _) => radiance.extend(1.0),
         (None, None) => leaving_scene(scene, settings, ray.direction, screen, leaving, beyond),
@@ -1123,8 +1109,12 @@ fn shade_surface_primary(
     // A visible light with extent in front of the surface shows instead (no channel
     // describes it, as none describes the background).
     if !settings.fast
-        && let Some(radiance) =
-            visible_light_in_front(scene, ray, hit.as_ref().map_or(ray.t_max, |h| h.t))
+        && let Some(radiance) = light_in_front(
+            scene,
+            ray,
+            hit.as_ref().map_or(ray.t_max, |h| h.t),
+            &Leaving::Camera,
+        )
     {
         return Sample {
             color: radiance.extend(1.0),

@@ -16,6 +16,60 @@ pub struct InterleavedTile {
     pub t1: u32,
     pub width: u32,
     pub height: u32,
+    /// `set`'s lattice point → pixel, without a branch per pixel.
+    steps: PixelSteps,
+}
+
+/// Lattice point (s, t) of a pixel set is pixel
+/// (`across`·s + `shift`·((t + `parity`) mod 2) + `x0`, `up`·t + `y0`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct PixelSteps {
+    across: u32,
+    shift: u32,
+    parity: u32,
+    x0: u32,
+    up: u32,
+    y0: u32,
+}
+
+impl PixelSteps {
+    fn of(set: PixelSet) -> PixelSteps {
+        let steps = |across, shift, parity, x0, up, y0| PixelSteps {
+            across,
+            shift,
+            parity,
+            x0,
+            up,
+            y0,
+        };
+        match set {
+            PixelSet::Rows(parity) => steps(1, 0, 0, 0, 2, parity),
+            PixelSet::Columns(parity) => steps(2, 0, 0, parity, 1, 0),
+            PixelSet::Checkerboard(parity) => steps(2, 1, parity, 0, 1, 0),
+            PixelSet::All | PixelSet::Anaglyph => steps(1, 0, 0, 0, 1, 0),
+        }
+    }
+}
+
+impl InterleavedTile {
+    /// The tile `[s0, s1) × [t0, t1)` of `set`'s lattice in a frame of `size` (width, height).
+    pub fn new(
+        set: PixelSet,
+        (s0, t0): (u32, u32),
+        (s1, t1): (u32, u32),
+        size: (u32, u32),
+    ) -> Self {
+        InterleavedTile {
+            set,
+            s0,
+            t0,
+            s1,
+            t1,
+            width: size.0,
+            height: size.1,
+            steps: PixelSteps::of(set),
+        }
+    }
 }
 
 /// Size of the lattice of `set`'s pixels in a `width`×`height` frame (points outside the frame
@@ -42,12 +96,15 @@ impl TileMap for InterleavedTile {
 
     #[inline]
     fn pixel(&self, s: u32, t: u32) -> (u32, u32) {
-        match self.set {
-            PixelSet::Rows(parity) => (s, 2 * t + parity),
-            PixelSet::Columns(parity) => (2 * s + parity, t),
-            PixelSet::Checkerboard(parity) => (2 * s + (t + parity) % 2, t),
-            PixelSet::All | PixelSet::Anaglyph => (s, t),
-        }
+        let PixelSteps {
+            across,
+            shift,
+            parity,
+            x0,
+            up,
+            y0,
+        } = self.steps;
+        (across * s + shift * ((t + parity) % 2) + x0, up * t + y0)
     }
 
     #[inline]
@@ -81,15 +138,7 @@ mod tests {
                 for parity in 0..2 {
                     let set = set_of(parity);
                     let (lw, lh) = lattice_size(set, width, height);
-                    let tile = InterleavedTile {
-                        set,
-                        s0: 0,
-                        t0: 0,
-                        s1: lw,
-                        t1: lh,
-                        width,
-                        height,
-                    };
+                    let tile = InterleavedTile::new(set, (0, 0), (lw, lh), (width, height));
                     for t in 0..lh {
                         for s in 0..lw {
                             if tile.skips(s, t) {

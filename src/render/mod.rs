@@ -1,5 +1,6 @@
 //! Rendering: renderers (shading), frames (tiles, threads, channels) and colour encoding.
 
+pub mod ambient;
 pub mod bsdf;
 pub mod cluster;
 pub mod color;

@@ -1,21 +1,24 @@
 //! Frame-time budgets (`ANARI_CAVETRACE_FRAME_BUDGET`): which pixels a budgeted render traces,
 //! in which order, and how the pixels it did not trace are filled.
 //!
-//! Each eye's viewport is refined in five levels: the lattice of every 16th pixel in both
-//! directions (one pixel per 16×16 block), then every 8th, 4th, 2nd and every pixel, each
-//! level tracing only the points the previous ones did not. Each level's lattice is traced in
-//! tiles like a small frame — the *units* of work; the last level is the ordinary
+//! Each eye's viewport is refined in seven levels: the lattice of every 64th pixel in both
+//! directions (one pixel per 64×64 block), then every 32nd, 16th, 8th, 4th, 2nd and every
+//! pixel, each level tracing only the points the previous ones did not. Each level's lattice
+//! is traced in tiles like a small frame — the *units* of work; the last level is the ordinary
 //! full-resolution tiling, so converging costs little more than one full frame (sparse
 //! lattices make incoherent packets — measured about 6× the cost per ray at stride 8 — so the
-//! frame traces their rays one by one). A budgeted render traces
-//! a prefix of the units (at least the whole first level, so that every pixel has a traced
-//! neighbour) and the next render of an unchanged frame goes on where the last one stopped.
-//! Both eyes of a stereo frame get the same pixels: the lattices start at each eye's
-//! viewport corner and the eyes' units alternate.
+//! frame traces their rays one by one). A budgeted render traces a prefix of the units (at
+//! least the whole first level, so that every pixel has a traced neighbour; with a fixed pixel
+//! count every level down to stride 16) and the next render of an unchanged frame goes on
+//! where the last one stopped. A render that falls behind its time (a loaded machine) thus
+//! stops at a coarser lattice rather than overrunning. Both eyes of a stereo frame get the
+//! same pixels: the lattices start at each eye's viewport corner and the eyes' units
+//! alternate.
 //!
 //! Untraced pixels copy the channels other than colour from the nearest pixel traced so far
 //! (never blended: ids and depths stay values that exist in the scene); colour is interpolated
-//! between traced neighbours of the same surface ([`interpolate`]).
+//! between traced neighbours of the same surface ([`interpolate`]), in bands on several
+//! threads.
 
 mod interpolate;
 
@@ -25,6 +28,15 @@ use crate::camera::{EyeViewport, PixelSet};
 
 /// Side, in lattice points, of one unit's tile.
 const UNIT_TILE: u32 = 32;
+
+/// Lattices this sparse are traced ray by ray: their packets are too incoherent to pay
+/// (measured on the 1M-triangle benchmark: the coarsest level 32 → 22 ms at stride ≥ 4, no
+/// better at stride 2).
+pub(crate) const SINGLE_RAY_STRIDE: u32 = 4;
+
+/// Side of the units of lattices traced ray by ray (stride 4 and more): a ray there costs
+/// several times a packet's, and a unit still in flight when time is up should end soon.
+const SPARSE_UNIT_TILE: u32 = 16;
 
 /// The pixels `origin + stride·(s, t)` of a frame: a whole frame (stride 1), or one
 /// refinement level of a viewport (strides 8, 4, 2, 1 from the viewport's corner).
@@ -161,8 +173,15 @@ impl TileMap for FrameTile {
 }
 
 /// Strides of the refinement levels, coarsest first; each halves the one before, so a level's
-/// lattice holds the previous one.
-const LEVELS: [u32; 5] = [16, 8, 4, 2, 1];
+/// lattice holds the previous one. A timed render must trace only the coarsest; the levels
+/// of strides 64 and 32 together trace what one level of stride 16 would, so where time
+/// allows the image is the same, and where it does not (a loaded machine) the render stops
+/// at a coarser lattice instead of overrunning its budget.
+const LEVELS: [u32; 7] = [64, 32, 16, 8, 4, 2, 1];
+
+/// The stride of the first level a render with a fixed pixel count (`budgetPixels`) traces
+/// whole: one pixel per 16×16 block.
+pub(crate) const FIXED_FIRST_STRIDE: u32 = 16;
 
 /// The units of a budgeted render of `viewports`, in tracing order: level by level, each
 /// level's lattice of every viewport cut into tiles (the eyes' tiles alternating, so a render
@@ -200,7 +219,8 @@ impl Plan {
                         stride,
                     };
                     let (width, height) = (v.width.div_ceil(stride), v.height.div_ceil(stride));
-                    let tiles = (width.div_ceil(UNIT_TILE), height.div_ceil(UNIT_TILE));
+                    let side = unit_side(stride);
+                    let tiles = (width.div_ceil(side), height.div_ceil(side));
                     (lattice, width, height, tiles.0, tiles.1)
                 })
                 .collect();
@@ -211,12 +231,13 @@ impl Plan {
                         continue;
                     }
                     let (tx, ty) = (tile % tiles_x, tile / tiles_x);
+                    let side = unit_side(stride);
                     units.push(Area {
                         lattice,
-                        s0: tx * UNIT_TILE,
-                        t0: ty * UNIT_TILE,
-                        s1: ((tx + 1) * UNIT_TILE).min(width),
-                        t1: ((ty + 1) * UNIT_TILE).min(height),
+                        s0: tx * side,
+                        t0: ty * side,
+                        s1: ((tx + 1) * side).min(width),
+                        t1: ((ty + 1) * side).min(height),
                         skips_coarser: level > 0,
                     });
                 }
@@ -233,6 +254,12 @@ impl Plan {
     /// Units that must be traced before an image can be filled: the coarsest level.
     pub fn mandatory_units(&self) -> usize {
         self.first_unit[1]
+    }
+
+    /// Units of the levels down to stride `stride` (at least the coarsest level).
+    pub fn units_through_stride(&self, stride: u32) -> usize {
+        let levels = LEVELS.iter().take_while(|&&s| s >= stride).count().max(1);
+        self.first_unit[levels]
     }
 
     /// Pixels traced by the first `done` units.
@@ -284,6 +311,7 @@ impl Plan {
         pixels: ColorPixels,
         bytes: &mut [u8],
         guide: &SurfaceGuide,
+        threads: usize,
     ) {
         let pixel_bytes = match pixels {
             ColorPixels::Unorm8 => 4,
@@ -291,7 +319,7 @@ impl Plan {
         };
         self.fill_with(width, start, done, pixel_bytes, bytes, |stride, bytes| {
             for viewport in &self.viewports {
-                interpolate::fill_viewport(viewport, width, stride, pixels, bytes, guide);
+                interpolate::fill_viewport(viewport, width, stride, pixels, bytes, guide, threads);
             }
         });
     }
@@ -394,6 +422,15 @@ impl Plan {
     }
 }
 
+/// Side, in lattice points, of the units of the lattice of `stride`.
+fn unit_side(stride: u32) -> u32 {
+    if stride >= SINGLE_RAY_STRIDE {
+        SPARSE_UNIT_TILE
+    } else {
+        UNIT_TILE
+    }
+}
+
 /// The bytes of the pixels `area` covers in a frame `width` pixels wide, as (start, length)
 /// runs: a run per row at stride 1, a run per pixel otherwise (points a level skips are
 /// included: the previous level traced them, so they hold exact values too).
@@ -438,6 +475,13 @@ impl Throughput {
             Some(old) => 0.5 * old + 0.5 * rate,
             None => rate,
         });
+    }
+
+    /// Records the seconds a render took after its tracing (fill, finish). A slower render
+    /// counts at once, a faster one half: a loaded machine's spikes must not overrun the next
+    /// renders' budgets.
+    pub fn record_overhead(&mut self, seconds: f64) {
+        self.overhead_seconds = seconds.max(0.5 * (self.overhead_seconds + seconds));
     }
 
     /// Pixels to trace within `budget` seconds on `threads` threads. Before any measurement
@@ -496,8 +540,9 @@ mod tests {
     fn fill_copies_only_from_traced_pixels_of_the_same_eye_for_every_prefix() {
         let viewports = StereoMode::SideBySide.viewports(90, 70);
         let plan = Plan::new(&viewports);
-        // Per eye (45×70): one tile at strides 16, 8 and 4, 1×2 at stride 2, 2×3 at stride 1.
-        assert_eq!(plan.units.len(), 2 * (1 + 1 + 1 + 2 + 6));
+        // Per eye (45×70): one tile at strides 64 to 8, 1×2 at strides 4 (tiles of 16 lattice
+        // points) and 2, 2×3 at stride 1.
+        assert_eq!(plan.units.len(), 2 * (4 + 2 + 2 + 6));
         for done in plan.mandatory_units()..plan.units.len() {
             let mut traced = vec![false; 90 * 70];
             for unit in &plan.units[..done] {
@@ -528,7 +573,8 @@ mod tests {
                     (k % 90).abs_diff(source % 90),
                     (k / 90).abs_diff(source / 90),
                 );
-                assert!(dx < 16 && dy < 16, "pixel {k} from {source}");
+                let stride = LEVELS[plan.complete_levels(done) - 1] as usize;
+                assert!(dx < stride && dy < stride, "pixel {k} from {source}");
             }
         }
     }

@@ -1,22 +1,25 @@
 //! Lit volumes (the default renderer): single scattering of the scene's lights and the
 //! renderer's ambient light by the volumes' particles. At each marching sample the transfer
 //! function's opacity gives the extinction and its colour the share of it that scatters (the
-//! albedo); the phase function is isotropic, as `transferFunction1D` has no anisotropy. Ambient
-//! light, radiance A from every direction, scatters A × colour per unit of opacity and is not
-//! occluded, so a volume under ambient light alone looks as the emission–absorption model
-//! draws it. Light from the scene's lights is gathered at a few points per ray drawn from the
-//! opacity along it, each with one shadow ray per light: blocked by surfaces and attenuated by
-//! the volumes it crosses. Sample positions and lighting points follow the frame's sample
-//! index, so pixelSamples and accumulation converge to the integral.
+//! albedo); the phase function is isotropic, as `transferFunction1D` has no anisotropy. Light
+//! is gathered at a few points per ray drawn from the opacity along it: from each of the
+//! scene's lights through one shadow ray, blocked by surfaces and attenuated by the volumes it
+//! crosses; and from the ambient light, radiance A from every direction, through one ray in a
+//! uniformly drawn direction, attenuated the same way within the renderer's
+//! `ambientOcclusionDistance`. With that distance 0 the ambient light is not occluded: every
+//! particle scatters A × colour per unit of opacity, as the emission–absorption model draws it.
+//! Sample positions, lighting points and directions follow the frame's sample index, so
+//! pixelSamples and accumulation converge to the integral.
 
 use std::f32::consts::PI;
 
 use glam::{Vec2, Vec3};
 
 use crate::accel::{Ray, surface_epsilon};
+use crate::render::ambient::reaches_ambient;
 use crate::render::renderer::RendererSettings;
 use crate::scene::light::{Incoming, LightSampling, radical_inverse};
-use crate::scene::volume::{VolumeIntegral, march, transmittance};
+use crate::scene::volume::{Stepping, VolumeIntegral, march, transmittance};
 use crate::scene::world::SceneSnapshot;
 
 /// Points per ray where the scene's lights are gathered. They split the light the ray's
@@ -62,7 +65,7 @@ pub fn shadow_transmittance(
         direction,
         (t_min, t_max),
         jitter,
-        true,
+        Stepping::DEFAULT,
     )
     .0
 }
@@ -111,7 +114,7 @@ fn in_scattered(
                 ray.direction,
                 (ray.t_min, ray.t_max),
                 step_jitter(sampling),
-                cost.skip,
+                cost.stepping,
             );
             cost.samples += taken;
             visibility = through;
@@ -121,9 +124,51 @@ fn in_scattered(
     sum * ISOTROPIC_PHASE
 }
 
-/// How shadow rays are marched, and the field samples taken so far.
+/// Whether the ambient light scattered inside volumes is occluded by the scene.
+fn ambient_occluded(settings: &RendererSettings) -> bool {
+    settings.ambient != Vec3::ZERO && settings.ambient_occlusion_distance > 0.0
+}
+
+/// The share of the ambient light that reaches `point` inside a volume: one ray in a direction
+/// drawn uniformly over the sphere (the isotropic phase function's own distribution), blocked
+/// by opaque surfaces and attenuated by the volumes within `ambientOcclusionDistance`. Its
+/// mean over samples is the sphere's mean transmittance.
+fn ambient_reaching(
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    point: Vec3,
+    sampling: &LightSampling,
+    cost: &mut Cost,
+) -> f32 {
+    let u = sampling.ambient_point(0);
+    let z = 1.0 - 2.0 * u.x;
+    let radius = (1.0 - z * z).max(0.0).sqrt();
+    let angle = 2.0 * PI * u.y;
+    let direction = Vec3::new(radius * angle.cos(), radius * angle.sin(), z);
+    let ray = Ray {
+        origin: point,
+        direction,
+        t_min: surface_epsilon(point),
+        t_max: settings.ambient_occlusion_distance,
+    };
+    if !reaches_ambient(scene, &ray) {
+        return 0.0;
+    }
+    let (through, taken) = transmittance(
+        &scene.volumes,
+        ray.origin,
+        ray.direction,
+        (ray.t_min, ray.t_max),
+        step_jitter(sampling),
+        cost.stepping,
+    );
+    cost.samples += taken;
+    through
+}
+
+/// How shadow and ambient rays are marched, and the field samples taken so far.
 struct Cost {
-    skip: bool,
+    stepping: Stepping,
     samples: u32,
 }
 
@@ -136,25 +181,28 @@ pub fn lit_volumes(
     t_end: f32,
     sampling: &LightSampling,
 ) -> Option<VolumeIntegral> {
-    lit_volumes_with(scene, settings, ray, t_end, sampling, true).map(|(integral, _)| integral)
+    lit_volumes_with(scene, settings, ray, t_end, sampling, Stepping::DEFAULT)
+        .map(|(integral, _)| integral)
 }
 
-/// [`lit_volumes`], with or without empty-space skipping, and the number of field samples
-/// taken (camera and shadow rays).
+/// [`lit_volumes`], its samples placed by `stepping`, and the number of field samples taken
+/// (camera, shadow and ambient rays).
 ///
 /// The march runs twice. The first pass finds the transmittance, the ambient light scattered
-/// and the fraction W of the light from behind that the volumes take out. The second places
-/// `LIGHTING_POINTS` points where the fraction taken out so far, 1 − T(s), reaches
+/// where it is not occluded, and the fraction W of the light from behind that the volumes take
+/// out. The second places `LIGHTING_POINTS` points where the fraction taken out so far,
+/// 1 − T(s), reaches
 /// W·(k + u)/K: points drawn in proportion to T·σ (stratified, offset u per sample), so each
 /// stands for W/K of the scattering integral ∫ T(s)·σ(s)·colour(s)·L_in(s) ds. Within a
-/// marching stretch the optical depth grows linearly, so the point is placed exactly.
+/// marching stretch the optical depth grows linearly, so the point is placed exactly. Where
+/// the ambient light is occluded, each point also gathers it (the light term L_in holds both).
 pub fn lit_volumes_with(
     scene: &SceneSnapshot,
     settings: &RendererSettings,
     ray: &Ray,
     t_end: f32,
     sampling: &LightSampling,
-    skip: bool,
+    stepping: Stepping,
 ) -> Option<(VolumeIntegral, u32)> {
     let volumes = &scene.volumes;
     let (origin, direction) = (ray.origin, ray.direction);
@@ -162,6 +210,12 @@ pub fn lit_volumes_with(
     let mut result = VolumeIntegral::default();
     // The fraction taken out before marching stopped (the transmittance is then set to 0).
     let mut taken_out = 0.0f32;
+    let occluded_ambient = ambient_occluded(settings);
+    let unoccluded_ambient = if occluded_ambient {
+        Vec3::ZERO
+    } else {
+        settings.ambient
+    };
     let mut samples = march(
         volumes,
         origin,
@@ -169,13 +223,13 @@ pub fn lit_volumes_with(
         ray.t_min,
         t_end,
         jitter,
-        skip,
+        stepping,
         |step| {
             taken_out = 1.0 - result.transmittance * step.transmittance();
-            result.absorb(step, step.color * settings.ambient)
+            result.absorb(step, step.color * unoccluded_ambient)
         },
     )?;
-    if scene.lights.is_empty() || taken_out <= 0.0 {
+    if (scene.lights.is_empty() && !occluded_ambient) || taken_out <= 0.0 {
         return Some((result, samples));
     }
     let offset = lighting_offset(sampling);
@@ -183,7 +237,10 @@ pub fn lit_volumes_with(
     let mut next = 0u32;
     let mut through = 1.0f32;
     let mut gathered = Vec3::ZERO;
-    let mut shadow = Cost { skip, samples: 0 };
+    let mut shadow = Cost {
+        stepping,
+        samples: 0,
+    };
     samples += march(
         volumes,
         origin,
@@ -191,7 +248,7 @@ pub fn lit_volumes_with(
         ray.t_min,
         t_end,
         jitter,
-        skip,
+        stepping,
         |step| {
             let after = through * step.transmittance();
             while next < LIGHTING_POINTS && target(next) <= 1.0 - after {
@@ -210,14 +267,13 @@ pub fn lit_volumes_with(
                         .wrapping_add(next),
                     scramble: sampling.scramble,
                 };
-                gathered += step.color
-                    * in_scattered(
-                        scene,
-                        settings,
-                        origin + direction * t,
-                        &point_sampling,
-                        &mut shadow,
-                    );
+                let point = origin + direction * t;
+                let mut light = in_scattered(scene, settings, point, &point_sampling, &mut shadow);
+                if occluded_ambient {
+                    light += settings.ambient
+                        * ambient_reaching(scene, settings, point, &point_sampling, &mut shadow);
+                }
+                gathered += step.color * light;
                 next += 1;
             }
             through = after;
@@ -260,6 +316,12 @@ mod tests {
     /// A 64³ grid over [0, 1]³ whose values exceed 0.5 only in a ball of radius 0.2 around
     /// (0.7, 0.3, 0.6): mostly empty space.
     fn mostly_empty_grid() -> PlacedVolume {
+        ball_grid(0.0)
+    }
+
+    /// [`mostly_empty_grid`]'s ball in a fog whose values wave between 0 and `fog` (period
+    /// about a quarter of the box, 16 cells).
+    fn ball_grid(fog: f32) -> PlacedVolume {
         let n = 64;
         let spacing = 1.0 / (n - 1) as f32;
         let centre = Vec3::new(0.7, 0.3, 0.6);
@@ -267,7 +329,13 @@ mod tests {
             .map(|i| {
                 let p = Vec3::new((i % n) as f32, ((i / n) % n) as f32, (i / (n * n)) as f32);
                 let d = (p * spacing - centre).length();
-                (1.0 - d / 0.4).max(0.0)
+                let ball = (1.0 - d / 0.4).max(0.0);
+                if fog == 0.0 {
+                    return ball;
+                }
+                let q = p * spacing;
+                let wave = (25.0 * q.x).sin() * (21.0 * q.y).sin() * (29.0 * q.z).sin();
+                ball + fog * (0.5 + 0.5 * wave)
             })
             .collect();
         let field = StructuredRegularField::from_floats(
@@ -326,15 +394,30 @@ mod tests {
         scene
     }
 
-    /// Rays from a point outside the box `[0, size]³` to a 48 × 48 grid over its face z = 0, for sample indices 0..3: every lit integral with and without skipping, the
-    /// field samples each took and the seconds each took.
-    fn skip_and_plain(scene: &SceneSnapshot, size: f32) -> (u32, u32, f64, f64) {
-        let settings = RendererSettings {
-            ambient: Vec3::splat(0.2),
-            ..RendererSettings::default()
-        };
+    /// Opacity rising from 0 to 0.03 per unit distance over the first third of the range (a
+    /// thin fog), then to 0.3 and 0.9 (dense); colours from blue to orange.
+    fn foggy_ramp() -> Arc<TransferFunction> {
+        let colors = vec![Vec4::new(0.2, 0.4, 1.0, 1.0), Vec4::new(1.0, 0.6, 0.2, 1.0)];
+        let opacities = vec![0.0, 0.03, 0.3, 0.9];
+        Arc::new(TransferFunction::new(1, (0.0, 1.0), colors, opacities, 0.05).unwrap())
+    }
+
+    /// Opacity 0.3 to 0.9 per unit distance 0.05 everywhere: dense.
+    fn dense_ramp() -> Arc<TransferFunction> {
+        let colors = vec![Vec4::new(1.0, 0.6, 0.2, 1.0)];
+        Arc::new(TransferFunction::new(1, (0.0, 1.0), colors, vec![0.3, 0.9], 0.05).unwrap())
+    }
+
+    /// `volume` with another transfer function.
+    fn recoloured(volume: PlacedVolume, transfer: Arc<TransferFunction>) -> PlacedVolume {
+        PlacedVolume::new(transfer, volume.field, Affine3A::IDENTITY, 0)
+    }
+
+    /// Rays from a point outside the box `[0, size]³` to a 48 × 48 grid over its face z = 0,
+    /// for sample indices 0..3.
+    fn rays(size: f32) -> Vec<(Ray, LightSampling)> {
         let eye = Vec3::new(-0.7, 1.9, 2.6) * size;
-        let rays: Vec<(Ray, LightSampling)> = (0..48 * 48 * 3)
+        (0..48 * 48 * 3)
             .map(|i| {
                 let (x, y, index) = (i % 48, (i / 48) % 48, i / (48 * 48));
                 let target = Vec3::new(x as f32 + 0.5, y as f32 + 0.5, 0.0) * (size / 48.0);
@@ -346,31 +429,53 @@ mod tests {
                 };
                 (ray, LightSampling::for_pixel(index, x, y))
             })
+            .collect()
+    }
+
+    /// Every ray's lit integral marched by `stepping`, the field samples all took (camera,
+    /// shadow and ambient rays) and the seconds they took.
+    fn march_all(
+        scene: &SceneSnapshot,
+        settings: &RendererSettings,
+        rays: &[(Ray, LightSampling)],
+        stepping: Stepping,
+    ) -> (Vec<Option<VolumeIntegral>>, u32, f64) {
+        let start = Instant::now();
+        let mut count = 0u32;
+        let results = rays
+            .iter()
+            .map(|(ray, sampling)| {
+                let lit = lit_volumes_with(scene, settings, ray, ray.t_max, sampling, stepping);
+                count += lit.map_or(0, |(_, samples)| samples);
+                lit.map(|(integral, _)| integral)
+            })
             .collect();
-        let mut counts = [0u32; 2];
-        let mut seconds = [0.0f64; 2];
-        let mut results = [Vec::new(), Vec::new()];
-        for (which, skip) in [true, false].into_iter().enumerate() {
-            let start = Instant::now();
-            for (ray, sampling) in &rays {
-                let lit = lit_volumes_with(scene, &settings, ray, ray.t_max, sampling, skip);
-                if let Some((_, samples)) = lit {
-                    counts[which] += samples;
-                }
-                results[which].push(lit.map(|(integral, _)| integral));
-            }
-            seconds[which] = start.elapsed().as_secs_f64();
+        (results, count, start.elapsed().as_secs_f64())
+    }
+
+    /// Lit by a light and occluded ambient light.
+    fn lit_settings() -> RendererSettings {
+        RendererSettings {
+            ambient: Vec3::splat(0.2),
+            ..RendererSettings::default()
         }
+    }
+
+    /// Every lit integral with and without skipping (asserted equal), the field samples each
+    /// took and the seconds each took.
+    fn skip_and_plain(scene: &SceneSnapshot, size: f32) -> (u32, u32, f64, f64) {
+        let rays = rays(size);
+        let settings = lit_settings();
+        let (skipped, fast_count, fast) = march_all(scene, &settings, &rays, Stepping::SkipEmpty);
+        let (plain, slow_count, slow) = march_all(scene, &settings, &rays, Stepping::Fixed);
         // Bit for bit: the samples skipped are exactly ones whose opacity is 0.
-        for (skipped, plain) in results[0].iter().zip(&results[1]) {
-            assert_eq!(skipped, plain);
-        }
-        let visible = results[0]
+        assert_eq!(skipped, plain);
+        let visible = skipped
             .iter()
             .filter(|r| r.is_some_and(|r| r.transmittance < 1.0))
             .count();
         assert!(visible > 100, "the test sees too little volume: {visible}");
-        (counts[0], counts[1], seconds[0], seconds[1])
+        (fast_count, slow_count, fast, slow)
     }
 
     #[test]
@@ -397,5 +502,92 @@ mod tests {
             );
             assert!(skipping * 2 < plain, "{name}: {skipping} vs {plain}");
         }
+    }
+
+    /// Largest difference of colour (any channel) and of transmittance between two lists of
+    /// integrals over the same rays, and the mean colour difference.
+    fn differences(a: &[Option<VolumeIntegral>], b: &[Option<VolumeIntegral>]) -> (f32, f32, f32) {
+        let none = VolumeIntegral::default();
+        let (mut color, mut through, mut sum) = (0.0f32, 0.0f32, 0.0f32);
+        for (x, y) in a.iter().zip(b) {
+            let (x, y) = (x.unwrap_or(none), y.unwrap_or(none));
+            let d = (x.color - y.color).abs().max_element();
+            color = color.max(d);
+            sum += d;
+            through = through.max((x.transmittance - y.transmittance).abs());
+        }
+        (color, through, sum / a.len() as f32)
+    }
+
+    #[test]
+    fn adaptive_steps_keep_a_foggy_volume_within_tolerance_for_fewer_samples() {
+        let foggy = lit_scene(recoloured(ball_grid(0.3), foggy_ramp()));
+        let rays = rays(1.0);
+        // Unoccluded ambient light and no lights: the march alone decides each pixel, so the
+        // difference is the stepping's, not another draw of lighting points.
+        let mut unlit = SceneSnapshot::empty();
+        unlit.volumes.push(recoloured(ball_grid(0.3), foggy_ramp()));
+        let settings = RendererSettings {
+            ambient: Vec3::ONE,
+            ambient_occlusion_distance: 0.0,
+            ..RendererSettings::default()
+        };
+        let (fine, fine_count, _) = march_all(&unlit, &settings, &rays, Stepping::SkipEmpty);
+        let (coarse, coarse_count, _) = march_all(&unlit, &settings, &rays, Stepping::Adaptive);
+        let (color, through, mean) = differences(&fine, &coarse);
+        let foggiest = fine
+            .iter()
+            .map(|r| r.map_or(0.0, |r| r.color.x))
+            .fold(0.0, f32::max);
+        println!(
+            "foggy ball, emission–absorption: field samples {coarse_count} adaptive, \
+             {fine_count} fixed ({:.1}× fewer); largest difference {color:.5} in colour \
+             (brightest {foggiest:.3}), {through:.5} in transmittance; mean {mean:.6}",
+            fine_count as f64 / coarse_count as f64
+        );
+        assert!(
+            coarse_count * 5 < fine_count * 2,
+            "{coarse_count} vs {fine_count}"
+        );
+        assert!(color < 0.01 && through < 0.01, "{color} {through}");
+        // Lit, with shadow and occluded ambient rays: fewer samples again, and the same image
+        // on average (each ray's lighting points differ, so rays differ by their noise).
+        let settings = lit_settings();
+        let (fine, fine_count, fine_seconds) =
+            march_all(&foggy, &settings, &rays, Stepping::SkipEmpty);
+        let (coarse, coarse_count, coarse_seconds) =
+            march_all(&foggy, &settings, &rays, Stepping::Adaptive);
+        let mean_color = |all: &[Option<VolumeIntegral>]| {
+            all.iter()
+                .map(|r| r.map_or(Vec3::ZERO, |r| r.color))
+                .sum::<Vec3>()
+                / all.len() as f32
+        };
+        let (fine_mean, coarse_mean) = (mean_color(&fine), mean_color(&coarse));
+        println!(
+            "foggy ball, lit: field samples {coarse_count} adaptive, {fine_count} fixed \
+             ({:.1}× fewer), {:.1} ms vs {:.1} ms (unoptimised test build, shared machine); \
+             mean colour {coarse_mean} vs {fine_mean}",
+            fine_count as f64 / coarse_count as f64,
+            coarse_seconds * 1e3,
+            fine_seconds * 1e3
+        );
+        assert!(
+            coarse_count * 2 < fine_count,
+            "{coarse_count} vs {fine_count}"
+        );
+        let relative = ((coarse_mean - fine_mean) / fine_mean).abs().max_element();
+        assert!(relative < 0.01, "{coarse_mean} vs {fine_mean}");
+    }
+
+    #[test]
+    fn adaptive_steps_leave_a_dense_volume_unchanged() {
+        let dense = lit_scene(recoloured(mostly_empty_grid(), dense_ramp()));
+        let rays = rays(1.0);
+        let settings = lit_settings();
+        let (fine, fine_count, _) = march_all(&dense, &settings, &rays, Stepping::SkipEmpty);
+        let (coarse, coarse_count, _) = march_all(&dense, &settings, &rays, Stepping::Adaptive);
+        assert_eq!(fine_count, coarse_count);
+        assert_eq!(fine, coarse);
     }
 }

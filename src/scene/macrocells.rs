@@ -1,7 +1,8 @@
 //! Macrocells: a coarse grid over a spatial field holding the range of values each block of the
 //! field can take, built when the field is committed. A volume maps each range through its
 //! transfer function to learn which blocks are empty, and ray marching skips their stretch of
-//! the ray (see [`MacrocellGrid::occupied_spans`]).
+//! the ray, and how opaque the others can be, to step through them in proportion (see
+//! [`MacrocellGrid::classified_spans`]).
 
 use glam::Vec3;
 
@@ -142,17 +143,19 @@ impl MacrocellGrid {
         &self.ranges
     }
 
-    /// Stretches of `origin + t × direction` (object space), `t` in [`t0`, `t1`], that cross a
-    /// block whose `occupied` flag is set, each widened by a thousandth of a block so that a
-    /// point on a block face counts as inside both blocks. Sorted and disjoint. Blocks are
-    /// visited in ray order (a 3D DDA).
-    pub fn occupied_spans(
+    /// Stretches of `origin + t × direction` (object space), `t` in [`t0`, `t1`], that cross
+    /// blocks whose `class` is not 0 (empty), each with that class: consecutive blocks of one
+    /// class make one stretch. A run of non-empty blocks is widened by a thousandth of a block
+    /// at both ends, so that a point on a face between an empty and a non-empty block counts as
+    /// inside both; where two non-empty classes meet, the smaller class takes that margin.
+    /// Sorted and disjoint. Blocks are visited in ray order (a 3D DDA).
+    pub fn classified_spans(
         &self,
-        occupied: &[bool],
+        class: impl Fn(usize) -> u32,
         origin: Vec3,
         direction: Vec3,
         (t0, t1): (f32, f32),
-        spans: &mut Vec<(f32, f32)>,
+        spans: &mut Vec<(f32, f32, u32)>,
     ) {
         spans.clear();
         if t0 >= t1 {
@@ -187,11 +190,21 @@ impl MacrocellGrid {
             };
             let exit = t_next[axis].min(t1);
             let index = block[0] + self.dims[0] * (block[1] + self.dims[1] * block[2]);
-            if occupied[index] {
+            let here = class(index);
+            if here != 0 {
                 let (lo, hi) = (t - pad, exit + pad);
                 match spans.last_mut() {
-                    Some(last) if last.1 >= lo => last.1 = hi,
-                    _ => spans.push((lo, hi)),
+                    Some(last) if last.1 >= lo && last.2 == here => last.1 = hi,
+                    Some(last) if last.1 >= lo => {
+                        let meet = if last.2 < here {
+                            last.1
+                        } else {
+                            last.1 = lo;
+                            lo
+                        };
+                        spans.push((meet, hi, here));
+                    }
+                    _ => spans.push((lo, hi, here)),
                 }
             }
             if exit >= t1 {
@@ -200,7 +213,7 @@ impl MacrocellGrid {
             let next = block[axis] as isize + step[axis];
             if next < 0 || next >= self.dims[axis] as isize {
                 // Rounding left the grid before t1: the rest lies in this edge block.
-                if occupied[index] {
+                if here != 0 {
                     spans.last_mut().expect("pushed above").1 = t1 + pad;
                 }
                 return;
@@ -232,22 +245,43 @@ mod tests {
         // Four blocks along x, unit size; blocks 1 and 3 occupied.
         let grid = MacrocellGrid::over_grid([33, 2, 2], Vec3::ZERO, Vec3::splat(0.125), |_| 0.0);
         assert_eq!(grid.dims, [4, 1, 1]);
-        let occupied = [false, true, false, true];
+        let occupied = |index: usize| [0, 1, 0, 1][index];
         let mut spans = Vec::new();
         let origin = Vec3::new(-1.0, 0.05, 0.05);
-        grid.occupied_spans(&occupied, origin, Vec3::X, (1.0, 5.0), &mut spans);
+        grid.classified_spans(occupied, origin, Vec3::X, (1.0, 5.0), &mut spans);
         let pad = 1e-3;
         let expected = [(2.0 - pad, 3.0 + pad), (4.0 - pad, 5.0 + pad)];
         assert_eq!(spans.len(), 2, "{spans:?}");
         for (got, want) in spans.iter().zip(expected) {
             assert!((got.0 - want.0).abs() < 1e-5 && (got.1 - want.1).abs() < 1e-5);
+            assert_eq!(got.2, 1);
         }
         // Backwards along the same line.
         let origin = Vec3::new(5.0, 0.05, 0.05);
-        grid.occupied_spans(&occupied, origin, Vec3::NEG_X, (1.0, 5.0), &mut spans);
+        grid.classified_spans(occupied, origin, Vec3::NEG_X, (1.0, 5.0), &mut spans);
         let expected = [(1.0 - pad, 2.0 + pad), (3.0 - pad, 4.0 + pad)];
         for (got, want) in spans.iter().zip(expected) {
             assert!((got.0 - want.0).abs() < 1e-5 && (got.1 - want.1).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn neighbouring_classes_meet_at_their_face_and_the_smaller_takes_the_margin() {
+        let grid = MacrocellGrid::over_grid([33, 2, 2], Vec3::ZERO, Vec3::splat(0.125), |_| 0.0);
+        let classes = |index: usize| [4, 1, 1, 4][index];
+        let mut spans = Vec::new();
+        let origin = Vec3::new(0.0, 0.05, 0.05);
+        grid.classified_spans(classes, origin, Vec3::X, (0.0, 4.0), &mut spans);
+        let pad = 1e-3;
+        let expected = [
+            (-pad, 1.0 - pad, 4),
+            (1.0 - pad, 3.0 + pad, 1),
+            (3.0 + pad, 4.0 + pad, 4),
+        ];
+        assert_eq!(spans.len(), 3, "{spans:?}");
+        for (got, want) in spans.iter().zip(expected) {
+            assert!((got.0 - want.0).abs() < 1e-5 && (got.1 - want.1).abs() < 1e-5);
+            assert_eq!(got.2, want.2, "{spans:?}");
         }
     }
 }

@@ -2,7 +2,8 @@
 //! file holds the committed volume and the ray march (the informative algorithm of the ANARI
 //! specification): samples one every half cell, and a sample of opacity `o` over a step of
 //! world length `s` passes `(1 − o)^(s / unitDistance)` of the light behind it. Stretches over
-//! macrocells the transfer function makes transparent are skipped. The fast renderer draws the
+//! macrocells the transfer function makes transparent are skipped, and steps grow where it
+//! makes them nearly transparent (see [`Stepping`]). The fast renderer draws the
 //! march as emission–absorption ([`integrate`]); the default renderer lights it
 //! ([`crate::render::volume_lighting`]).
 
@@ -73,6 +74,31 @@ pub const TRANSFER_FUNCTION1D: ObjectSpec = ObjectSpec::new(
 const OPAQUE_TRANSMITTANCE: f32 = 1e-3;
 /// Bound on the samples of one ray between two volume boundaries.
 const MAX_STEPS: f32 = 65536.0;
+/// Adaptive steps: the most optical depth one step may cross where its macrocell is the most
+/// opaque it can be (a worst-case opacity per step of 1 − e^−0.02 ≈ 2 %).
+const ADAPTIVE_OPTICAL_DEPTH: f32 = 0.02;
+/// Adaptive steps: the longest step, in base steps (half cells): half a macrocell.
+const MAX_STEP_MULTIPLE: u32 = 8;
+
+/// How a ray march places its samples.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stepping {
+    /// One sample per base step (half a cell) from entry to exit.
+    Fixed,
+    /// The `Fixed` samples, less those in macrocells the transfer function makes transparent
+    /// (which are exactly samples of opacity 0: the result is the same, bit for bit).
+    SkipEmpty,
+    /// `SkipEmpty`, and in the other macrocells steps of several base steps where their most
+    /// opaque value keeps a step's optical depth under `ADAPTIVE_OPTICAL_DEPTH` (each sample's
+    /// opacity corrected for its step's length). Where a volume is dense, or volumes overlap,
+    /// the base steps remain.
+    Adaptive,
+}
+
+impl Stepping {
+    /// What the renderers use.
+    pub(crate) const DEFAULT: Stepping = Stepping::Adaptive;
+}
 
 /// The committed colour and opacity mapping of a `transferFunction1D` volume.
 #[derive(Debug)]
@@ -88,6 +114,8 @@ pub struct TransferFunction {
     /// `visible_before[b]`: how many of the first `b` of `OPACITY_BINS` equal stretches of
     /// [0, 1] (the normalised value) may have a non-zero opacity.
     visible_before: Vec<u32>,
+    /// The largest opacity each of those stretches may take (1 where unknown).
+    opacity_bounds: Vec<f32>,
 }
 
 /// Stretches of the normalised value range the transfer function's visibility is kept for.
@@ -145,6 +173,7 @@ impl TransferFunction {
         }
         let alphas: Vec<f32> = colors.iter().map(|c| c.w).collect();
         let mut visible_before = vec![0u32; OPACITY_BINS + 1];
+        let mut opacity_bounds = vec![0.0f32; OPACITY_BINS];
         for (b, (alpha, opacity)) in bin_bounds(&alphas)
             .into_iter()
             .zip(bin_bounds(&opacities))
@@ -153,6 +182,10 @@ impl TransferFunction {
             // Opacity is alpha × opacity, clamped: zero wherever either bound is.
             let visible = alpha > 0.0 && opacity > 0.0;
             visible_before[b + 1] = visible_before[b] + u32::from(visible);
+            if visible {
+                let bound = alpha * opacity;
+                opacity_bounds[b] = if bound.is_nan() { 1.0 } else { bound.min(1.0) };
+            }
         }
         Some(TransferFunction {
             id,
@@ -161,18 +194,39 @@ impl TransferFunction {
             opacities,
             unit_distance,
             visible_before,
+            opacity_bounds,
         })
     }
 
     /// Whether any value in `range` (lowest, highest; empty when lowest > highest) may be
     /// classified with a non-zero opacity. Conservative: the range is widened by a few units
     /// in the last place (interpolated samples may round past their vertices) and by one bin.
-    pub fn may_be_visible(&self, (lowest, highest): ValueRange) -> bool {
+    pub fn may_be_visible(&self, range: ValueRange) -> bool {
+        self.bins_of(range)
+            .is_some_and(|(first, last)| self.visible_before[last + 1] > self.visible_before[first])
+    }
+
+    /// The largest opacity any value in `range` may be classified with, widened as
+    /// [`TransferFunction::may_be_visible`] widens: 0 where that finds nothing visible.
+    pub fn max_opacity(&self, range: ValueRange) -> f32 {
+        match self.bins_of(range) {
+            Some((first, last)) if self.visible_before[last + 1] > self.visible_before[first] => {
+                self.opacity_bounds[first..=last]
+                    .iter()
+                    .fold(0.0, |a, &b| a.max(b))
+            }
+            _ => 0.0,
+        }
+    }
+
+    /// First and last of the `OPACITY_BINS` a value range (lowest, highest) may fall in,
+    /// widened by a few units in the last place and one bin; `None` for an empty range.
+    fn bins_of(&self, (lowest, highest): ValueRange) -> Option<(usize, usize)> {
         if lowest > highest || lowest.is_nan() || highest.is_nan() {
-            return false;
+            return None;
         }
         if !lowest.is_finite() || !highest.is_finite() {
-            return true;
+            return Some((0, OPACITY_BINS - 1));
         }
         let slack = 16.0 * f32::EPSILON;
         let ends = [
@@ -181,9 +235,9 @@ impl TransferFunction {
         ];
         let (x0, x1) = (ends[0].min(ends[1]), ends[0].max(ends[1]));
         let bin = |x: f32| (x * OPACITY_BINS as f32) as usize;
-        let first = bin(x0).saturating_sub(1);
+        let first = bin(x0).saturating_sub(1).min(OPACITY_BINS - 1);
         let last = (bin(x1) + 1).min(OPACITY_BINS - 1);
-        self.visible_before[last + 1] > self.visible_before[first]
+        Some((first, last))
     }
 
     /// Position of a field value in valueRange, clamped to [0, 1]; NaN stays NaN. A reversed
@@ -355,6 +409,9 @@ pub struct PlacedVolume {
     /// Per macrocell of the field: whether the transfer function makes any of its values
     /// visible.
     pub occupied: Arc<[bool]>,
+    /// Per macrocell: the largest extinction (optical depth per world unit) its values may
+    /// have; 0 where empty, infinite where opaque.
+    pub extinction_bounds: Arc<[f32]>,
 }
 
 impl PlacedVolume {
@@ -366,11 +423,14 @@ impl PlacedVolume {
         instance_id: u32,
     ) -> PlacedVolume {
         let field: Field = field.into();
-        let occupied = field
-            .macrocells()
-            .ranges()
+        let ranges = field.macrocells().ranges();
+        let occupied = ranges
             .iter()
             .map(|&range| transfer.may_be_visible(range))
+            .collect();
+        let extinction_bounds = ranges
+            .iter()
+            .map(|&range| -(-transfer.max_opacity(range)).ln_1p() / transfer.unit_distance)
             .collect();
         PlacedVolume {
             transfer,
@@ -379,6 +439,7 @@ impl PlacedVolume {
             world_to_object: object_to_world.inverse(),
             instance_id,
             occupied,
+            extinction_bounds,
         }
     }
 
@@ -500,8 +561,9 @@ struct Span {
     direction: Vec3,
     /// Sample spacing in ray parameter units.
     step: f32,
-    /// Stretches crossing macrocells that are not empty (all of [t0, t1] without skipping).
-    occupied: Vec<(f32, f32)>,
+    /// Stretches crossing macrocells that are not empty (all of [t0, t1] without skipping),
+    /// each with its step multiple.
+    occupied: Vec<(f32, f32, u32)>,
 }
 
 /// Ray parameters where `origin + t × direction` is inside the box, if any.
@@ -581,11 +643,11 @@ fn sample_at<'a>(
 
 /// Marches the volumes along `origin + t × direction` for `t` in [`t_start`, `t_end`], front to
 /// back, calling `visit` for every sample where something is not transparent until it returns
-/// false. Between consecutive volume entry and exit points samples are evenly spaced, one per
-/// stretch of the finest volume's step, taken `jitter` (in [0, 1)) of the way into their
-/// stretch. With `skip`, stretches that cross only macrocells whose values are transparent
-/// under the transfer function are not sampled: the same samples are visited either way.
-/// `None` when no volume overlaps the segment; otherwise the number of field samples taken.
+/// false. Between consecutive volume entry and exit points base steps are evenly spaced, one
+/// per stretch of the finest volume's step; each sample stands for a whole number of base
+/// steps (one unless `stepping` is adaptive) and is taken `jitter` (in [0, 1)) of the way into
+/// its stretch. See [`Stepping`] for what is skipped. `None` when no volume overlaps the
+/// segment; otherwise the number of field samples taken.
 #[allow(clippy::too_many_arguments)]
 pub fn march<'a>(
     volumes: &'a [PlacedVolume],
@@ -594,12 +656,13 @@ pub fn march<'a>(
     t_start: f32,
     t_end: f32,
     jitter: f32,
-    skip: bool,
+    stepping: Stepping,
     mut visit: impl FnMut(&MarchStep<'a>) -> bool,
 ) -> Option<u32> {
     if volumes.is_empty() || t_start.is_nan() || t_end.is_nan() || t_start >= t_end {
         return None;
     }
+    let world_per_t = direction.length();
     let mut spans: Vec<Span> = Vec::new();
     for (index, volume) in volumes.iter().enumerate() {
         let o = volume.world_to_object.transform_point3(origin);
@@ -613,17 +676,31 @@ pub fn march<'a>(
         };
         let (t0, t1) = (t0.max(t_start), t1.min(t_end));
         if t0 < t1 {
+            let step = volume.field.step() / d.length();
             let mut occupied = Vec::new();
-            if skip {
-                volume.field.macrocells().occupied_spans(
-                    &volume.occupied,
+            let cells = volume.field.macrocells();
+            match stepping {
+                Stepping::Fixed => occupied.push((t0, t1, 1)),
+                Stepping::SkipEmpty => cells.classified_spans(
+                    |block| u32::from(volume.occupied[block]),
                     o,
                     d,
                     (t0, t1),
                     &mut occupied,
-                );
-            } else {
-                occupied.push((t0, t1));
+                ),
+                Stepping::Adaptive => {
+                    // Optical depth of one base step at unit extinction.
+                    let base = step * world_per_t;
+                    let multiple = |block: usize| {
+                        if !volume.occupied[block] {
+                            return 0;
+                        }
+                        let depth = volume.extinction_bounds[block] * base;
+                        // NaN and infinity (opaque) fall to one base step.
+                        (ADAPTIVE_OPTICAL_DEPTH / depth).clamp(1.0, MAX_STEP_MULTIPLE as f32) as u32
+                    };
+                    cells.classified_spans(multiple, o, d, (t0, t1), &mut occupied);
+                }
             }
             spans.push(Span {
                 volume: index,
@@ -631,7 +708,7 @@ pub fn march<'a>(
                 direction: d,
                 t0,
                 t1,
-                step: volume.field.step() / d.length(),
+                step,
                 occupied,
             });
         }
@@ -643,10 +720,9 @@ pub fn march<'a>(
     let mut cuts: Vec<f32> = spans.iter().flat_map(|s| [s.t0, s.t1]).collect();
     cuts.sort_by(f32::total_cmp);
     cuts.dedup();
-    let world_per_t = direction.length();
     let mut samples = 0u32;
     let mut active: Vec<&Span> = Vec::with_capacity(spans.len());
-    let mut stretches: Vec<(f32, f32)> = Vec::new();
+    let mut stretches: Vec<(f32, f32, u32)> = Vec::new();
     for window in cuts.windows(2) {
         let (a, b) = (window[0], window[1]);
         active.clear();
@@ -659,23 +735,36 @@ pub fn march<'a>(
         let dt = (b - a) / steps as f32;
         stretches.clear();
         for span in &active {
-            stretches.extend(span.occupied.iter().filter(|(lo, hi)| *hi >= a && *lo <= b));
+            stretches.extend(
+                span.occupied
+                    .iter()
+                    .filter(|(lo, hi, _)| *hi >= a && *lo <= b),
+            );
         }
         stretches.sort_by(|x, y| x.0.total_cmp(&y.0));
-        // Samples in each stretch, widened by one on each side against rounding.
+        // Where volumes overlap, one volume's long steps could pass over another's detail.
+        let overlapping = active.len() > 1;
+        // Base steps in each stretch, widened by one on each side against rounding, taken
+        // `multiple` at a time (fewer at the stretch's end).
         let mut next = 0u32;
-        for &(lo, hi) in &stretches {
+        for &(lo, hi, multiple) in &stretches {
+            let multiple = if overlapping { 1 } else { multiple.max(1) };
             let first = (((lo - a) / dt - jitter).floor().max(0.0) as u32).max(next);
             let end = ((((hi - a) / dt - jitter).ceil() + 1.0).max(0.0) as u32).min(steps);
-            for i in first..end {
+            let mut i = first;
+            while i < end {
+                let count = multiple.min(end - i) as f32;
                 let begin = a + dt * i as f32;
-                let t = a + dt * (i as f32 + jitter);
+                let t = a + dt * (i as f32 + jitter * count);
+                let length = dt * count;
                 samples += 1;
-                if let Some(sample) = sample_at(volumes, &active, t, begin, dt, dt * world_per_t)
+                if let Some(sample) =
+                    sample_at(volumes, &active, t, begin, length, length * world_per_t)
                     && !visit(&sample)
                 {
                     return Some(samples);
                 }
+                i += multiple;
             }
             next = next.max(end);
         }
@@ -701,7 +790,7 @@ pub fn integrate(
         t_start,
         t_end,
         0.0,
-        true,
+        Stepping::DEFAULT,
         |step| result.absorb(step, step.color),
     )?;
     Some(result)
@@ -709,15 +798,14 @@ pub fn integrate(
 
 /// Fraction of light that crosses the volumes from `origin + t_start × direction` to
 /// `origin + t_end × direction` (0 once below the opaque threshold), samples `jitter` into their
-/// stretch, with or without empty-space skipping (see [`march`]), and the number of field
-/// samples taken.
+/// stretch, placed by `stepping` (see [`march`]), and the number of field samples taken.
 pub fn transmittance(
     volumes: &[PlacedVolume],
     origin: Vec3,
     direction: Vec3,
     (t_start, t_end): (f32, f32),
     jitter: f32,
-    skip: bool,
+    stepping: Stepping,
 ) -> (f32, u32) {
     let mut through = 1.0f32;
     let samples = march(
@@ -727,7 +815,7 @@ pub fn transmittance(
         t_start,
         t_end,
         jitter,
-        skip,
+        stepping,
         |step| {
             through *= step.transmittance();
             if through < OPAQUE_TRANSMITTANCE {
@@ -796,10 +884,10 @@ mod tests {
         let origin = Vec3::new(0.0, 0.5, 0.1) - direction;
         let path = 1.0 / 30f32.to_radians().cos();
         for jitter in [0.0, 0.3, 0.77, 0.999] {
-            for skip in [true, false] {
+            for stepping in [Stepping::Adaptive, Stepping::SkipEmpty, Stepping::Fixed] {
                 let volumes = std::slice::from_ref(&volume);
                 let (through, samples) =
-                    transmittance(volumes, origin, direction, (0.0, 100.0), jitter, skip);
+                    transmittance(volumes, origin, direction, (0.0, 100.0), jitter, stepping);
                 let expected = (-sigma * path).exp();
                 assert!((through - expected).abs() < 1e-5, "{through} vs {expected}");
                 assert!(samples >= 1);
@@ -807,7 +895,14 @@ mod tests {
         }
         // Stopping halfway through the box.
         let half = 1.0 + 0.5 * path;
-        let (through, _) = transmittance(&[volume], origin, direction, (0.0, half), 0.5, true);
+        let (through, _) = transmittance(
+            &[volume],
+            origin,
+            direction,
+            (0.0, half),
+            0.5,
+            Stepping::DEFAULT,
+        );
         assert!((through - (-sigma * path * 0.5).exp()).abs() < 1e-5);
     }
 

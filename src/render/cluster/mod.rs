@@ -3,14 +3,16 @@
 //! [`Exchange`], and the replicated mode's tile split. `mpi` (the cargo feature) binds them to
 //! a communicator.
 //!
-//! Data-parallel renders are a wavefront over the shading tree: every rank traces every
-//! primary ray against its own part and the closest hit of all ranks wins (ties go to the
-//! lower rank); the winning rank shades it. Whatever the shading asks of the scene — shadow
-//! rays, reflection and transparency rays — is asked of every rank in rounds: shadow rays are
+//! Data-parallel renders index every primary sample by its slot (plane × pixels + pixel): every
+//! rank traces every primary ray against its own part and the closest hit of all ranks wins
+//! (ties go to the lower rank); the winning rank shades it. The fast renderer's shading asks
+//! nothing of the scene, so each rank shades its own hits at once and the closest rank's pixel
+//! is the image's (sort-last). Otherwise whatever the shading asks of the scene — shadow rays,
+//! reflection and transparency rays — is asked of every rank in rounds: shadow rays are
 //! OR-reduced, secondary rays min-reduced, and a secondary hit on another rank is shaded there
 //! and its radiance sent back. A shading that lacks an answer is evaluated again, whole, once
-//! the round has brought it; shading is a pure function of the answers, so the result is what
-//! one device holding every part computes.
+//! the round has brought it (unless every answer is what it assumed); shading is a pure
+//! function of the answers, so the result is what one device holding every part computes.
 
 #[cfg(feature = "mpi")]
 mod mpi;
@@ -20,13 +22,13 @@ mod wavefront;
 pub use self::mpi::{
     MPI_COMMUNICATOR, MPI_IMAGE_ON_EVERY_RANK, MPI_MODE, MPI_TIMEOUT, commit_frame, render,
 };
-pub use wavefront::{ClusterError, Exchange, resolve};
+pub use wavefront::{ClusterError, Exchange, Traffic, composite, resolve};
 
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::collections::{HashMap, HashSet};
 use std::hash::{BuildHasherDefault, Hasher};
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 use glam::{Vec2, Vec3, Vec4};
@@ -128,13 +130,10 @@ fn primary_key(
     key
 }
 
-/// A primary sample the frame asked for: its inputs, and the `t` of this rank's own closest hit.
+/// A primary sample's inputs, kept for shading it after the compositing.
 #[derive(Clone, Copy, Debug)]
 pub struct PrimaryRecord {
     pub key: PrimaryKey,
-    /// Bits of this rank's closest hit's `t` (`u32::MAX` on a miss); non-negative floats order
-    /// as their bits do.
-    pub local_t: u32,
     /// Asked through `fast_surface_color` (colour only) rather than `shade_primary_at`.
     pub fast: bool,
 }
@@ -160,56 +159,168 @@ impl PrimaryRecord {
     }
 }
 
-/// What a frame render of a data-parallel frame does with its primary samples: records them
-/// (the first pass), then gives back what the ranks computed for them (the second).
-#[derive(Default)]
+/// A slot's local word: not asked for by this rank's frame.
+pub(crate) const UNVISITED: u32 = 0;
+/// A slot's local word: this rank's part has no hit.
+pub(crate) const MISSED: u32 = u32::MAX;
+/// Words of a slot's kept inputs: the key, then whether it was a fast sample.
+const INPUT_WORDS: usize = 17;
+
+/// What a frame render of a data-parallel frame does with its primary samples, indexed by
+/// slot: plane (ray of the pixel × sample of the pixel) by pixel. The first pass records this
+/// rank's closest hit of each (and shades it at once when `shade_locally`); a later pass gives
+/// back what the ranks computed.
 pub struct PrimaryPass {
-    collected: Mutex<Vec<PrimaryRecord>>,
+    pixels: usize,
+    slots: usize,
+    /// The first pass shades its samples as one device would (nothing it does asks other
+    /// ranks): the fast renderer.
+    shade_locally: bool,
+    /// Per slot: [`UNVISITED`], [`MISSED`], or this rank's closest hit's `t` bits + 1
+    /// (non-negative floats order as their bits do).
+    local: Vec<AtomicU32>,
+    /// Per slot: a hash of the sample's inputs (ranks rendering different frames differ).
+    input_hash: Vec<AtomicU32>,
+    /// Per slot, when shading waits for the compositing: the sample's inputs.
+    inputs: Vec<[AtomicU32; INPUT_WORDS]>,
     replay: OnceLock<Replay>,
 }
 
-/// The samples of the second pass, by key (sorted).
+/// The samples of a later pass: per slot an index into `samples` (or [`NO_SAMPLE`]).
 pub struct Replay {
-    pub keys: Vec<PrimaryKey>,
-    pub samples: Vec<Option<Sample>>,
+    pub index: Vec<u32>,
+    pub samples: Vec<Sample>,
 }
 
+/// A slot without a sample in a replay: its rank's part is blank in this rank's frame.
+#[cfg_attr(not(feature = "mpi"), allow(dead_code))]
+pub(crate) const NO_SAMPLE: u32 = u32::MAX;
+
+const BLANK: Sample = Sample {
+    color: Vec4::ZERO,
+    hit: None,
+};
+
 impl PrimaryPass {
-    /// The recorded samples, sorted by key, without repeats: the same list on every rank.
-    pub fn take_sorted(&self) -> Vec<PrimaryRecord> {
-        let mut records =
-            std::mem::take(&mut *self.collected.lock().unwrap_or_else(|e| e.into_inner()));
-        records.sort_unstable_by_key(|r| r.key);
-        records.dedup_by(|a, b| a.key == b.key);
-        records
+    /// A pass over `planes` samples per pixel of a `width`×`height` frame; `None` when its
+    /// arrays cannot be allocated.
+    pub fn new(width: u32, height: u32, planes: u32, shade_locally: bool) -> Option<PrimaryPass> {
+        let pixels = width as usize * height as usize;
+        let slots = pixels.checked_mul(planes as usize)?;
+        let words = |count: usize| -> Option<Vec<AtomicU32>> {
+            let mut v = Vec::new();
+            v.try_reserve_exact(count).ok()?;
+            v.extend((0..count).map(|_| AtomicU32::new(0)));
+            Some(v)
+        };
+        let mut inputs = Vec::new();
+        if !shade_locally {
+            inputs.try_reserve_exact(slots).ok()?;
+            inputs.extend((0..slots).map(|_| std::array::from_fn(|_| AtomicU32::new(0))));
+        }
+        Some(PrimaryPass {
+            pixels,
+            slots,
+            shade_locally,
+            local: words(slots)?,
+            input_hash: words(slots)?,
+            inputs,
+            replay: OnceLock::new(),
+        })
+    }
+
+    pub fn slots(&self) -> usize {
+        self.slots
+    }
+
+    pub fn pixels(&self) -> usize {
+        self.pixels
+    }
+
+    pub fn shades_locally(&self) -> bool {
+        self.shade_locally
+    }
+
+    /// The slot's local word (see `local`).
+    pub fn local(&self, slot: usize) -> u32 {
+        self.local[slot].load(Ordering::Relaxed)
+    }
+
+    /// A digest of every visited slot's inputs, the same on ranks rendering the same frame.
+    pub fn digest(&self) -> u64 {
+        self.input_hash
+            .iter()
+            .enumerate()
+            .fold(0xcbf2_9ce4_8422_2325u64, |h, (slot, hash)| {
+                match hash.load(Ordering::Relaxed) {
+                    0 => h,
+                    hash => (h ^ (((slot as u64) << 32) | u64::from(hash)))
+                        .wrapping_mul(0x100_0000_01b3),
+                }
+            })
+    }
+
+    /// The inputs this rank kept of a slot (none when shading locally).
+    pub fn record(&self, slot: usize) -> PrimaryRecord {
+        let words = &self.inputs[slot];
+        PrimaryRecord {
+            key: std::array::from_fn(|i| words[i].load(Ordering::Relaxed)),
+            fast: words[16].load(Ordering::Relaxed) != 0,
+        }
     }
 
     pub fn set_replay(&self, replay: Replay) {
         let _ = self.replay.set(replay);
     }
 
-    fn sample(&self, key: &PrimaryKey) -> Sample {
-        let found = self.replay.get().and_then(|replay| {
-            let index = replay.keys.binary_search(key).ok()?;
-            replay.samples[index]
-        });
-        found.unwrap_or(Sample {
-            color: Vec4::ZERO,
-            hit: None,
-        })
+    fn replayed(&self, slot: usize) -> Sample {
+        self.replay
+            .get()
+            .and_then(|replay| {
+                let index = *replay.index.get(slot)?;
+                replay.samples.get(index as usize).copied()
+            })
+            .unwrap_or(BLANK)
     }
 
-    fn record(&self, key: PrimaryKey, hit: Option<&SceneHit>, fast: bool) {
-        let local_t = hit.map_or(u32::MAX, |h| h.t.max(0.0).to_bits());
-        self.collected
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .push(PrimaryRecord { key, local_t, fast });
+    fn note(&self, slot: usize, key: &PrimaryKey, hit: Option<&SceneHit>, fast: bool) {
+        if slot >= self.slots {
+            return;
+        }
+        let local = hit.map_or(MISSED, |h| h.t.max(0.0).to_bits().saturating_add(1));
+        self.local[slot].store(local, Ordering::Relaxed);
+        let hash = key
+            .iter()
+            .fold(0x811c_9dc5u32, |h, w| (h ^ w).wrapping_mul(0x0100_0193));
+        self.input_hash[slot].store(hash | 1, Ordering::Relaxed);
+        if let Some(words) = self.inputs.get(slot) {
+            for (word, value) in words.iter().zip(key) {
+                word.store(*value, Ordering::Relaxed);
+            }
+            words[16].store(u32::from(fast), Ordering::Relaxed);
+        }
     }
 }
 
 fn primary_pass(scene: &SceneSnapshot) -> Option<&PrimaryPass> {
     scene.cluster.as_ref()?.downcast_ref::<PrimaryPass>()
+}
+
+thread_local! {
+    /// The slot of the primary sample the frame is about to shade on this thread.
+    static SLOT: Cell<Option<usize>> = const { Cell::new(None) };
+}
+
+/// Frame hook: the next primary sample shaded on this thread is slot `slot` of a data-parallel
+/// frame (`plane` × pixels + pixel).
+pub fn at_slot(slot: usize) {
+    SLOT.with(|s| s.set(Some(slot)));
+}
+
+/// The slot of the sample being shaded, for a frame pass of a data-parallel frame.
+fn sample_slot(scene: &SceneSnapshot) -> Option<(&PrimaryPass, usize)> {
+    let pass = primary_pass(scene).filter(|_| !evaluating())?;
+    Some((pass, SLOT.with(Cell::take)?))
 }
 
 /// Hook of `shade_primary_at`: in a data-parallel frame's passes, records the sample or gives
@@ -222,16 +333,13 @@ pub fn primary(
     cyclopean: Option<Vec3>,
     sampling: &LightSampling,
 ) -> Option<Sample> {
-    let pass = primary_pass(scene).filter(|_| !evaluating())?;
-    let key = primary_key(ray, screen, cyclopean, Some(sampling));
+    let (pass, slot) = sample_slot(scene)?;
     if pass.replay.get().is_some() {
-        return Some(pass.sample(&key));
+        return Some(pass.replayed(slot));
     }
-    pass.record(key, hit, false);
-    Some(Sample {
-        color: Vec4::ZERO,
-        hit: None,
-    })
+    let key = primary_key(ray, screen, cyclopean, Some(sampling));
+    pass.note(slot, &key, hit, false);
+    (!pass.shade_locally).then_some(BLANK)
 }
 
 /// Hook of the fast renderer's primary sample (`fast_surface_color` and `fast_surface_sample`),
@@ -243,18 +351,21 @@ pub fn fast_primary_sample<F: FnOnce() -> Vec2>(
     screen: F,
     cyclopean: Option<Vec3>,
 ) -> Result<F, Sample> {
-    let Some(pass) = primary_pass(scene).filter(|_| !evaluating()) else {
+    let Some((pass, slot)) = sample_slot(scene) else {
         return Ok(screen);
     };
-    let key = primary_key(ray, Some(screen()), cyclopean, None);
     if pass.replay.get().is_some() {
-        return Err(pass.sample(&key));
+        return Err(pass.replayed(slot));
     }
-    pass.record(key, hit, true);
-    Err(Sample {
-        color: Vec4::ZERO,
-        hit: None,
-    })
+    if pass.shade_locally {
+        // The screen position only places the background image: the hash goes without it.
+        let key = primary_key(ray, None, cyclopean, None);
+        pass.note(slot, &key, hit, true);
+        return Ok(screen);
+    }
+    let key = primary_key(ray, Some(screen()), cyclopean, None);
+    pass.note(slot, &key, hit, true);
+    Err(BLANK)
 }
 
 /// A hasher for ray keys: their bits are already well spread, so a multiply per word does
@@ -295,8 +406,6 @@ pub type KeySet<K> = HashSet<K, BuildHasherDefault<KeyHasher>>;
 #[derive(Default, Clone)]
 pub struct Answers {
     pub rank: u32,
-    /// Shadow rays: whether any rank's part blocks them.
-    pub occluded: KeyMap<RayKey, bool>,
     /// Secondary rays: the rank whose part holds the closest hit ([`NO_RANK`] on a miss).
     pub closest: KeyMap<RayKey, u32>,
     /// Radiance along secondary rays shaded by other ranks.
@@ -320,6 +429,8 @@ pub struct Pending {
 
 struct Evaluation {
     answers: Arc<Answers>,
+    /// The shading's shadow rays answered so far: whether any rank's part blocks them.
+    blocked: Vec<(RayKey, bool)>,
     pending: Pending,
 }
 
@@ -331,20 +442,26 @@ fn evaluating() -> bool {
     EVALUATION.with(|e| e.borrow().is_some())
 }
 
-/// Runs `shading` with the rank's answers: every scene query it makes goes through the hooks
-/// below; returns its result and what it lacked.
-pub fn evaluate<T>(answers: &Arc<Answers>, shading: impl FnOnce() -> T) -> (T, Pending) {
+/// Runs `shading` with the rank's answers and the answers to this shading's own shadow rays
+/// (`blocked`, given back): every scene query it makes goes through the hooks below; returns
+/// its result and what it lacked.
+pub fn evaluate<T>(
+    answers: &Arc<Answers>,
+    blocked: Vec<(RayKey, bool)>,
+    shading: impl FnOnce() -> T,
+) -> (T, Pending, Vec<(RayKey, bool)>) {
     EVALUATION.with(|e| {
         *e.borrow_mut() = Some(Evaluation {
             answers: Arc::clone(answers),
+            blocked,
             pending: Pending::default(),
         })
     });
     let result = shading();
-    let pending = EVALUATION
+    let (pending, blocked) = EVALUATION
         .with(|e| e.borrow_mut().take())
-        .map_or_else(Pending::default, |e| e.pending);
-    (result, pending)
+        .map_or_else(Default::default, |e| (e.pending, e.blocked));
+    (result, pending, blocked)
 }
 
 /// Hook of the shadow-ray test: while a rank shades, the answer of every rank.
@@ -358,11 +475,12 @@ pub fn occluded(scene: &SceneSnapshot, ray: &Ray) -> bool {
             return scene.bvh.occluded(ray);
         };
         let key = ray_key(ray);
-        match evaluation.answers.occluded.get(&key) {
-            Some(answer) => *answer,
+        match evaluation.blocked.iter().find(|(k, _)| *k == key) {
+            Some((_, answer)) => *answer,
             None => {
                 evaluation.pending.occlusion.push(key);
                 evaluation.pending.incomplete = true;
+                // Assumed unblocked: when every rank agrees, this evaluation stands.
                 false
             }
         }
@@ -510,6 +628,7 @@ impl FrameTraffic {
 }
 
 /// A sample as 18 words: colour, then (hit flag, t, point, ids, albedo, normal).
+#[cfg_attr(not(feature = "mpi"), allow(dead_code))]
 pub(crate) const SAMPLE_WORDS: usize = 18;
 
 pub fn encode_sample(sample: &Sample, out: &mut Vec<u32>) {

@@ -14,8 +14,11 @@ use std::time::{Duration, Instant};
 
 use mpi::ffi;
 
-use super::wavefront::{ClusterError, Exchange, resolve};
-use super::{PrimaryPass, Replay, TileSplit};
+use super::wavefront::{ClusterError, Exchange, Traffic, composite, resolve};
+use super::{
+    NO_SAMPLE, PrimaryPass, Replay, SAMPLE_WORDS, TileSplit, UNVISITED, decode_sample,
+    encode_sample,
+};
 use crate::device::Device;
 use crate::device::datatype::*;
 use crate::device::frame::Frame;
@@ -564,22 +567,134 @@ fn agree(exchange: &dyn Exchange, ok: bool) -> Result<(), ClusterError> {
     }
 }
 
-fn start(device: &Device, frame: &Object, state: &Arc<FrameState>, setup: RenderSetup) -> bool {
+/// Test-only trigger of the fault path (cluster-tests/run.sh): the rank of a frame's
+/// communicator named by this environment variable fails its part of every render across
+/// ranks as if its buffers could not be allocated.
+const TEST_FAIL_RANK: &str = "CAVETRACE_TEST_FAIL_RANK";
+
+fn fails_for_test(rank: u32) -> bool {
+    std::env::var(TEST_FAIL_RANK).is_ok_and(|v| v.trim() == rank.to_string())
+}
+
+/// Starts this rank's part of a render; false (reported) when it cannot.
+fn start(
+    device: &Device,
+    frame: &Object,
+    state: &Arc<FrameState>,
+    setup: RenderSetup,
+    rank: u32,
+) -> bool {
     let (width, height) = (setup.width, setup.height);
-    match state.start(setup, &device.pool()) {
-        Ok(()) => true,
-        Err(_) => {
-            device.error(
-                ANARI_STATUS_OUT_OF_MEMORY,
-                Some(frame),
-                format!(
-                    "anariRenderFrame: cannot allocate the buffers of a {width}×{height} frame; \
-                     nothing is rendered"
-                ),
-            );
-            false
+    let test_failure = fails_for_test(rank);
+    let started = !test_failure && state.start(setup, &device.pool()).is_ok();
+    if !started {
+        let trigger = if test_failure {
+            format!(" ({TEST_FAIL_RANK}, a test-only trigger, names this rank)")
+        } else {
+            String::new()
+        };
+        device.error(
+            ANARI_STATUS_OUT_OF_MEMORY,
+            Some(frame),
+            format!(
+                "anariRenderFrame: cannot allocate the buffers of a {width}×{height} frame on \
+                 rank {rank}{trigger}; nothing is rendered"
+            ),
+        );
+    }
+    started
+}
+
+type Completion = Option<(frame::ANARIFrameCompletionCallback, usize, usize, usize)>;
+
+/// Calls the application's completion callback of a render whose last step was collective.
+fn complete(completion: Completion) {
+    if let Some((Some(callback), user, device, frame)) = completion {
+        // SAFETY: the application registered this callback for this frame; it is called once
+        // per completed render with the values it was registered with.
+        unsafe {
+            callback(
+                user as *const c_void,
+                device as *mut c_void,
+                frame as *mut c_void,
+            )
         }
     }
+}
+
+/// Bytes as words for a collective, their count first.
+fn pack_bytes(bytes: &[u8]) -> Vec<u32> {
+    let mut words = Vec::with_capacity(1 + bytes.len().div_ceil(4));
+    words.push(bytes.len() as u32);
+    words.extend(
+        bytes
+            .chunks(4)
+            .map(|c| u32::from_ne_bytes(std::array::from_fn(|i| c.get(i).copied().unwrap_or(0)))),
+    );
+    words
+}
+
+/// The bytes [`pack_bytes`] packed.
+fn unpack_bytes(words: &[u32]) -> Vec<u8> {
+    let length = words.first().copied().unwrap_or(0) as usize;
+    words
+        .iter()
+        .skip(1)
+        .flat_map(|w| w.to_ne_bytes())
+        .take(length)
+        .collect()
+}
+
+/// The frame's channels by name, in the order every rank uses.
+fn channel_names(output: &frame::Output) -> Vec<&'static str> {
+    let mut names: Vec<_> = output.channels.keys().copied().collect();
+    names.sort_unstable();
+    names
+}
+
+/// Sort-last assembly: every pixel's encoded channel bytes come from the rank that owns it
+/// (`owner`, the same on every rank), to rank 0 or every rank. Returns the words sent.
+fn assemble_pixels(
+    state: &Arc<FrameState>,
+    exchange: &dyn Exchange,
+    owner: &[u32],
+    everywhere: bool,
+) -> Result<u64, ClusterError> {
+    let me = exchange.rank();
+    let mut mine: Vec<u8> = Vec::new();
+    state.edit_output(|output| {
+        for name in channel_names(output) {
+            let bytes = &output.channels[name].1;
+            let size = bytes.len() / owner.len().max(1);
+            for (pixel, _) in owner.iter().enumerate().filter(|(_, o)| **o == me) {
+                mine.extend_from_slice(&bytes[pixel * size..(pixel + 1) * size]);
+            }
+        }
+    });
+    let words = pack_bytes(&mine);
+    let sent = words.len() as u64;
+    if let Some(parts) = exchange.gather(&words, everywhere)? {
+        state.edit_output(|output| {
+            for (rank, part) in parts.iter().enumerate().filter(|(r, _)| *r != me as usize) {
+                let bytes = unpack_bytes(part);
+                let mut at = 0;
+                for name in channel_names(output) {
+                    let Some((_, channel)) = output.channels.get_mut(name) else {
+                        continue;
+                    };
+                    let size = channel.len() / owner.len().max(1);
+                    let owned = owner.iter().enumerate().filter(|(_, o)| **o == rank as u32);
+                    for (pixel, _) in owned {
+                        if let Some(source) = bytes.get(at..at + size) {
+                            channel[pixel * size..(pixel + 1) * size].copy_from_slice(source);
+                        }
+                        at += size;
+                    }
+                }
+            }
+        });
+    }
+    Ok(sent)
 }
 
 fn render_data_parallel(
@@ -625,38 +740,118 @@ fn render_data_parallel(
                 .into(),
         );
     }
-    let pass = Arc::new(PrimaryPass::default());
-    match Arc::get_mut(&mut setup.scene) {
-        Some(scene) => scene.cluster = Some(Arc::clone(&pass) as _),
-        None => return Err(ClusterError::Mismatch("the frame's scene is shared".into())),
-    }
+    let me = exchange.rank();
+    let (width, height) = (setup.width, setup.height);
+    let planes = frame::rays_per_pixel_sample(&setup) * setup.settings.pixel_samples.max(1);
+    // The fast renderer's shading asks nothing of the scene: with one ray per pixel every rank
+    // shades what it sees, and the rank with the closest hit gives the pixel (sort-last).
+    let shade_locally = setup.settings.fast && planes == 1;
+    let pass = PrimaryPass::new(width, height, planes, shade_locally).map(Arc::new);
+    let completion = setup.completion.take();
     // First pass: the frame's own render records every primary sample and this rank's hit.
-    let ok = start(device, frame, state, pass_of(&setup));
-    state.wait();
+    let ok = match &pass {
+        None => {
+            device.error(
+                ANARI_STATUS_OUT_OF_MEMORY,
+                Some(frame),
+                format!(
+                    "anariRenderFrame: cannot allocate the sample arrays of a {width}×{height} \
+                     frame of {planes} samples per pixel on rank {me}; nothing is rendered"
+                ),
+            );
+            false
+        }
+        Some(pass) => {
+            match Arc::get_mut(&mut setup.scene) {
+                Some(scene) => scene.cluster = Some(Arc::clone(pass) as _),
+                None => return Err(ClusterError::Mismatch("the frame's scene is shared".into())),
+            }
+            let ok = start(device, frame, state, pass_of(&setup), me);
+            state.wait();
+            ok
+        }
+    };
     agree(exchange, ok)?;
-    let records = pass.take_sorted();
-    let max_rounds = 4 * (setup.settings.max_ray_depth + 2) + 16;
-    let (samples, traffic) = resolve(
-        exchange,
-        &setup.scene,
-        &setup.settings,
-        &records,
-        max_rounds,
-        everywhere,
-    )?;
-    pass.set_replay(Replay {
-        keys: records.iter().map(|r| r.key).collect(),
-        samples,
-    });
-    let samples = u64::from(setup.settings.pixel_samples.max(1));
-    state.cluster.set(
-        traffic.shaded.div_ceil(samples),
-        traffic.words_sent * 4,
-        traffic.exchange_seconds,
-    );
-    // Second pass: the same render, each sample given what its rank shaded.
-    start(device, frame, state, setup);
+    let Some(pass) = pass else {
+        return Err(ClusterError::RankFailed { rank: me });
+    };
+    let mut traffic = Traffic::default();
+    let owners = composite(exchange, &pass, &mut traffic)?;
+    let pixels = pass.pixels();
+    let traced = owners[..pixels].iter().filter(|o| **o == me).count() as u64;
+    if !shade_locally {
+        let max_rounds = 4 * (setup.settings.max_ray_depth + 2) + 16;
+        let (owned, samples) = resolve(
+            exchange,
+            &setup.scene,
+            &setup.settings,
+            &pass,
+            &owners,
+            max_rounds,
+            &mut traffic,
+        )?;
+        if planes > 1 {
+            // A pixel's samples may be shaded on several ranks: they go to rank 0 (or every
+            // rank), each rank's in the order of its slots, and its frame renders them.
+            let gather_started = Instant::now();
+            let mut mine = Vec::with_capacity(samples.len() * SAMPLE_WORDS);
+            samples.iter().for_each(|s| encode_sample(s, &mut mine));
+            traffic.words_sent += mine.len() as u64;
+            let gathered = exchange.gather(&mine, everywhere)?;
+            traffic.exchange_seconds += gather_started.elapsed().as_secs_f64();
+            if let Some(parts) = gathered {
+                pass.set_replay(replay_of_parts(&pass, &owners, &parts));
+                start(device, frame, state, pass_of(&setup), me);
+                state.wait();
+            }
+            state
+                .cluster
+                .set(traced, traffic.words_sent * 4, traffic.exchange_seconds);
+            complete(completion);
+            return Ok(());
+        }
+        // One ray per pixel: this rank's frame renders its own samples, and its pixels'
+        // channel bytes are final.
+        let mut index = vec![NO_SAMPLE; pass.slots()];
+        for (position, slot) in owned.iter().enumerate() {
+            index[*slot] = position as u32;
+        }
+        pass.set_replay(Replay { index, samples });
+        let ok = start(device, frame, state, pass_of(&setup), me);
+        state.wait();
+        agree(exchange, ok)?;
+    }
+    let assembly_started = Instant::now();
+    traffic.words_sent += assemble_pixels(state, exchange, &owners[..pixels], everywhere)?;
+    traffic.exchange_seconds += assembly_started.elapsed().as_secs_f64();
+    state
+        .cluster
+        .set(traced, traffic.words_sent * 4, traffic.exchange_seconds);
+    complete(completion);
     Ok(())
+}
+
+/// A replay of every rank's samples: `parts[r]` holds rank r's, in the order of its slots.
+fn replay_of_parts(pass: &PrimaryPass, owners: &[u32], parts: &[Vec<u32>]) -> Replay {
+    let mut index = vec![NO_SAMPLE; pass.slots()];
+    let mut samples = Vec::new();
+    let mut read = vec![0usize; parts.len()];
+    for (slot, owner) in owners.iter().enumerate() {
+        if pass.local(slot) == UNVISITED {
+            continue;
+        }
+        let rank = *owner as usize;
+        let at = read.get(rank).copied().unwrap_or(usize::MAX);
+        let words = parts
+            .get(rank)
+            .and_then(|part| part.get(at * SAMPLE_WORDS..(at + 1) * SAMPLE_WORDS));
+        if let Some(words) = words {
+            index[slot] = samples.len() as u32;
+            samples.push(decode_sample(words));
+            read[rank] += 1;
+        }
+    }
+    Replay { index, samples }
 }
 
 fn render_replicated(
@@ -678,7 +873,7 @@ fn render_replicated(
              rank in 'replicated' mode"
                 .into(),
         );
-        let ok = start(device, frame, state, setup);
+        let ok = start(device, frame, state, setup, exchange.rank);
         state.wait();
         state
             .cluster
@@ -695,7 +890,7 @@ fn render_replicated(
     ));
     setup.tile_split = Some(Arc::clone(&split));
     let completion = setup.completion.take();
-    let ok = start(device, frame, state, setup);
+    let ok = start(device, frame, state, setup, exchange.rank);
     state.wait();
     let exchange_started = Instant::now();
     agree(exchange, ok)?;
@@ -715,8 +910,7 @@ fn render_replicated(
     let mut mine: Vec<u8> = Vec::new();
     let mut traced = 0u64;
     state.edit_output(|output| {
-        let mut names: Vec<_> = output.channels.keys().copied().collect();
-        names.sort_unstable();
+        let names = channel_names(output);
         for tile in (0..tiles).filter(|t| split.owns(*t)) {
             let (x0, y0, x1, y1) = rect(tile);
             traced += u64::from((x1 - x0) * (y1 - y0));
@@ -732,26 +926,15 @@ fn render_replicated(
             }
         }
     });
-    let mut words = vec![mine.len() as u32];
-    words.extend(
-        mine.chunks(4)
-            .map(|c| u32::from_ne_bytes(std::array::from_fn(|i| c.get(i).copied().unwrap_or(0)))),
-    );
+    let words = pack_bytes(&mine);
     let sent_bytes = words.len() as u64 * 4;
     let gathered = exchange.gather(&words, everywhere)?;
     if let Some(parts) = gathered {
         state.edit_output(|output| {
-            let mut names: Vec<_> = output.channels.keys().copied().collect();
-            names.sort_unstable();
+            let names = channel_names(output);
             let me = exchange.rank as usize;
             for (rank, part) in parts.iter().enumerate().filter(|(r, _)| *r != me) {
-                let length = part.first().copied().unwrap_or(0) as usize;
-                let bytes: Vec<u8> = part
-                    .iter()
-                    .skip(1)
-                    .flat_map(|w| w.to_ne_bytes())
-                    .take(length)
-                    .collect();
+                let bytes = unpack_bytes(part);
                 let mut at = 0;
                 for tile in (0..tiles).filter(|t| split.owner(*t) == rank as u32) {
                     let (x0, y0, x1, y1) = rect(tile);
@@ -786,16 +969,6 @@ fn render_replicated(
     state
         .cluster
         .set(traced, sent_bytes, exchange_started.elapsed().as_secs_f64());
-    if let Some((Some(callback), user, device, frame)) = completion {
-        // SAFETY: the application registered this callback for this frame; it is called once
-        // per completed render with the values it was registered with.
-        unsafe {
-            callback(
-                user as *const c_void,
-                device as *mut c_void,
-                frame as *mut c_void,
-            )
-        }
-    }
+    complete(completion);
     Ok(())
 }

@@ -129,3 +129,56 @@ fn outside_a_render_across_ranks_the_hooks_ask_the_scene_itself() {
     assert!(primary(&scene, &ray, None, None, None, &sampling).is_none());
     assert!(fast_primary_sample(&scene, &ray, None, || Vec2::ZERO, None).is_ok());
 }
+
+#[test]
+fn a_data_parallel_pass_keeps_each_sample_in_its_slot_and_replays_it() {
+    // A 2×1 frame, one ray per pixel: slot 1 is pixel (1, 0).
+    let pass = Arc::new(PrimaryPass::new(2, 1, 1, false).unwrap());
+    let mut scene = SceneSnapshot::empty();
+    scene.cluster = Some(Arc::clone(&pass) as _);
+    let ray = Ray {
+        origin: Vec3::ZERO,
+        direction: Vec3::Z,
+        t_min: 0.0,
+        t_max: f32::INFINITY,
+    };
+    let hit = SceneHit {
+        t: 2.5,
+        instance: 0,
+        geometry: 0,
+        primitive: 4,
+        uv: Vec2::ZERO,
+        normal: Vec3::Z,
+        object_normal: Vec3::Z,
+    };
+    let sampling = LightSampling::for_pixel(0, 1, 0);
+    let untouched = pass.digest();
+    at_slot(1);
+    // Shading waits for the compositing: the first pass gives a blank sample.
+    let first = primary(&scene, &ray, Some(&hit), None, None, &sampling).unwrap();
+    assert_eq!(first.color, Vec4::ZERO);
+    assert_eq!(
+        (pass.local(0), pass.local(1)),
+        (UNVISITED, 2.5f32.to_bits() + 1)
+    );
+    assert_ne!(pass.digest(), untouched);
+    assert_eq!(key_ray(&pass.record(1).key).direction, Vec3::Z);
+    at_slot(0);
+    primary(&scene, &ray, None, None, None, &sampling);
+    assert_eq!(pass.local(0), MISSED);
+    // The replay gives each slot its own sample, and a blank one to a slot without.
+    let shaded = Sample {
+        color: Vec4::new(0.5, 0.25, 1.0, 1.0),
+        hit: None,
+    };
+    pass.set_replay(Replay {
+        index: vec![NO_SAMPLE, 0],
+        samples: vec![shaded],
+    });
+    at_slot(1);
+    let replayed = primary(&scene, &ray, Some(&hit), None, None, &sampling).unwrap();
+    assert_eq!(replayed.color, shaded.color);
+    at_slot(0);
+    let blank = fast_primary_sample(&scene, &ray, None, || Vec2::ZERO, None);
+    assert!(matches!(blank, Err(s) if s.color == Vec4::ZERO));
+}

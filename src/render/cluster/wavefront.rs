@@ -9,9 +9,10 @@ use glam::Vec4;
 use rayon::prelude::*;
 
 use super::{
-    Answers, KeySet, NO_RANK, Pending, PrimaryRecord, RayKey, SAMPLE_WORDS, TraceKey,
-    decode_sample, encode_sample, evaluate, key_ray, trace_inputs,
+    Answers, KeySet, MISSED, NO_RANK, Pending, PrimaryPass, RayKey, TraceKey, UNVISITED, evaluate,
+    key_ray, trace_inputs,
 };
+use crate::accel::SceneHit;
 use crate::render::integrator::{self, Sample};
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
@@ -76,46 +77,63 @@ pub struct Traffic {
     pub words_sent: u64,
     /// Seconds spent in collectives and in testing other ranks' rays.
     pub exchange_seconds: f64,
-    /// Primary samples this rank shaded.
-    pub shaded: u64,
 }
 
-/// The outcome of the rays one rank shaded, by the task that asked.
+/// What a rank shades: a primary sample it owns, or a secondary ray another rank (the
+/// requester) asked of it.
 enum Task {
-    Primary(usize),
-    Child { requester: u32, key: TraceKey },
+    Primary,
+    Child(Box<(u32, TraceKey)>),
 }
 
+/// A task and how far it got, kept in place between rounds.
+struct TaskState {
+    task: Task,
+    /// What its last evaluation lacked (`None`: not evaluated yet, or done).
+    pending: Option<Box<Pending>>,
+    /// The answers to its shadow rays so far: whether any rank's part blocks them.
+    blocked: Vec<(RayKey, bool)>,
+    /// A child's radiance from its last evaluation.
+    radiance: Vec4,
+    done: bool,
+    /// Evaluated this round and lacking answers: its rays go out.
+    asking: bool,
+    /// A child's radiance has gone to its requester.
+    sent: bool,
+}
+
+impl TaskState {
+    fn new(task: Task) -> TaskState {
+        TaskState {
+            task,
+            pending: None,
+            blocked: Vec::new(),
+            radiance: Vec4::ZERO,
+            done: false,
+            asking: false,
+            sent: false,
+        }
+    }
+}
+
+#[derive(Clone, Copy)]
 enum Outcome {
     Sample(Sample),
     Radiance(Vec4),
 }
 
-/// The results of a data-parallel render: per record (sorted primary samples), what the ranks
-/// shaded — every sample on rank 0 (on every rank with `everywhere`), this rank's own elsewhere.
-pub fn resolve(
+/// Depth compositing of every slot of the pass: per slot the rank whose part holds the
+/// closest hit (ties to the lower rank; rank 0 where no part is hit, which shades the
+/// background). Checks first that every rank asks for the same samples.
+pub fn composite(
     exchange: &dyn Exchange,
-    scene: &SceneSnapshot,
-    settings: &RendererSettings,
-    records: &[PrimaryRecord],
-    max_rounds: u32,
-    everywhere: bool,
-) -> Result<(Vec<Option<Sample>>, Traffic), ClusterError> {
+    pass: &PrimaryPass,
+    traffic: &mut Traffic,
+) -> Result<Vec<u32>, ClusterError> {
     let me = exchange.rank();
-    let mut traffic = Traffic::default();
     let started = Instant::now();
-    // Every rank must ask for the same samples; a count and a digest of the keys tell.
-    let digest = records.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, r| {
-        r.key
-            .iter()
-            .fold(h, |h, w| (h ^ u64::from(*w)).wrapping_mul(0x100_0000_01b3))
-    });
-    let mut check = [
-        records.len() as u64,
-        !(records.len() as u64),
-        digest,
-        !digest,
-    ];
+    let (slots, digest) = (pass.slots() as u64, pass.digest());
+    let mut check = [slots, !slots, digest, !digest];
     exchange.all_min(&mut check)?;
     if check[0] != !check[1] || check[2] != !check[3] {
         return Err(ClusterError::Mismatch(
@@ -124,27 +142,54 @@ pub fn resolve(
                 .into(),
         ));
     }
-    // Depth compositing: the smallest t of every rank wins, ties to the lower rank.
-    let mut winners: Vec<u64> = records
-        .iter()
-        .map(|r| match r.local_t {
-            u32::MAX => u64::MAX,
-            t => (u64::from(t) << 32) | u64::from(me),
+    let mut winners: Vec<u64> = (0..pass.slots())
+        .into_par_iter()
+        .map(|slot| match pass.local(slot) {
+            UNVISITED | MISSED => u64::MAX,
+            local => (u64::from(local - 1) << 32) | u64::from(me),
         })
         .collect();
     exchange.all_min(&mut winners)?;
     traffic.words_sent += 2 * winners.len() as u64 + 8;
     traffic.exchange_seconds += started.elapsed().as_secs_f64();
-    // A sample that misses every part is shaded (the background) by rank 0.
-    let owner = |winner: u64| if winner == u64::MAX { 0 } else { winner as u32 };
-    let mut tasks: Vec<(Task, Option<Pending>)> = winners
-        .iter()
-        .enumerate()
-        .filter(|(_, w)| owner(**w) == me)
-        .map(|(i, _)| (Task::Primary(i), None))
+    Ok(winners
+        .into_par_iter()
+        .map(|w| if w == u64::MAX { 0 } else { w as u32 })
+        .collect())
+}
+
+/// Shades the primary samples this rank owns (`owners`, from [`composite`]) in bulk, asking
+/// every rank's part what the shading asks of the scene, in rounds. Returns the owned slots in
+/// order and their samples.
+pub fn resolve(
+    exchange: &dyn Exchange,
+    scene: &SceneSnapshot,
+    settings: &RendererSettings,
+    pass: &PrimaryPass,
+    owners: &[u32],
+    max_rounds: u32,
+    traffic: &mut Traffic,
+) -> Result<(Vec<usize>, Vec<Sample>), ClusterError> {
+    let me = exchange.rank();
+    let owned: Vec<usize> = (0..owners.len())
+        .into_par_iter()
+        .filter(|slot| owners[*slot] == me && pass.local(*slot) != UNVISITED)
         .collect();
-    traffic.shaded = tasks.len() as u64;
-    let mut samples: Vec<Option<Sample>> = vec![None; records.len()];
+    // The primary hits, traced once for every evaluation of their shading.
+    let hits: Vec<Option<SceneHit>> = owned
+        .par_iter()
+        .map(|slot| scene.bvh.intersect(&pass.record(*slot).ray()))
+        .collect();
+    let mut tasks: Vec<TaskState> = (0..owned.len())
+        .map(|_| TaskState::new(Task::Primary))
+        .collect();
+    let mut samples: Vec<Sample> = vec![
+        Sample {
+            color: Vec4::ZERO,
+            hit: None,
+        };
+        owned.len()
+    ];
     let mut answers = Answers {
         rank: me,
         ..Answers::default()
@@ -153,73 +198,78 @@ pub fn resolve(
     let mut children: KeySet<(u32, TraceKey)> = KeySet::default();
     let mut quiet_rounds = 0;
     loop {
-        // Shade what can progress: new tasks, and tasks whose every missing answer has come.
+        // Shade what can progress, in place: new tasks, and tasks whose every missing answer
+        // has come.
         let shared = Arc::new(std::mem::take(&mut answers));
-        let ready: Vec<usize> = tasks
-            .iter()
+        let step = |index: usize, state: &mut TaskState, sample: Option<&mut Sample>| {
+            state.asking = false;
+            if state.done {
+                return;
+            }
+            if let Some(pending) = &state.pending {
+                match progress(pending, &state.blocked, &shared) {
+                    None => return,
+                    // Evaluated with the right answers already.
+                    Some(Progress::AsAssumed) => {
+                        state.done = true;
+                        state.pending = None;
+                        return;
+                    }
+                    Some(Progress::Answered) => {}
+                }
+            }
+            let blocked = std::mem::take(&mut state.blocked);
+            let (outcome, pending, blocked) = evaluate(&shared, blocked, || {
+                shade(&state.task, index, scene, settings, pass, &owned, &hits)
+            });
+            state.blocked = blocked;
+            match (outcome, sample) {
+                (Outcome::Sample(shaded), Some(sample)) => *sample = shaded,
+                (Outcome::Radiance(radiance), _) => state.radiance = radiance,
+                _ => {}
+            }
+            state.done = !pending.incomplete;
+            state.asking = pending.incomplete;
+            state.pending = pending.incomplete.then(|| Box::new(pending));
+        };
+        let (primaries, others) = tasks.split_at_mut(owned.len());
+        primaries
+            .par_iter_mut()
+            .zip(samples.par_iter_mut())
             .enumerate()
-            .filter(|(_, (_, pending))| pending.as_ref().is_none_or(|p| answered(p, &shared)))
-            .map(|(i, _)| i)
-            .collect();
-        let evaluated: Vec<(usize, Outcome, Pending)> = ready
-            .into_par_iter()
-            .map(|i| {
-                let (outcome, pending) =
-                    evaluate(&shared, || shade(&tasks[i].0, scene, settings, records));
-                (i, outcome, pending)
-            })
-            .collect();
+            .for_each(|(index, (state, sample))| step(index, state, Some(sample)));
+        others
+            .par_iter_mut()
+            .for_each(|state| step(usize::MAX, state, None));
         answers = Arc::try_unwrap(shared).unwrap_or_else(|shared| (*shared).clone());
         let exchange_started = Instant::now();
         let mut occlusion: Vec<RayKey> = Vec::new();
         let mut closest: Vec<TraceKey> = Vec::new();
         let mut remote: Vec<(TraceKey, u32)> = Vec::new();
         let mut results: Vec<u32> = Vec::new();
-        let mut done = Vec::new();
-        {
-            let mut seen_rays: KeySet<RayKey> = KeySet::default();
-            let mut seen_traces: KeySet<TraceKey> = KeySet::default();
-            for (i, outcome, mut pending) in evaluated {
-                if !pending.incomplete {
-                    match (&tasks[i].0, outcome) {
-                        (Task::Primary(index), Outcome::Sample(sample)) => {
-                            samples[*index] = Some(sample)
-                        }
-                        (Task::Child { requester, key }, Outcome::Radiance(radiance)) => {
-                            results.push(*requester);
-                            results.extend_from_slice(key);
-                            results.extend(radiance.to_array().map(f32::to_bits));
-                        }
-                        _ => {}
-                    }
-                    done.push(i);
-                    continue;
-                }
-                for key in &pending.occlusion {
-                    if seen_rays.insert(*key) {
-                        occlusion.push(*key);
-                    }
-                }
-                for key in &pending.closest {
-                    if seen_traces.insert(*key) {
-                        closest.push(*key);
-                    }
-                }
+        // Which task asked each shadow ray: the answers come back in the same order.
+        let mut askers: Vec<u32> = Vec::new();
+        for (task, state) in tasks.iter_mut().enumerate() {
+            if let (Some(pending), true) = (&state.pending, state.asking) {
+                // Rays asked twice are rare (two samples of one pixel); they are answered twice.
+                occlusion.extend_from_slice(&pending.occlusion);
+                askers.extend(pending.occlusion.iter().map(|_| task as u32));
+                closest.extend_from_slice(&pending.closest);
                 for (key, owner) in &pending.remote {
                     if requested.insert(*key) {
                         remote.push((*key, *owner));
                     }
                 }
-                pending.occlusion.sort_unstable();
-                tasks[i].1 = Some(pending);
+            }
+            if let (Task::Child(child), true, false) = (&state.task, state.done, state.sent) {
+                let (requester, key) = &**child;
+                results.push(*requester);
+                results.extend_from_slice(key);
+                results.extend(state.radiance.to_array().map(f32::to_bits));
+                state.sent = true;
             }
         }
-        // Finished tasks leave the list (highest index first keeps the others' indices).
-        done.sort_unstable();
-        for i in done.into_iter().rev() {
-            tasks.swap_remove(i);
-        }
-        let busy = !tasks.is_empty();
+        let busy = tasks.iter().any(|t| !t.done);
         let mut message = vec![
             u32::from(busy),
             0,
@@ -283,15 +333,15 @@ pub fn resolve(
             .collect();
         exchange.all_min(&mut values)?;
         traffic.words_sent += 2 * values.len() as u64;
-        let mut value = values.into_iter();
-        for (rank, m) in messages.iter().enumerate() {
-            for key in m.occlusion() {
-                let occluded = value.next() == Some(0);
-                if rank as u32 == me {
-                    answers.occluded.insert(ray_of(key), occluded);
-                }
+        // This rank's shadow rays' answers go to the tasks that asked them.
+        let shadow_rays: usize = messages.iter().map(|m| m.counts[0]).sum();
+        let before: usize = messages[..me as usize].iter().map(|m| m.counts[0]).sum();
+        for ((key, task), value) in occlusion.iter().zip(&askers).zip(&values[before..]) {
+            if let Some(state) = tasks.get_mut(*task as usize) {
+                state.blocked.push((*key, *value == 0));
             }
         }
+        let mut value = values.into_iter().skip(shadow_rays);
         for (rank, m) in messages.iter().enumerate() {
             let rank = rank as u32;
             for key in m.closest() {
@@ -312,13 +362,7 @@ pub fn resolve(
                 if hit_rank == me {
                     answers.closest.insert(ray_of(key), me);
                     if rank != me && children.insert((rank, trace)) {
-                        tasks.push((
-                            Task::Child {
-                                requester: rank,
-                                key: trace,
-                            },
-                            None,
-                        ));
+                        tasks.push(TaskState::new(Task::Child(Box::new((rank, trace)))));
                     }
                 }
             }
@@ -327,13 +371,7 @@ pub fn resolve(
                     answers.closest.insert(ray_of(key), me);
                     let trace = trace_of(key);
                     if children.insert((rank, trace)) {
-                        tasks.push((
-                            Task::Child {
-                                requester: rank,
-                                key: trace,
-                            },
-                            None,
-                        ));
+                        tasks.push(TaskState::new(Task::Child(Box::new((rank, trace)))));
                     }
                 }
             }
@@ -348,27 +386,7 @@ pub fn resolve(
         }
         traffic.exchange_seconds += exchange_started.elapsed().as_secs_f64();
     }
-    // The shaded samples go to rank 0 (or every rank).
-    let gather_started = Instant::now();
-    let mut mine = Vec::new();
-    for (index, sample) in samples.iter().enumerate() {
-        if let Some(sample) = sample {
-            mine.push(index as u32);
-            encode_sample(sample, &mut mine);
-        }
-    }
-    traffic.words_sent += mine.len() as u64;
-    if let Some(all) = exchange.gather(&mine, everywhere)? {
-        for words in all {
-            for entry in words.chunks_exact(1 + SAMPLE_WORDS) {
-                if let Some(slot) = samples.get_mut(entry[0] as usize) {
-                    *slot = Some(decode_sample(&entry[1..]));
-                }
-            }
-        }
-    }
-    traffic.exchange_seconds += gather_started.elapsed().as_secs_f64();
-    Ok((samples, traffic))
+    Ok((owned, samples))
 }
 
 /// Words of a result: requester, trace key, colour.
@@ -382,33 +400,53 @@ fn trace_of(words: &[u32]) -> TraceKey {
     std::array::from_fn(|i| words[i])
 }
 
-/// Whether every answer an evaluation lacked has come.
-fn answered(pending: &Pending, answers: &Answers) -> bool {
-    pending
-        .occlusion
+/// What the answers an evaluation lacked change, once they have all come.
+enum Progress {
+    /// Each is what the evaluation assumed (a shadow ray no rank blocks): its result stands,
+    /// as shading is a pure function of its answers.
+    AsAssumed,
+    /// The shading must be evaluated again.
+    Answered,
+}
+
+/// `None` while an answer the evaluation lacked has not come (`blocked`: the answers to the
+/// shading's shadow rays).
+fn progress(pending: &Pending, blocked: &[(RayKey, bool)], answers: &Answers) -> Option<Progress> {
+    let mut as_assumed = pending.closest.is_empty() && pending.remote.is_empty();
+    for key in &pending.occlusion {
+        let (_, answer) = blocked.iter().find(|(k, _)| k == key)?;
+        as_assumed &= !*answer;
+    }
+    let answered = pending
+        .closest
         .iter()
-        .all(|k| answers.occluded.contains_key(k))
-        && pending
-            .closest
-            .iter()
-            .all(|k| answers.closest.contains_key(&ray_of(k)))
+        .all(|k| answers.closest.contains_key(&ray_of(k)))
         && pending
             .remote
             .iter()
-            .all(|(k, _)| answers.radiance.contains_key(k))
+            .all(|(k, _)| answers.radiance.contains_key(k));
+    match (answered, as_assumed) {
+        (false, _) => None,
+        (true, true) => Some(Progress::AsAssumed),
+        (true, false) => Some(Progress::Answered),
+    }
 }
 
+/// Shades a task; `index`: a primary task's position in `owned`.
 fn shade(
     task: &Task,
+    index: usize,
     scene: &SceneSnapshot,
     settings: &RendererSettings,
-    records: &[PrimaryRecord],
+    pass: &PrimaryPass,
+    owned: &[usize],
+    hits: &[Option<SceneHit>],
 ) -> Outcome {
     match task {
-        Task::Primary(index) => {
-            let record = &records[*index];
+        Task::Primary => {
+            let record = pass.record(owned[index]);
             let ray = record.ray();
-            let hit = scene.bvh.intersect(&ray);
+            let hit = hits[index];
             if record.fast {
                 let screen = record.screen().unwrap_or_default();
                 Outcome::Sample(integrator::fast_surface_sample(
@@ -431,8 +469,8 @@ fn shade(
                 ))
             }
         }
-        Task::Child { key, .. } => {
-            let (ray, depth, from_camera, screen, sampling) = trace_inputs(key);
+        Task::Child(child) => {
+            let (ray, depth, from_camera, screen, sampling) = trace_inputs(&child.1);
             Outcome::Radiance(integrator::trace_continuing(
                 scene,
                 settings,

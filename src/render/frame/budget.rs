@@ -1,10 +1,10 @@
 //! The frame budget: which units of the progressive plan a budgeted render traces, and how
 //! far the renders of an unchanged frame got.
 
-use std::sync::atomic::{AtomicU64, AtomicUsize};
-use std::time::Instant;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
 
-use crate::render::progressive::Plan;
+use crate::render::progressive::{FIXED_FIRST_STRIDE, Plan};
 
 use super::{Inner, RenderSetup};
 
@@ -23,26 +23,54 @@ pub(super) struct BudgetedRun {
     pub(super) plan: Plan,
     /// Units traced by earlier renders of the unchanged frame.
     pub(super) start: usize,
+    /// Units traced whatever the time: the coarsest level of a timed render; every level
+    /// down to stride 16 with a fixed pixel count (reproducible captures).
+    pub(super) mandatory: usize,
     /// Units the measured speed allows (the mandatory units, and at least one more than
     /// `start` so that refinement always progresses, are traced whatever the time).
     pub(super) planned_end: usize,
     pub(super) deadline: Option<Instant>,
+    /// Measured seconds of one thread's tracing per traced point: a unit that would end
+    /// after the deadline is not started.
+    pub(super) seconds_per_point: Option<f64>,
     /// The first unit a worker declined: units `start..first_declined` are traced.
     pub(super) first_declined: AtomicUsize,
     /// Nanoseconds the threads spent tracing units, summed.
     pub(super) tracing_nanos: AtomicU64,
+    /// When the render was asked for: its deadline and overhead count from here.
+    pub(super) began: Instant,
+    /// Nanoseconds from `began` until the last traced unit ended.
+    pub(super) tracing_end_nanos: AtomicU64,
 }
 
 impl BudgetedRun {
     /// Whether unit `index` is not traced in this render. Monotonic in `index` and in time, so
     /// the traced units always form a prefix.
     pub(super) fn declines(&self, index: usize) -> bool {
-        index >= self.plan.units.len()
-            || (index >= self.plan.mandatory_units().max(self.start + 1)
-                && (index >= self.planned_end
-                    || self
-                        .deadline
-                        .is_some_and(|deadline| Instant::now() >= deadline)))
+        let Some(unit) = self.plan.units.get(index) else {
+            return true;
+        };
+        let late = |deadline: Instant| {
+            let expected = self
+                .seconds_per_point
+                .map_or(0.0, |seconds| seconds * unit.traced_count() as f64);
+            Instant::now() + Duration::from_secs_f64(expected) >= deadline
+        };
+        index >= self.mandatory.max(self.start + 1)
+            && (index >= self.planned_end || self.deadline.is_some_and(late))
+    }
+
+    /// Records that a unit ended now, after `nanos` of tracing.
+    pub(super) fn unit_traced(&self, nanos: u64) {
+        self.tracing_nanos.fetch_add(nanos, Ordering::Relaxed);
+        let end = self.began.elapsed().as_nanos() as u64;
+        self.tracing_end_nanos.fetch_max(end, Ordering::Relaxed);
+    }
+
+    /// Seconds of the render (so far) after its last unit was traced: the fill and finish.
+    pub(super) fn seconds_after_tracing(&self) -> f64 {
+        let end = self.tracing_end_nanos.load(Ordering::Relaxed) as f64 * 1e-9;
+        (self.began.elapsed().as_secs_f64() - end).max(0.0)
     }
 }
 
@@ -65,6 +93,7 @@ pub(super) fn budgeted_run(
     inner: &mut Inner,
     threads: usize,
 ) -> Option<BudgetedRun> {
+    let began = Instant::now();
     let budget = setup.budget?;
     let camera = setup.camera.as_ref()?;
     let plan = Plan::new(&camera.viewports(setup.width, setup.height));
@@ -109,11 +138,24 @@ pub(super) fn budgeted_run(
     // Tracing stops in time for the fill (as long as it took last time) and the rest.
     let deadline = budget.pixels.is_none().then(|| {
         let tracing = 0.85 * f64::from(budget.seconds) - inner.throughput.overhead_seconds;
-        Instant::now() + std::time::Duration::from_secs_f64(tracing.max(0.0))
+        began + Duration::from_secs_f64(tracing.max(0.0))
     });
+    // A timed render that falls behind stops at whatever level it reached; one with a fixed
+    // pixel count always traces as far as stride 16, as its captures must not depend on time.
+    let mandatory = match budget.pixels {
+        Some(_) => plan.units_through_stride(FIXED_FIRST_STRIDE),
+        None => plan.mandatory_units(),
+    };
     Some(BudgetedRun {
         first_declined: AtomicUsize::new(plan.units.len()),
         tracing_nanos: AtomicU64::new(0),
+        began,
+        tracing_end_nanos: AtomicU64::new(0),
+        mandatory,
+        seconds_per_point: inner
+            .throughput
+            .pixels_per_thread_second
+            .map(|rate| 1.0 / rate),
         plan,
         start,
         planned_end,

@@ -183,18 +183,31 @@ impl Channel {
             self.write_tile(x0, y0, area.s1 - area.s0, frame_width, tile);
             return;
         }
-        let bytes = self.format.pixel_bytes;
-        let width = (area.s1 - area.s0) as usize;
-        for (k, source) in tile.chunks_exact(bytes).enumerate() {
-            let s = area.s0 + (k % width) as u32;
-            let t = area.t0 + (k / width) as u32;
-            if map.skips(s, t) {
-                continue;
-            }
-            let (x, y) = map.pixel(s, t);
-            let start = (y as usize * frame_width as usize + x as usize) * bytes;
-            if let Some(target) = self.bytes.get_mut(start..start + bytes) {
-                target.copy_from_slice(source);
+        // The usual sizes as constants in the inlined body: each copy becomes a move or two,
+        // where a call to copy a few bytes cost more than the rest of the loop.
+        match self.format.pixel_bytes {
+            4 => self.scatter(map, frame_width, tile, 4),
+            12 => self.scatter(map, frame_width, tile, 12),
+            16 => self.scatter(map, frame_width, tile, 16),
+            bytes => self.scatter(map, frame_width, tile, bytes),
+        }
+    }
+
+    /// [`Channel::write_area`] for `bytes`-byte pixels, row by row.
+    #[inline(always)]
+    fn scatter(&mut self, map: &impl TileMap, frame_width: u32, tile: &[u8], bytes: usize) {
+        let area = map.area();
+        let row_bytes = (area.s1 - area.s0) as usize * bytes;
+        for (t, sources) in (area.t0..area.t1).zip(tile.chunks_exact(row_bytes)) {
+            for (s, source) in (area.s0..).zip(sources.chunks_exact(bytes)) {
+                if map.skips(s, t) {
+                    continue;
+                }
+                let (x, y) = map.pixel(s, t);
+                let start = (y as usize * frame_width as usize + x as usize) * bytes;
+                if let Some(target) = self.bytes.get_mut(start..start + bytes) {
+                    target.copy_from_slice(source);
+                }
             }
         }
     }

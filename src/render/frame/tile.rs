@@ -5,9 +5,10 @@ use glam::{Vec2, Vec3, Vec4};
 
 use crate::accel::{PacketScratch, Ray};
 use crate::camera::{BLOCK_RAYS, BlockRays, CameraRay, EyeRays, PixelSet};
+use crate::render::cluster;
 use crate::render::integrator::{fast_surface_color, fast_surface_sample, shade_primary_at};
 use crate::render::interleave::{InterleavedTile, lattice_size};
-use crate::render::progressive::{FrameTile, TileMap};
+use crate::render::progressive::{FrameTile, SINGLE_RAY_STRIDE, TileMap};
 use crate::scene::light::LightSampling;
 
 use super::anaglyph::{anaglyph, anaglyph_eyes};
@@ -25,15 +26,9 @@ impl Job {
             (tile % self.tiles_x) * TILE_SIZE,
             (tile / self.tiles_x) * TILE_SIZE,
         );
-        InterleavedTile {
-            set,
-            s0,
-            t0,
-            s1: (s0 + TILE_SIZE).min(width),
-            t1: (t0 + TILE_SIZE).min(height),
-            width: self.setup.width,
-            height: self.setup.height,
-        }
+        let end = ((s0 + TILE_SIZE).min(width), (t0 + TILE_SIZE).min(height));
+        let frame = (self.setup.width, self.setup.height);
+        InterleavedTile::new(set, (s0, t0), end, frame)
     }
 
     /// Tile `tile` of an unbudgeted render: a square of the whole frame.
@@ -101,11 +96,6 @@ pub(super) struct TileScratch {
     encoded: Vec<u8>,
 }
 
-/// Lattices this sparse are traced ray by ray: their packets are too incoherent to pay
-/// (measured on the 1M-triangle benchmark: the coarsest level 32 → 22 ms at stride ≥ 4, no
-/// better at stride 2).
-pub(super) const SINGLE_RAY_STRIDE: u32 = 4;
-
 pub(super) fn render_tile(
     job: &Job,
     eyes: &[(crate::camera::EyeViewport, EyeRays)],
@@ -138,6 +128,7 @@ pub(super) fn render_tile(
                 &mut covered,
                 true,
                 all,
+                0,
             );
             let mut right_colors = [Vec4::ZERO; TILE_PIXELS];
             trace_blocks(
@@ -149,6 +140,7 @@ pub(super) fn render_tile(
                 &mut covered,
                 false,
                 all,
+                1,
             );
             for (color, right) in colors[..pixel_count].iter_mut().zip(&right_colors) {
                 *color = anaglyph(*color, *right);
@@ -161,7 +153,18 @@ pub(super) fn render_tile(
             for (k, pass) in passes.iter_mut().enumerate() {
                 let green = channels[k] == 1;
                 let rays = PixelRays::Subpixel(k as u32);
-                trace_blocks(job, eyes, map, scratch, pass, &mut covered, green, rays);
+                let variant = k as u32;
+                trace_blocks(
+                    job,
+                    eyes,
+                    map,
+                    scratch,
+                    pass,
+                    &mut covered,
+                    green,
+                    rays,
+                    variant,
+                );
             }
             let green = channels.iter().position(|c| *c == 1).unwrap_or(1);
             for (index, color) in colors[..pixel_count].iter_mut().enumerate() {
@@ -182,6 +185,7 @@ pub(super) fn render_tile(
                 &mut covered,
                 true,
                 all,
+                0,
             );
         }
     }
@@ -246,7 +250,9 @@ pub(super) type PreparedEye = (crate::camera::EyeViewport, EyeRays);
 
 /// Traces the tile's pixels from `eyes`, summing each pixel's samples into `colors` and
 /// marking it `covered`; with `record_hits` (and a frame that keeps hits), each pixel's first
-/// hit's channel values go into `scratch.records`.
+/// hit's channel values go into `scratch.records`. `variant` numbers the frame's rays of a
+/// pixel's sample (the eye of an anaglyph, a subpixel), as [`super::rays_per_pixel_sample`]
+/// counts them.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn trace_blocks(
     job: &Job,
@@ -257,6 +263,7 @@ pub(super) fn trace_blocks(
     covered: &mut [bool; TILE_PIXELS],
     record_hits: bool,
     pixel_rays: PixelRays,
+    variant: u32,
 ) {
     let setup = &job.setup;
     let area = map.area();
@@ -265,6 +272,8 @@ pub(super) fn trace_blocks(
     let samples = setup.settings.pixel_samples;
     let work = &job.pixel_work;
     let keeps_hits = work.hit_channels.any() && record_hits;
+    let clustered = setup.scene.cluster.is_some();
+    let (width, height) = (setup.width as usize, setup.height as usize);
     let records = &mut scratch.records;
     let mut rays = [NO_RAY; 64];
     // Viewport coordinates of a block's rays, for cameras that make them four at a time.
@@ -414,6 +423,11 @@ pub(super) fn trace_blocks(
                     };
                     let k = ((sy - ty) * tile_width + sx - tx) as usize;
                     covered[k] = true;
+                    if clustered {
+                        // Cluster hook: which of the frame's primary samples this is.
+                        let plane = (variant * samples + s) as usize;
+                        cluster::at_slot((plane * height + y as usize) * width + x as usize);
+                    }
                     if work.fast_surfaces {
                         let (scene, settings) = (&setup.scene, &setup.settings);
                         let (ray, hit) = (&rays[lane], hits[lane].as_ref());
