@@ -13,7 +13,8 @@
 //! light-field, shadow and secondary rays), and every instruction-set path this CPU has
 //! (baseline SSE2; AVX2), alternating frame by frame.
 //! `CAVETRACE_BENCH_QUICK=1`: two sizes at 256×256, 3 frames. `CAVETRACE_BENCH_GRIDS=22,708`:
-//! only those sizes (for profiling one).
+//! only those sizes (for profiling one). `CAVETRACE_BENCH_PARTS=single` (any of `packets`,
+//! `single`, `frame`, comma-separated): only those parts (the others print as 0).
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -129,6 +130,9 @@ fn main() {
             .collect()
     });
     let grids = chosen.as_deref().unwrap_or(grids);
+    let parts = std::env::var("CAVETRACE_BENCH_PARTS").unwrap_or_default();
+    let part = |name: &str| parts.is_empty() || parts.split(',').any(|p| p.trim() == name);
+    let (run_packets, run_single, run_frame) = (part("packets"), part("single"), part("frame"));
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
@@ -160,11 +164,22 @@ fn main() {
                 set_string(dev, dev, "isa", isa.name());
                 commit(dev, dev);
                 assert_eq!(isa::selected(), *isa);
-                let (packet_ms, packet_cpu, packet_sum) = trace(&scene, &rays, threads, false);
-                let (single_ms, single_cpu, single_sum) = trace(&scene, &rays, threads, true);
+                let skipped = (0.0, 0.0, 0);
+                let (packet_ms, packet_cpu, packet_sum) = if run_packets {
+                    trace(&scene, &rays, threads, false)
+                } else {
+                    skipped
+                };
+                let (single_ms, single_cpu, single_sum) = if run_single {
+                    trace(&scene, &rays, threads, true)
+                } else {
+                    skipped
+                };
                 let (start, cpu_start) = (Instant::now(), cpu_ms());
-                anariRenderFrame(dev, frame);
-                anariFrameReady(dev, frame, ANARI_WAIT);
+                if run_frame {
+                    anariRenderFrame(dev, frame);
+                    anariFrameReady(dev, frame, ANARI_WAIT);
+                }
                 let frame_ms = start.elapsed().as_secs_f64() * 1e3;
                 let frame_cpu = cpu_ms() - cpu_start;
                 if f == 1 {

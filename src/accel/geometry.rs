@@ -12,7 +12,7 @@ use crate::accel::procedural::{ProceduralPrimitives, ProceduralSlots};
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
 use crate::accel::wide_bvh::{
     LeafAlignment, LeafSizing, MAX_PRIMITIVES, PADDING, TraversalRay, WideBvh, WideNode,
-    build_wide_bvh, leaf_range, prefetch, traverse,
+    BoxTest, FourWideBoxTest, LeafTest, build_wide_bvh, leaf_range, prefetch, traverse, traverse_with,
 };
 use crate::accel::{GeometryPrims, PrimHit, Ray};
 use glam::{Vec2, Vec3, Vec3A};
@@ -433,15 +433,7 @@ impl GeometryBvh {
         let mut closest = None;
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
-                traverse::<false, _>(&self.nodes, ray, |code, ray| {
-                    let (group, count) = leaf_range(code);
-                    let hit = group_closest(&groups[group as usize], count, ray);
-                    if let Some((lane, t, bary)) = hit {
-                        ray.t_max = t;
-                        closest = Some((group * GROUP_LANES as u32 + lane as u32, bary));
-                    }
-                    hit.is_some()
-                });
+                return closest_triangle_slot(&self.nodes, groups, ray);
             }
             PrimitiveData::Spheres(spheres) => {
                 traverse::<false, _>(&self.nodes, ray, |code, ray| {
@@ -679,10 +671,7 @@ impl GeometryBvh {
     pub(crate) fn any_hit(&self, ray: &mut TraversalRay) -> bool {
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
-                traverse::<true, _>(&self.nodes, ray, |code, ray| {
-                    let (group, count) = leaf_range(code);
-                    group_any(&groups[group as usize], count, ray)
-                })
+                any_triangle_hit(&self.nodes, groups, ray)
             }
             PrimitiveData::Spheres(spheres) => {
                 traverse::<true, _>(&self.nodes, ray, |code, ray| {
@@ -845,6 +834,116 @@ impl GeometryBvh {
                 }
             }
         }
+    }
+}
+
+/// [`GeometryBvh::closest_slot`] over triangle groups, the whole walk compiled for the selected
+/// instruction set (so that its box test is inlined).
+#[inline]
+fn closest_triangle_slot(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &mut TraversalRay,
+) -> Option<(u32, Vec2)> {
+    #[cfg(target_arch = "x86_64")]
+    if crate::isa::avx2_selected() {
+        // SAFETY: AVX2 is selected only on CPUs that have it.
+        return unsafe { avx2_walks::closest_triangle_slot(nodes, groups, ray) };
+    }
+    closest_triangle_slot_on::<FourWideBoxTest>(nodes, groups, ray)
+}
+
+/// [`GeometryBvh::any_hit`] over triangle groups, compiled per instruction set as
+/// [`closest_triangle_slot`].
+#[inline]
+fn any_triangle_hit(nodes: &[WideNode], groups: &[TriangleGroup], ray: &mut TraversalRay) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if crate::isa::avx2_selected() {
+        // SAFETY: AVX2 is selected only on CPUs that have it.
+        return unsafe { avx2_walks::any_triangle_hit(nodes, groups, ray) };
+    }
+    any_triangle_hit_on::<FourWideBoxTest>(nodes, groups, ray)
+}
+
+/// The leaf test of the closest-hit walk over triangle groups: keeps the closest slot and its
+/// barycentrics.
+struct ClosestTriangle<'a> {
+    groups: &'a [TriangleGroup],
+    closest: Option<(u32, Vec2)>,
+}
+
+impl LeafTest for ClosestTriangle<'_> {
+    #[inline(always)]
+    fn test(&mut self, code: u32, ray: &mut TraversalRay) -> bool {
+        let (group, count) = leaf_range(code);
+        let hit = group_closest(&self.groups[group as usize], count, ray);
+        if let Some((lane, t, bary)) = hit {
+            ray.t_max = t;
+            self.closest = Some((group * GROUP_LANES as u32 + lane as u32, bary));
+        }
+        hit.is_some()
+    }
+}
+
+/// The leaf test of the any-hit walk over triangle groups.
+struct AnyTriangle<'a> {
+    groups: &'a [TriangleGroup],
+}
+
+impl LeafTest for AnyTriangle<'_> {
+    #[inline(always)]
+    fn test(&mut self, code: u32, ray: &mut TraversalRay) -> bool {
+        let (group, count) = leaf_range(code);
+        group_any(&self.groups[group as usize], count, ray)
+    }
+}
+
+#[inline(always)]
+fn closest_triangle_slot_on<B: BoxTest>(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &mut TraversalRay,
+) -> Option<(u32, Vec2)> {
+    let mut leaf = ClosestTriangle {
+        groups,
+        closest: None,
+    };
+    traverse_with::<B, false, _>(nodes, ray, &mut leaf);
+    leaf.closest
+}
+
+#[inline(always)]
+fn any_triangle_hit_on<B: BoxTest>(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &mut TraversalRay,
+) -> bool {
+    traverse_with::<B, true, _>(nodes, ray, &mut AnyTriangle { groups })
+}
+
+/// The triangle walks compiled for AVX2: the same operations (glam's four-wide triangle test
+/// with VEX encodings, no fused multiply-adds), the eight-wide box test inlined.
+#[cfg(target_arch = "x86_64")]
+mod avx2_walks {
+    use super::*;
+    use crate::accel::wide_bvh::Avx2BoxTest;
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn closest_triangle_slot(
+        nodes: &[WideNode],
+        groups: &[TriangleGroup],
+        ray: &mut TraversalRay,
+    ) -> Option<(u32, Vec2)> {
+        closest_triangle_slot_on::<Avx2BoxTest>(nodes, groups, ray)
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn any_triangle_hit(
+        nodes: &[WideNode],
+        groups: &[TriangleGroup],
+        ray: &mut TraversalRay,
+    ) -> bool {
+        any_triangle_hit_on::<Avx2BoxTest>(nodes, groups, ray)
     }
 }
 

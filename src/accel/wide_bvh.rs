@@ -1019,7 +1019,8 @@ const INLINE_STACK: usize = 64;
 
 /// Traversal stack: what to visit, with its widened entry distance. The inline entries start
 /// uninitialised: clearing them for every ray showed in profiles, and only entries below `len`
-/// are ever read.
+/// are ever read. Entries beyond the inline ones go to `spill`, which is only looked at while
+/// the inline part is full, so the common push and pop are one compare each.
 pub(crate) struct TraversalStack<T> {
     inline: [std::mem::MaybeUninit<T>; INLINE_STACK],
     len: usize,
@@ -1042,21 +1043,71 @@ impl<T: Copy> TraversalStack<T> {
             self.inline[self.len].write(entry);
             self.len += 1;
         } else {
-            self.spill.push(entry);
+            self.spill_push(entry);
         }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn spill_push(&mut self, entry: T) {
+        self.spill.push(entry);
     }
 
     #[inline(always)]
     pub fn pop(&mut self) -> Option<T> {
-        if let Some(entry) = self.spill.pop() {
-            Some(entry)
-        } else if self.len > 0 {
+        if self.len == INLINE_STACK
+            && let Some(entry) = self.spill.pop()
+        {
+            return Some(entry);
+        }
+        if self.len > 0 {
             self.len -= 1;
             // SAFETY: every entry below the old `len` was written by `push`, and `T: Copy`.
             Some(unsafe { self.inline[self.len].assume_init() })
         } else {
             None
         }
+    }
+}
+
+/// A box test of a node's eight children (see [`child_hits`]); the walk is generic over it so
+/// that each instruction-set path compiles the whole walk with its test inlined.
+pub(crate) trait BoxTest {
+    fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]);
+}
+
+/// The box test chosen per node at run time ([`child_hits`]).
+pub(crate) struct RuntimeBoxTest;
+
+impl BoxTest for RuntimeBoxTest {
+    #[inline(always)]
+    fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+        child_hits(node, ray, t_min, t_max)
+    }
+}
+
+/// The four-wide box test (the baseline path).
+pub(crate) struct FourWideBoxTest;
+
+impl BoxTest for FourWideBoxTest {
+    #[inline(always)]
+    fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+        child_hits_four_wide(node, ray, t_min, t_max)
+    }
+}
+
+/// The eight-wide AVX2 box test. Only walks compiled for AVX2 (inside a
+/// `#[target_feature(enable = "avx2")]` function, entered only when AVX2 is selected) use it.
+#[cfg(target_arch = "x86_64")]
+pub(crate) struct Avx2BoxTest;
+
+#[cfg(target_arch = "x86_64")]
+impl BoxTest for Avx2BoxTest {
+    #[inline(always)]
+    fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+        // SAFETY: this test is only used by walks entered when AVX2 is selected, which happens
+        // only on CPUs that have it.
+        unsafe { avx2::child_hits(node, ray, t_min, t_max) }
     }
 }
 
@@ -1074,6 +1125,30 @@ pub(crate) fn traverse<const ANY_HIT: bool, F>(
 where
     F: FnMut(u32, &mut TraversalRay) -> bool,
 {
+    traverse_with::<RuntimeBoxTest, ANY_HIT, F>(nodes, ray, &mut test_leaf)
+}
+
+/// What [`traverse_with`] calls for a leaf: `test(leaf_code, ray)` as `traverse`'s callback.
+/// A type of its own (rather than a closure) gets its test inlined into walks compiled for
+/// another instruction set.
+pub(crate) trait LeafTest {
+    fn test(&mut self, code: u32, ray: &mut TraversalRay) -> bool;
+}
+
+impl<F: FnMut(u32, &mut TraversalRay) -> bool> LeafTest for F {
+    #[inline(always)]
+    fn test(&mut self, code: u32, ray: &mut TraversalRay) -> bool {
+        self(code, ray)
+    }
+}
+
+/// [`traverse`] with the box test `B`.
+#[inline(always)]
+pub(crate) fn traverse_with<B: BoxTest, const ANY_HIT: bool, L: LeafTest>(
+    nodes: &[WideNode],
+    ray: &mut TraversalRay,
+    test_leaf: &mut L,
+) -> bool {
     if nodes.is_empty() {
         return false;
     }
@@ -1085,7 +1160,7 @@ where
     loop {
         if code & LEAF_BIT == 0 {
             let node = &nodes[code as usize];
-            let (mask, nears) = child_hits(node, &box_ray, ray.t_min, ray.t_max);
+            let (mask, nears) = B::child_hits(node, &box_ray, ray.t_min, ray.t_max);
             if mask != 0 {
                 let ordered = u32::from(ORDER[order][mask as usize]);
                 let mut farther = ordered & (ordered - 1);
@@ -1101,7 +1176,7 @@ where
                 }
                 continue;
             }
-        } else if test_leaf(code, ray) {
+        } else if test_leaf.test(code, ray) {
             found = true;
             if ANY_HIT {
                 return true;
