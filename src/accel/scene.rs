@@ -147,8 +147,10 @@ impl SceneBvh {
             // geometry's own root node does.
             let mut object = placement.object_ray(&world)?;
             let (primitive_slot, bary) = placement.geometry.closest_slot(&mut object)?;
-            world.t_max = object.t_max;
-            closest = Some((0, primitive_slot, bary));
+            let hit = placement
+                .geometry
+                .hit_with_barycentrics(primitive_slot, bary, &object);
+            return Some(self.scene_hit(placement, hit));
         }
         traverse::<false, _>(self.top_level_nodes(), &mut world, |code, world| {
             let (first, count) = leaf_range(code);

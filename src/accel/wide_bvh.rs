@@ -891,16 +891,41 @@ pub(crate) struct BoxRay {
 impl BoxRay {
     #[inline(always)]
     pub fn new(ray: &TraversalRay) -> BoxRay {
-        let negative = [4, 2, 1].map(|bit| usize::from(ray.octant_inv & bit == 0));
+        let octant = (ray.octant_inv & 7) as usize;
+        let [entry, exit] = PLANE_ROWS[octant];
         BoxRay {
             origin: ray.origin.to_array(),
             inv: ray.inv_direction.to_array(),
-            entry: [0, 1, 2].map(|axis| 2 * axis + negative[axis]),
-            exit: [0, 1, 2].map(|axis| 2 * axis + 1 - negative[axis]),
-            order: (7 ^ ray.octant_inv) as usize,
+            entry,
+            exit,
+            order: 7 ^ octant,
         }
     }
 }
+
+/// `PLANE_ROWS[octant_inv]`: per axis the plane rows through which a ray of that octant enters
+/// children (minima along a non-negative direction, maxima along a negative one) and leaves
+/// them; a table, because working them out showed in profiles of single rays.
+static PLANE_ROWS: [[[usize; 3]; 2]; 8] = {
+    let mut table = [[[0; 3]; 2]; 8];
+    let mut octant = 0;
+    while octant < 8 {
+        let mut axis = 0;
+        while axis < 3 {
+            let negative = (octant >> (2 - axis)) & 1 == 0;
+            let (entry, exit) = if negative {
+                (2 * axis + 1, 2 * axis)
+            } else {
+                (2 * axis, 2 * axis + 1)
+            };
+            table[octant][0][axis] = entry;
+            table[octant][1][axis] = exit;
+            axis += 1;
+        }
+        octant += 1;
+    }
+    table
+};
 
 /// Which children a ray reaches within `[t_min, t_max]` (bit per slot) and, per slot, the
 /// widened entry distance (meaningful for the children hit).
@@ -1043,14 +1068,8 @@ impl<T: Copy> TraversalStack<T> {
             self.inline[self.len].write(entry);
             self.len += 1;
         } else {
-            self.spill_push(entry);
+            spill_push(&mut self.spill, entry);
         }
-    }
-
-    #[cold]
-    #[inline(never)]
-    fn spill_push(&mut self, entry: T) {
-        self.spill.push(entry);
     }
 
     #[inline(always)]
@@ -1068,6 +1087,14 @@ impl<T: Copy> TraversalStack<T> {
             None
         }
     }
+}
+
+/// Out of line and taking only the spill, so that the rest of the stack (its length above
+/// all) can stay in registers.
+#[cold]
+#[inline(never)]
+fn spill_push<T>(spill: &mut Vec<T>, entry: T) {
+    spill.push(entry);
 }
 
 /// A box test of a node's eight children (see [`child_hits`]); the walk is generic over it so
