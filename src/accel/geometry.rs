@@ -11,8 +11,8 @@ use crate::accel::primitives::{
 use crate::accel::procedural::{ProceduralPrimitives, ProceduralSlots};
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
 use crate::accel::wide_bvh::{
-    LeafAlignment, LeafSizing, MAX_PRIMITIVES, PADDING, TraversalRay, WideBvh, WideNode,
-    BoxTest, FourWideBoxTest, LeafTest, build_wide_bvh, leaf_range, prefetch, traverse, traverse_with,
+    BoxTest, FourWideBoxTest, LeafAlignment, LeafSizing, LeafTest, MAX_PRIMITIVES, PADDING,
+    TraversalRay, WideBvh, WideNode, build_wide_bvh, leaf_range, prefetch, traverse, traverse_with,
 };
 use crate::accel::{GeometryPrims, PrimHit, Ray};
 use glam::{Vec2, Vec3, Vec3A};
