@@ -862,7 +862,11 @@ fn main() {
         true
     } else if section("depth") {
         // `-- depth default`: the same frames with the default renderer.
-        let renderer = if section("default") { "default" } else { "fast" };
+        let renderer = if section("default") {
+            "default"
+        } else {
+            "fast"
+        };
         depth_section(dev, geometry, renderer, size, if quick { 3 } else { 9 });
         true
     } else if section("budget") {
