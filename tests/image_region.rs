@@ -19,7 +19,13 @@ const LR: [f32; 3] = [2.0, -1.0, -2.0];
 const UR: [f32; 3] = [2.0, 1.0, -2.0];
 const EYE: [f32; 3] = [0.3, 0.2, 0.0];
 
-const CAMERAS: [&str; 5] = ["perspective", "orthographic", "offAxis", "matrix", "fisheye"];
+const CAMERAS: [&str; 5] = [
+    "perspective",
+    "orthographic",
+    "offAxis",
+    "matrix",
+    "fisheye",
+];
 
 /// Right triangles (not mirror-symmetric) on a grid in the plane z = −5, each its own primitive
 /// id, the grid itself not symmetric either (rows shifted).
@@ -76,7 +82,13 @@ fn camera(dev: ANARIDevice, kind: &str) -> ANARICamera {
         "fisheye" => {
             let forward = [0.0f32, 0.0, -1.0];
             set(dev, camera, "dome.direction", ANARI_FLOAT32_VEC3, &forward);
-            set(dev, camera, "dome.up", ANARI_FLOAT32_VEC3, &[0.0f32, 1.0, 0.0]);
+            set(
+                dev,
+                camera,
+                "dome.up",
+                ANARI_FLOAT32_VEC3,
+                &[0.0f32, 1.0, 0.0],
+            );
         }
         _ => unreachable!("{kind}"),
     }
@@ -120,7 +132,10 @@ fn reversed_regions_mirror_the_frame_pixel_for_pixel() {
         let camera = camera(dev, kind);
         let default = render(dev, world, camera, SIZE);
         let hits = default.ids.iter().filter(|id| **id != NO_ID).count();
-        assert!(hits > 40, "{kind}: the default view must show the scene: {hits}");
+        assert!(
+            hits > 40,
+            "{kind}: the default view must show the scene: {hits}"
+        );
         let asymmetric = (0..h)
             .flat_map(|y| (0..w).map(move |x| (x, y)))
             .filter(|&(x, y)| default.at(x, y) != default.at(w - 1 - x, y))

@@ -86,7 +86,8 @@ impl MatrixCamera {
             inv_proj,
             eye,
         };
-        check_frustum(&unproject, &NDC_SAMPLES).map_err(|problem| CameraError::new("proj", problem))?;
+        check_frustum(&unproject, &NDC_SAMPLES)
+            .map_err(|problem| CameraError::new("proj", problem))?;
         // A region beyond [0,1]² reaches past NDC ±1, where an unusual projection may no longer
         // have a near plane in front of its eye; the corners decide, as w is affine in (u, v).
         let [lo_x, lo_y, hi_x, hi_y] = desc.image_region.map(|v| 2.0 * f64::from(v) - 1.0);
@@ -443,7 +444,12 @@ mod tests {
             (good_view, infinite_proj, [0.0, 0.0, 1.0, 1.0], "proj"),
             (good_view, singular_proj, [0.0, 0.0, 1.0, 1.0], "proj"),
             (good_view, flat_proj, [0.0, 0.0, 1.0, 1.0], "proj"),
-            (good_view, good_proj, [0.0, 0.0, 2.0, f32::NAN], "imageRegion"),
+            (
+                good_view,
+                good_proj,
+                [0.0, 0.0, 2.0, f32::NAN],
+                "imageRegion",
+            ),
             (good_view, good_proj, [0.0, 0.5, 2.0, 0.5], "imageRegion"),
         ];
         for (view, proj, image_region, parameter) in cases {
