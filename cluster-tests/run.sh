@@ -30,7 +30,8 @@ if [ -z "$library" ]; then
   (cd "$root" && cargo build --quiet --lib --features mpi)
   library=$target_dir/debug/libcavetrace.so
 fi
-if ! nm -D "$library" 2>/dev/null | grep -q ' MPI_Init'; then
+symbols=$(nm -D "$library" 2>/dev/null || true)
+if ! grep -q ' MPI_Init' <<<"$symbols"; then
   echo "FAIL $library is not built with the mpi feature (it does not call MPI_Init)"
   exit 1
 fi

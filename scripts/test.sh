@@ -11,7 +11,7 @@ case $target_dir in /*) ;; *) target_dir=$PWD/$target_dir ;; esac
 features=()
 if command -v mpirun >/dev/null && command -v mpicc >/dev/null; then
   features=(--features mpi)
-  export CAVETRACE_MPI_LIBRARY=$target_dir/debug/libcavetrace.so
+  export CAVETRACE_MPI_LIBRARY=$target_dir/debug/deps/libcavetrace.so
 fi
 # The SDK-library test builds it in release, the build the C harness uses next.
 export CAVETRACE_SDK_TEST_PROFILE=release
