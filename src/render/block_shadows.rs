@@ -121,8 +121,17 @@ impl BlockShadows {
     /// Makes lane `lane`'s answers the known ones of this thread while `shade` runs.
     pub(crate) fn shading<R>(&self, lane: usize, shade: impl FnOnce() -> R) -> R {
         KNOWN.with(|known| known.set(self.answers[lane]));
-        let result = shade();
+        let _forget = ForgetAnswers;
+        shade()
+    }
+}
+
+/// Clears the thread's known answers when shading ends, also when it unwinds, so no later
+/// frame on this thread can meet them.
+struct ForgetAnswers;
+
+impl Drop for ForgetAnswers {
+    fn drop(&mut self) {
         KNOWN.with(|known| known.set([None; BLOCK_LIGHTS]));
-        result
     }
 }
