@@ -238,29 +238,19 @@ fn off_axis_and_matrix_rays_cross_the_screen_where_the_region_puts_them() {
             [0.2, -1.5, 0.6, 2.5],
         ] {
             set_region(dev, camera, region);
-            let rays = camera_rays(dev, camera, size);
-            // camera_rays' order: 8×8 blocks, each sixteen 2×2 quads.
-            let mut i = 0;
-            for by in (0..size).step_by(8) {
-                for bx in (0..size).step_by(8) {
-                    for k in 0..64 {
-                        let (quad, lane) = (k / 4, k % 4);
-                        let x = bx + (quad % 4) * 2 + lane % 2;
-                        let y = by + (quad / 4) * 2 + lane / 2;
-                        let ray = &rays[i];
-                        i += 1;
-                        let origin = ray.origin.as_dvec3();
-                        let direction = ray.direction.as_dvec3();
-                        let along = (f64::from(LL[2]) - origin.z) / direction.z;
-                        assert!(along > 0.0, "{kind} {region:?} pixel {x},{y}");
-                        let crossing = origin + along * direction;
-                        let want = expected_screen_point(region, x, y, size);
-                        assert!(
-                            (crossing - want).length() < 1e-4,
-                            "{kind} {region:?} pixel {x},{y}: crosses {crossing}, not {want}"
-                        );
-                    }
-                }
+            let rays = camera_rays_with_pixels(dev, camera, size);
+            assert_eq!(rays.len(), (size * size) as usize);
+            for ((x, y), ray) in rays {
+                let origin = ray.origin.as_dvec3();
+                let direction = ray.direction.as_dvec3();
+                let along = (f64::from(LL[2]) - origin.z) / direction.z;
+                assert!(along > 0.0, "{kind} {region:?} pixel {x},{y}");
+                let crossing = origin + along * direction;
+                let want = expected_screen_point(region, x, y, size);
+                assert!(
+                    (crossing - want).length() < 1e-4,
+                    "{kind} {region:?} pixel {x},{y}: crosses {crossing}, not {want}"
+                );
             }
         }
         anariRelease(dev, camera);

@@ -395,7 +395,7 @@ pub(super) fn trace_blocks(
                     }
                 }
                 let subpixels = matches!(pixel_rays, PixelRays::Subpixel(_));
-                let coherent = !(map.stride() >= SINGLE_RAY_STRIDE || subpixels);
+                let coherent = map.stride() < SINGLE_RAY_STRIDE && !subpixels;
                 if !coherent || work.plain_pixels {
                     // Sparse lattices make incoherent packets, and a light field's neighbouring
                     // subpixels look from eyes centimetres apart: ray by ray is cheaper there.
