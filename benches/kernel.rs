@@ -3,11 +3,16 @@
 //! orbiting perspective camera, fovy 60°, 1600×1600 pixel centres), for GRID 22, 71, 224, 708 and
 //! 1414 (968 to 4M triangles). Per size it prints, as medians of frames 1..FRAMES (frame 0 warms
 //! up), the kernel alone (the frame's own primary rays, made beforehand, traced by the packet
-//! traversal on every core, no shading) and the whole `fast` frame through the device (rays,
-//! traversal, shading, sRGB bytes). Run the probe in the same session with the same arguments
-//! (`embree_rays GRID 1600 1600 FRAMES THREADS`) and compare; the hit checksum (sum of
-//! primitive index + 1 over hits) is the probe's, so equal checksums mean the same hits up to
-//! rays that graze an edge.
+//! traversal on every core, no shading) and the whole `fast` frame through the device as a VR
+//! application asks for it (rays, traversal, shading, sRGB colour and depth). The hit checksum
+//! (sum of primitive index + 1 over hits) is the probe's, so equal checksums mean the same hits
+//! up to rays that graze an edge.
+//!
+//! `CAVETRACE_EMBREE_PROBE=/path/to/embree_rays` (built by `../shared/tools/embree4.sh`) runs
+//! the probe with the same arguments (`GRID SIZE SIZE FRAMES THREADS`) before and after each
+//! size's frames and prints cavetrace's wall times as ratios to Embree's faster run:
+//! one by one against `rtcIntersect1`, packets and the whole frame against the better of
+//! `rtcIntersect8` and `rtcIntersect16`.
 //!
 //! Beside the packets of primary rays it times the same rays traced one by one (the path of
 //! light-field, shadow and secondary rays), and every instruction-set path this CPU has
@@ -19,6 +24,7 @@
 #[path = "../tests/common/mod.rs"]
 mod common;
 use common::*;
+use std::process::Command;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
@@ -114,6 +120,59 @@ fn trace(scene: &SceneBvh, rays: &[Ray], threads: usize, one_by_one: bool) -> (f
     )
 }
 
+/// One run of the Embree probe: its median wall ms per mode and its hit checksum.
+struct EmbreeRun {
+    single_ms: f64,
+    packet8_ms: f64,
+    packet16_ms: f64,
+    checksum: u64,
+}
+
+impl EmbreeRun {
+    fn best_packet_ms(&self) -> f64 {
+        self.packet8_ms.min(self.packet16_ms)
+    }
+
+    /// Each mode's faster time of two runs (the comparison in Embree's favour).
+    fn faster_of(&self, other: &EmbreeRun) -> EmbreeRun {
+        EmbreeRun {
+            single_ms: self.single_ms.min(other.single_ms),
+            packet8_ms: self.packet8_ms.min(other.packet8_ms),
+            packet16_ms: self.packet16_ms.min(other.packet16_ms),
+            checksum: self.checksum,
+        }
+    }
+}
+
+/// Runs the probe and reads its lines `mode=NAME median_ms=MS ... checksum=SUM`.
+fn run_probe(probe: &str, args: &[String]) -> EmbreeRun {
+    let output = Command::new(probe)
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("CAVETRACE_EMBREE_PROBE={probe} could not run: {e}"));
+    let text = String::from_utf8_lossy(&output.stdout);
+    let field = |line: &str, key: &str| -> Option<String> {
+        line.split_whitespace()
+            .find_map(|word| word.strip_prefix(key)?.strip_prefix('='))
+            .map(str::to_owned)
+    };
+    let median_of = |mode: &str| -> f64 {
+        text.lines()
+            .find(|line| field(line, "mode").as_deref() == Some(mode))
+            .and_then(|line| field(line, "median_ms")?.parse().ok())
+            .unwrap_or_else(|| panic!("{probe} printed no median for {mode}:\n{text}"))
+    };
+    EmbreeRun {
+        single_ms: median_of("rtcIntersect1"),
+        packet8_ms: median_of("rtcIntersect8"),
+        packet16_ms: median_of("rtcIntersect16"),
+        checksum: text
+            .lines()
+            .find_map(|line| field(line, "checksum")?.parse().ok())
+            .unwrap_or(0),
+    }
+}
+
 fn main() {
     if std::env::args().any(|a| a == "--list") {
         return;
@@ -134,6 +193,7 @@ fn main() {
     let part = |name: &str| parts.is_empty() || parts.split(',').any(|p| p.trim() == name);
     let (run_packets, run_single, run_frame) = (part("packets"), part("single"), part("frame"));
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let embree_probe = std::env::var("CAVETRACE_EMBREE_PROBE").ok();
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     let isas: Vec<Isa> = [Isa::Baseline, Isa::Avx2]
@@ -153,6 +213,10 @@ fn main() {
         let renderer = anariNewRenderer(dev, c("fast").as_ptr());
         commit(dev, renderer);
         let frame = square_frame(dev, size, world, camera, renderer);
+        set(dev, frame, "channel.depth", ANARI_DATA_TYPE, &ANARI_FLOAT32);
+        commit(dev, frame);
+        let probe_args = [grid, size, size, frames, threads as u32].map(|n| n.to_string());
+        let embree_before = embree_probe.as_deref().map(|p| run_probe(p, &probe_args));
         // Per path: packets, single rays, whole frame (wall and CPU each); paths alternate
         // frame by frame.
         let mut figures = vec![[(); 6].map(|_| Vec::new()); isas.len()];
@@ -195,18 +259,45 @@ fn main() {
                 }
             }
         }
+        let embree_after = embree_probe.as_deref().map(|p| run_probe(p, &probe_args));
+        let embree = embree_before.zip(embree_after).map(|(before, after)| {
+            println!(
+                "  {:>9} Embree (runs before / after): rtcIntersect1 {:.1} / {:.1} ms, \
+                 rtcIntersect8 {:.1} / {:.1} ms, rtcIntersect16 {:.1} / {:.1} ms; checksum {}",
+                "",
+                before.single_ms,
+                after.single_ms,
+                before.packet8_ms,
+                after.packet8_ms,
+                before.packet16_ms,
+                after.packet16_ms,
+                before.checksum
+            );
+            before.faster_of(&after)
+        });
         for (k, isa) in isas.iter().enumerate() {
             let [packets, packets_cpu, single, single_cpu, whole, whole_cpu] =
                 figures[k].clone().map(median);
             println!(
                 "  {:>9} triangles, {:<8}: packets {packets:6.1} ms ({packets_cpu:4.0} ms CPU), \
-                 one by one {single:6.1} ms ({single_cpu:4.0} ms CPU), whole fast frame \
-                 {whole:6.1} ms ({whole_cpu:4.0} ms CPU); checksums {} {}",
+                 one by one {single:6.1} ms ({single_cpu:4.0} ms CPU), whole fast frame with \
+                 depth {whole:6.1} ms ({whole_cpu:4.0} ms CPU); checksums {} {}",
                 2 * grid * grid,
                 isa.name(),
                 checksums[k][0],
                 checksums[k][1]
             );
+            if let Some(embree) = &embree {
+                println!(
+                    "  {:>9} × Embree ({:<8}): one by one {:.2}× rtcIntersect1, packets {:.2}× \
+                     and whole frame {:.2}× its best packet cast",
+                    "",
+                    isa.name(),
+                    single / embree.single_ms,
+                    packets / embree.best_packet_ms(),
+                    whole / embree.best_packet_ms()
+                );
+            }
         }
         release_all(dev, &[frame, renderer, camera, world, surface, geometry]);
     }

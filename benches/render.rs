@@ -12,6 +12,8 @@
 //!     cargo bench --bench render -- lightfield (lightField frames against a mono frame)
 //!     cargo bench --bench render -- depth (fast frames with colour + depth and with every
 //!                                            channel against colour alone, 968 and 1M triangles)
+//!     cargo bench --bench render -- depth default (the same with the default renderer,
+//!                                            one directional light and shadows)
 //!
 //! Scenes: a height field of ~1M triangles seen by a tracked head (the camera moves every
 //! frame), rendered (a) by the "fast" renderer and (b) by the "default" renderer with one
@@ -763,7 +765,13 @@ fn light_field_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, fra
 /// Channels beside colour (`cargo bench --bench render -- depth`): the `fast` renderer's frame
 /// with colour + depth, and with every channel, against the same frame with colour alone, at
 /// 968 triangles and at the benchmark's height field; frames alternate, medians printed.
-fn depth_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: u32) {
+fn depth_section(
+    dev: ANARIDevice,
+    geometry: ANARIGeometry,
+    renderer: &str,
+    size: u32,
+    frames: u32,
+) {
     let small = height_field(dev, 22).0;
     commit(dev, small);
     for (label, scene) in [("968 triangles", small), ("height field", geometry)] {
@@ -783,7 +791,7 @@ fn depth_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: u
         let setups: Vec<Setup> = extra
             .iter()
             .map(|channels| {
-                let s = setup(dev, scene, "fast", size);
+                let s = setup(dev, scene, renderer, size);
                 for (name, data_type) in channels.iter() {
                     set(dev, s.frame, name, ANARI_DATA_TYPE, data_type);
                 }
@@ -796,7 +804,7 @@ fn depth_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: u
         let medians = alternating_medians(&setups, frames, |k, round| {
             track_head(&setups[k], round + 1)
         });
-        println!("{label}, fast renderer, {size}x{size}, {frames} frames each (medians):");
+        println!("{label}, {renderer} renderer, {size}x{size}, {frames} frames each (medians):");
         for (k, name) in ["colour", "colour + depth", "every channel"]
             .iter()
             .enumerate()
@@ -853,7 +861,13 @@ fn main() {
         light_field_section(dev, geometry, size, if quick { 3 } else { 7 });
         true
     } else if section("depth") {
-        depth_section(dev, geometry, size, if quick { 3 } else { 9 });
+        // `-- depth default`: the same frames with the default renderer.
+        let renderer = if section("default") {
+            "default"
+        } else {
+            "fast"
+        };
+        depth_section(dev, geometry, renderer, size, if quick { 3 } else { 9 });
         true
     } else if section("budget") {
         budget_section(dev, geometry, size, if quick { 10 } else { 60 });

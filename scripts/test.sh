@@ -4,12 +4,25 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
+# Where Open MPI is installed, the lints and the Rust tests take the `mpi` feature too: the
+# cluster stage then runs on the library this test build made instead of compiling it again.
+target_dir=${CARGO_TARGET_DIR:-target}
+case $target_dir in /*) ;; *) target_dir=$PWD/$target_dir ;; esac
+features=()
+if command -v mpirun >/dev/null && command -v mpicc >/dev/null; then
+  features=(--features mpi)
+  export CAVETRACE_MPI_LIBRARY=$target_dir/debug/deps/libcavetrace.so
+fi
+# The SDK-library test builds it in release, the build the C harness uses next.
+export CAVETRACE_SDK_TEST_PROFILE=release
+
 echo "== cargo fmt --check"
 cargo fmt --check
-echo "== cargo clippy"
-cargo clippy --all-targets --quiet -- -D warnings
-echo "== cargo test"
-cargo test --quiet 2>&1 | tee target/cargo-test.log
+echo "== cargo clippy ${features[*]}"
+cargo clippy --all-targets "${features[@]}" --quiet -- -D warnings
+echo "== cargo test ${features[*]}"
+mkdir -p "$target_dir"
+cargo test "${features[@]}" --quiet 2>&1 | tee "$target_dir/cargo-test.log"
 # The library must keep compiling for aarch64 (the x86 instruction-set paths are cfg'd out
 # there); checked when the target's standard library is installed.
 installed_targets=$(rustup target list --installed 2>/dev/null || true)

@@ -261,15 +261,24 @@ fn build_dirs() -> (PathBuf, PathBuf) {
 
 /// Builds the workspace member that produces libanari_library_cavetrace.so (a no-op when it is
 /// up to date) and returns its path. `cargo test` alone does not build another package's cdylib.
+/// The build uses this test run's profile, or `CAVETRACE_SDK_TEST_PROFILE` when set: the test
+/// script asks for `release`, the build its C harness makes next anyway. (A `dev` build here
+/// cannot reuse the tests' own build of cavetrace: the dev-dependencies turn on other features of
+/// shared crates, so it would compile cavetrace a second time.)
 fn sdk_library_path() -> PathBuf {
     static BUILT: OnceLock<PathBuf> = OnceLock::new();
     BUILT
         .get_or_init(|| {
-            let (target_dir, profile_dir) = build_dirs();
-            let profile = match profile_dir.file_name().unwrap().to_str().unwrap() {
-                "debug" => "dev".to_owned(),
-                other => other.to_owned(),
+            let (target_dir, test_profile_dir) = build_dirs();
+            let test_profile = test_profile_dir.file_name().unwrap().to_str().unwrap();
+            let profile = std::env::var("CAVETRACE_SDK_TEST_PROFILE")
+                .unwrap_or_else(|_| test_profile.to_owned());
+            // Cargo's `dev` profile writes to `debug`; every other profile to its own name.
+            let (profile, output_dir) = match profile.as_str() {
+                "dev" | "debug" => ("dev", "debug"),
+                other => (other, other),
             };
+            let profile_dir = target_dir.join(output_dir);
             let status = std::process::Command::new(env!("CARGO"))
                 .args([
                     "build",
@@ -278,7 +287,7 @@ fn sdk_library_path() -> PathBuf {
                     "anari_library_cavetrace",
                     "--profile",
                 ])
-                .arg(&profile)
+                .arg(profile)
                 .arg("--target-dir")
                 .arg(&target_dir)
                 .current_dir(env!("CARGO_MANIFEST_DIR"))

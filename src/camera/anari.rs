@@ -275,7 +275,8 @@ const UP: ParamSpec = ParamSpec::new("up", &[ANARI_FLOAT32_VEC3], "camera up dir
 const IMAGE_REGION: ParamSpec = ParamSpec::new(
     "imageRegion",
     &[ANARI_FLOAT32_BOX2],
-    "region of the image plane mapped to the frame, [lo.x, lo.y, hi.x, hi.y] inside [0,1]²",
+    "region of the camera's full image mapped to the frame, [lo.x, lo.y, hi.x, hi.y]; may reach \
+     beyond [0,1]² (the image plane continues) and run backwards (hi < lo flips)",
 )
 .default(SpecValue::Floats(&[0.0, 0.0, 1.0, 1.0]));
 const ASPECT: ParamSpec = ParamSpec::new(

@@ -162,10 +162,11 @@ impl Camera for FisheyeCamera {
     }
 
     /// The image circle is inscribed in the whole image whose imageRegion part is this
-    /// viewport, measured in the viewport's pixels (a circle on non-square frames too).
+    /// viewport, measured in the viewport's pixels (a circle on non-square frames too; a
+    /// reversed region mirrors the image, so only the extent's size counts).
     fn prepare(&self, eye: Eye, viewport_width: u32, viewport_height: u32) -> EyeRays {
         let offset = self.interpupillary_distance * eye.ipd_fraction();
-        let extent = self.region.extent();
+        let extent = self.region.extent().abs();
         let image = DVec2::new(
             f64::from(viewport_width.max(1)) / extent.x,
             f64::from(viewport_height.max(1)) / extent.y,

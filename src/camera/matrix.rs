@@ -32,7 +32,8 @@ pub struct MatrixDesc {
     /// Eye → clip space, OpenGL NDC z in `[−1, 1]`: any glFrustum / glOrtho style matrix
     /// (asymmetric, off-centre, infinite far plane) is fine.
     pub proj: Mat4,
-    /// `[lo.x, lo.y, hi.x, hi.y]` inside `[0,1]²`.
+    /// `[lo.x, lo.y, hi.x, hi.y]` of the full image; may reach beyond `[0,1]²` and run
+    /// backwards (a flip).
     pub image_region: [f32; 4],
 }
 
@@ -85,50 +86,52 @@ impl MatrixCamera {
             inv_proj,
             eye,
         };
-        check_frustum(&unproject)?;
+        check_frustum(&unproject, &NDC_SAMPLES)
+            .map_err(|problem| CameraError::new("proj", problem))?;
+        // A region beyond [0,1]² reaches past NDC ±1, where an unusual projection may no longer
+        // have a near plane in front of its eye; the corners decide, as w is affine in (u, v).
+        let [lo_x, lo_y, hi_x, hi_y] = desc.image_region.map(|v| 2.0 * f64::from(v) - 1.0);
+        let region_corners = [(lo_x, lo_y), (hi_x, lo_y), (hi_x, hi_y), (lo_x, hi_y)];
+        check_frustum(&unproject, &region_corners).map_err(|problem| {
+            CameraError::new(
+                "imageRegion",
+                format!("reaches where proj has no usable frustum: {problem}"),
+            )
+        })?;
         Ok(MatrixCamera { unproject, region })
     }
 }
 
 /// Rejects projections whose near plane is at infinity, whose near and far planes lie on
-/// opposite sides of the eye, or whose near and far points coincide.
-fn check_frustum(m: &Unproject) -> Result<(), CameraError> {
+/// opposite sides of the eye, or whose near and far points coincide, at NDC points `samples`.
+fn check_frustum(m: &Unproject, samples: &[(f64, f64)]) -> Result<(), &'static str> {
     let near_point = |u: f64, v: f64| {
         let h = m.unproject(DVec3::new(u, v, -1.0));
         (h.w.abs() > 1e-12 * h.truncate().length()).then(|| h.truncate() / h.w)
     };
     let corners = [(-1.0, -1.0), (1.0, 1.0)].map(|(u, v)| near_point(u, v));
     let [Some(lower_left), Some(upper_right)] = corners else {
-        return Err(CameraError::new("proj", "the near plane is at infinity"));
+        return Err("the near plane is at infinity");
     };
     let near_diagonal = (upper_right - lower_left).length();
-    for (u, v) in NDC_SAMPLES {
+    for &(u, v) in samples {
         let Some(near) = near_point(u, v) else {
-            return Err(CameraError::new("proj", "the near plane is at infinity"));
+            return Err("the near plane is at infinity");
         };
         let far = m.unproject(DVec3::new(u, v, 1.0));
         let near_w = m.unproject(DVec3::new(u, v, -1.0)).w;
         let far_is_finite = far.w.abs() > 1e-12 * far.truncate().length();
         if far_is_finite && far.w.signum() != near_w.signum() {
-            return Err(CameraError::new(
-                "proj",
-                "the near and far planes lie on opposite sides of the eye",
-            ));
+            return Err("the near and far planes lie on opposite sides of the eye");
         }
         let (_, towards_far, depth) = m.segment(u, v);
         if let Some(eye) = m.eye
             && (near - eye).dot(towards_far) <= 0.0
         {
-            return Err(CameraError::new(
-                "proj",
-                "the far plane is not beyond the near plane as seen from the eye",
-            ));
+            return Err("the far plane is not beyond the near plane as seen from the eye");
         }
         if depth.is_nan() || depth <= MIN_DEPTH_TO_NEAR_DIAGONAL * near_diagonal {
-            return Err(CameraError::new(
-                "proj",
-                "the near and far points coincide (the frustum has no depth)",
-            ));
+            return Err("the near and far points coincide (the frustum has no depth)");
         }
     }
     Ok(())
@@ -398,6 +401,29 @@ mod tests {
     }
 
     #[test]
+    fn a_region_reaching_past_the_projections_usable_frustum_is_named() {
+        let view = look_at_mat4(Vec3::new(0.0, 1.0, 2.0), Vec3::ZERO, Vec3::Y);
+        // A projective warp: the far plane's w falls with NDC u, 0.1 at u = 0, 0.05 at u = −1,
+        // 0 at u = −2; the near plane stays in front of the eye everywhere used here.
+        let mut unproject = opengl::perspective(1.0, 1.0, 0.1, 10.0).inverse();
+        unproject.x_axis.w += 0.05;
+        let proj = unproject.inverse();
+        let with_region = |image_region| {
+            MatrixDesc {
+                view,
+                proj,
+                image_region,
+            }
+            .validate()
+        };
+        assert_eq!(with_region([0.0, 0.0, 1.0, 1.0]), Ok(()));
+        assert_eq!(with_region([1.0, 0.0, -0.4, 1.0]), Ok(()));
+        let error = with_region([-1.0, 0.0, 1.0, 1.0]).unwrap_err();
+        assert_eq!(error.parameter, "imageRegion", "{error}");
+        assert!(error.message.contains("opposite sides"), "{error}");
+    }
+
+    #[test]
     fn invalid_matrices_are_named() {
         let good_view = look_at_mat4(Vec3::new(0.0, 1.0, 2.0), Vec3::ZERO, Vec3::Y);
         let good_proj = opengl::perspective(1.0, 1.0, 0.1, 10.0);
@@ -418,7 +444,13 @@ mod tests {
             (good_view, infinite_proj, [0.0, 0.0, 1.0, 1.0], "proj"),
             (good_view, singular_proj, [0.0, 0.0, 1.0, 1.0], "proj"),
             (good_view, flat_proj, [0.0, 0.0, 1.0, 1.0], "proj"),
-            (good_view, good_proj, [0.0, 0.0, 2.0, 1.0], "imageRegion"),
+            (
+                good_view,
+                good_proj,
+                [0.0, 0.0, 2.0, f32::NAN],
+                "imageRegion",
+            ),
+            (good_view, good_proj, [0.0, 0.5, 2.0, 0.5], "imageRegion"),
         ];
         for (view, proj, image_region, parameter) in cases {
             let desc = MatrixDesc {

@@ -54,7 +54,8 @@ pub struct OmnidirectionalDesc {
     pub position: Vec3,
     pub direction: Vec3,
     pub up: Vec3,
-    /// `[lo.x, lo.y, hi.x, hi.y]` inside `[0,1]²`.
+    /// `[lo.x, lo.y, hi.x, hi.y]` of the full image; may reach beyond `[0,1]²` and run
+    /// backwards (a flip).
     pub image_region: [f32; 4],
     pub layout: OmnidirectionalLayout,
     pub stereo_mode: StereoMode,
@@ -102,7 +103,7 @@ impl OmnidirectionalCamera {
             forward,
             right,
             up,
-            region: validate::unbounded_image_region(desc.image_region)?,
+            region: validate::image_region(desc.image_region)?,
             stereo_mode: desc.stereo_mode,
             interpupillary_distance: validate::non_negative(
                 "interpupillaryDistance",

@@ -20,7 +20,8 @@ pub struct OrthographicDesc {
     pub height: f32,
     /// Width / height of the image plane; unset means the viewport's pixel aspect.
     pub aspect: Option<f32>,
-    /// `[lo.x, lo.y, hi.x, hi.y]` inside `[0,1]²`.
+    /// `[lo.x, lo.y, hi.x, hi.y]` of the full image; may reach beyond `[0,1]²` and run
+    /// backwards (a flip).
     pub image_region: [f32; 4],
     /// Clip distances from the image plane along `direction`.
     pub near: Option<f32>,
@@ -241,7 +242,7 @@ mod tests {
             ),
             (
                 OrthographicDesc {
-                    image_region: [0.2, 0.2, 0.1, 0.9],
+                    image_region: [0.2, 0.9, 0.1, 0.9],
                     ..Default::default()
                 },
                 "imageRegion",

@@ -34,7 +34,8 @@ pub struct OffAxisDesc {
     /// far of Pape's glFrustum).
     pub near: Option<f32>,
     pub far: Option<f32>,
-    /// `[lo.x, lo.y, hi.x, hi.y]` inside `[0,1]²`, in screen coordinates.
+    /// `[lo.x, lo.y, hi.x, hi.y]` in screen coordinates; may reach beyond `[0,1]²` and run
+    /// backwards (a flip).
     pub image_region: [f32; 4],
     /// Several tracked viewers (`viewer.position` and the other `viewer*` parameters); when
     /// set, `position` and `right` are not used.

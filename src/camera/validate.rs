@@ -107,40 +107,17 @@ pub(crate) fn optional_positive(
     value.map(|v| positive(name, v)).transpose()
 }
 
-fn finite_region(region: [f32; 4]) -> Result<(), CameraError> {
+/// The imageRegion box `[lo.x, lo.y, hi.x, hi.y]`, as ANARI allows it: beyond `[0,1]²` (the
+/// image plane continues past the default view) and backwards (upper < lower flips that axis).
+/// Finite, and not empty on either axis.
+pub(crate) fn image_region(region: [f32; 4]) -> Result<ImageRegion, CameraError> {
+    let [lo_x, lo_y, hi_x, hi_y] = region;
     if region.iter().any(|v| !v.is_finite()) {
         return Err(CameraError::new(
             "imageRegion",
             format!("must be finite, got {region:?}"),
         ));
     }
-    Ok(())
-}
-
-pub(crate) fn image_region(region: [f32; 4]) -> Result<ImageRegion, CameraError> {
-    let [lo_x, lo_y, hi_x, hi_y] = region;
-    finite_region(region)?;
-    if region.iter().any(|v| !(0.0..=1.0).contains(v)) {
-        return Err(CameraError::new(
-            "imageRegion",
-            format!("must lie inside [0,1]², got {region:?}"),
-        ));
-    }
-    if !(lo_x < hi_x && lo_y < hi_y) {
-        return Err(CameraError::new(
-            "imageRegion",
-            format!("must not be empty (lower < upper on both axes), got {region:?}"),
-        ));
-    }
-    Ok(ImageRegion::from_box(region))
-}
-
-/// An imageRegion that may reach beyond `[0,1]²` and run backwards (upper < lower flips that
-/// axis), as the ANARI camera parameters allow; for cameras whose image continues past its
-/// edges. Finite, and not empty on either axis.
-pub(crate) fn unbounded_image_region(region: [f32; 4]) -> Result<ImageRegion, CameraError> {
-    let [lo_x, lo_y, hi_x, hi_y] = region;
-    finite_region(region)?;
     if lo_x == hi_x || lo_y == hi_y {
         return Err(CameraError::new(
             "imageRegion",

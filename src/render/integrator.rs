@@ -11,13 +11,13 @@ use crate::render::bsdf::{
     microfacet_alpha, multiple_scattering, sample_glossy, schlick, sheen_albedo, sheen_brdf,
     smith_visibility, thin_film_fresnel,
 };
-use crate::render::cluster;
 use crate::render::renderer::RendererSettings;
 use crate::render::surface_model::{HitInputs, SurfaceModel, evaluate_input};
 use crate::render::volume_lighting::{lit_volumes, shadow_transmittance};
+use crate::render::{block_shadows, cluster};
 use crate::scene::attributes::{ATTRIBUTE_DEFAULT, Interpolation};
 use crate::scene::geometry::Geometry;
-use crate::scene::light::{Light, LightSampling};
+use crate::scene::light::{Incoming, Light, LightSampling};
 use crate::scene::material::{Input, Material, MaterialKind};
 use crate::scene::volume::{VolumeIntegral, integrate};
 use crate::scene::world::{InstanceData, SceneSnapshot};
@@ -163,6 +163,17 @@ fn offset_ray(origin: Vec3, direction: Vec3, t_max: f32) -> Ray {
     }
 }
 
+/// The shadow ray from `point` on a surface towards a light's sample `incoming`.
+pub(crate) fn shadow_ray(point: Vec3, incoming: &Incoming) -> Ray {
+    let t_max = if incoming.distance.is_finite() {
+        let light_point = point + incoming.to_light * incoming.distance;
+        incoming.distance - surface_epsilon(light_point)
+    } else {
+        f32::INFINITY
+    };
+    offset_ray(point, incoming.to_light, t_max)
+}
+
 /// Direct irradiance from the scene's lights at `point` on a surface of unit `normal`; lights
 /// with extent are sampled at `sampling`'s point (one shadow ray each), so their soft shadows
 /// converge over samples. `each` sees every unshadowed light's direction and irradiance, and
@@ -176,7 +187,7 @@ fn direct_light(
     mut each: impl FnMut(Vec3, Vec3, Option<f32>),
 ) -> Vec3 {
     let mut sum = Vec3::ZERO;
-    for light in &scene.lights {
+    for (index, light) in scene.lights.iter().enumerate() {
         let Some(incoming) = light.incoming_sampled(point, sampling) else {
             continue;
         };
@@ -186,17 +197,13 @@ fn direct_light(
         }
         let mut visibility = 1.0;
         if settings.shadows {
-            let t_max = if incoming.distance.is_finite() {
-                let light_point = point + incoming.to_light * incoming.distance;
-                incoming.distance - surface_epsilon(light_point)
-            } else {
-                f32::INFINITY
-            };
-            // Cluster hook: shadow rays are tested on every rank; volumes are then marched here.
-            if cluster::occluded(scene, &offset_ray(point, incoming.to_light, t_max)) {
+            let shadow = shadow_ray(point, &incoming);
+            // The answer traced with the block's packets, or (cluster hook) every rank's; volumes
+            // are then marched here.
+            if block_shadows::occluded(scene, index, &shadow) {
                 continue;
             }
-            let (t_min, direction) = (surface_epsilon(point), incoming.to_light);
+            let (t_min, direction, t_max) = (shadow.t_min, incoming.to_light, shadow.t_max);
             visibility = shadow_transmittance(scene, point, direction, t_min, t_max, sampling);
         }
         let irradiance = incoming.radiance * cos * visibility;

@@ -1,6 +1,7 @@
 //! Rendering: renderers (shading), frames (tiles, threads, channels) and colour encoding.
 
 pub mod ambient;
+mod block_shadows;
 pub mod bsdf;
 pub mod cluster;
 pub mod color;

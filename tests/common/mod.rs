@@ -555,6 +555,16 @@ pub fn cpu_seconds() -> f64 {
 /// The camera's rays through the pixel centres of a `size`×`size` frame, in the order the
 /// frame traces them (8×8 blocks of sixteen 2×2 quads).
 pub fn camera_rays(dev: ANARIDevice, camera: ANARICamera, size: u32) -> Vec<cavetrace::accel::Ray> {
+    let rays = camera_rays_with_pixels(dev, camera, size);
+    rays.into_iter().map(|(_, ray)| ray).collect()
+}
+
+/// [`camera_rays`], each with its pixel `(x, y)`.
+pub fn camera_rays_with_pixels(
+    dev: ANARIDevice,
+    camera: ANARICamera,
+    size: u32,
+) -> Vec<((u32, u32), cavetrace::accel::Ray)> {
     let model = cavetrace::device::registry::device(dev as usize)
         .and_then(|d| d.lookup(camera as usize))
         .and_then(|o| o.derived_as::<cavetrace::camera::CameraModel>())
@@ -573,12 +583,8 @@ pub fn camera_rays(dev: ANARIDevice, camera: ANARICamera, size: u32) -> Vec<cave
                     (y as f32 + 0.5) / size as f32,
                 );
                 let r = eye.ray(u, v, glam::Vec2::ZERO);
-                rays.push(cavetrace::accel::Ray::new(
-                    r.origin,
-                    r.direction,
-                    r.t_min,
-                    r.t_max,
-                ));
+                let ray = cavetrace::accel::Ray::new(r.origin, r.direction, r.t_min, r.t_max);
+                rays.push(((x, y), ray));
             }
         }
     }

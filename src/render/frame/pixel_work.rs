@@ -23,13 +23,22 @@ pub(super) struct PixelWork {
     pub(super) hit_channels: HitChannels,
     /// [`PLAIN_PER_PIXEL_PATH`] was set when the frame started.
     pub(super) plain_pixels: bool,
+    /// The default renderer's shadow rays from a block's camera hits are traced as packets
+    /// before the block is shaded: shadows on, lights present, one process.
+    pub(super) block_shadows: bool,
 }
 
 impl PixelWork {
     pub(super) fn of(setup: &RenderSetup, formats: &[ChannelFormat]) -> PixelWork {
         let plain_pixels = PLAIN_PER_PIXEL_PATH.load(Ordering::Relaxed);
+        let (settings, scene) = (&setup.settings, &setup.scene);
         PixelWork {
-            fast_surfaces: !plain_pixels && setup.settings.fast && setup.scene.volumes.is_empty(),
+            fast_surfaces: !plain_pixels && settings.fast && scene.volumes.is_empty(),
+            block_shadows: !plain_pixels
+                && !settings.fast
+                && settings.shadows
+                && !scene.lights.is_empty()
+                && scene.cluster.is_none(),
             hit_channels: HitChannels::of(formats),
             plain_pixels,
         }

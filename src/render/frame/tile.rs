@@ -5,6 +5,7 @@ use glam::{Vec2, Vec3, Vec4};
 
 use crate::accel::{PacketScratch, Ray};
 use crate::camera::{BLOCK_RAYS, BlockRays, CameraRay, EyeRays, PixelSet};
+use crate::render::block_shadows::BlockShadows;
 use crate::render::cluster;
 use crate::render::integrator::{fast_surface_color, fast_surface_sample, shade_primary_at};
 use crate::render::interleave::{InterleavedTile, lattice_size};
@@ -90,6 +91,8 @@ pub(super) fn traced(camera_ray: &CameraRay) -> Ray {
 #[derive(Default)]
 pub(super) struct TileScratch {
     packets: PacketScratch,
+    /// The default renderer's shadow-ray answers for the block being shaded.
+    shadows: BlockShadows,
     /// Per pixel of a tile, the requested channels' values from its first hit.
     records: TileRecords,
     /// One channel's pixels of a tile, encoded.
@@ -392,7 +395,8 @@ pub(super) fn trace_blocks(
                     }
                 }
                 let subpixels = matches!(pixel_rays, PixelRays::Subpixel(_));
-                if map.stride() >= SINGLE_RAY_STRIDE || subpixels || work.plain_pixels {
+                let coherent = map.stride() < SINGLE_RAY_STRIDE && !subpixels;
+                if !coherent || work.plain_pixels {
                     // Sparse lattices make incoherent packets, and a light field's neighbouring
                     // subpixels look from eyes centimetres apart: ray by ray is cheaper there.
                     for (hit, ray) in hits.iter_mut().zip(&rays) {
@@ -403,6 +407,20 @@ pub(super) fn trace_blocks(
                         .scene
                         .bvh
                         .intersect_packet_with(&mut scratch.packets, &rays, &mut hits);
+                }
+                let block_shadows = coherent && work.block_shadows;
+                if block_shadows {
+                    scratch.shadows.trace(
+                        &setup.scene,
+                        &mut scratch.packets,
+                        &rays,
+                        &hits,
+                        |lane| {
+                            let (dx, dy) = PACKET_ORDER[lane];
+                            let (x, y) = map.pixel(bx + dx, by + dy);
+                            LightSampling::for_pixel(index, x, y)
+                        },
+                    );
                 }
                 for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
                     let camera = match block_rays {
@@ -454,15 +472,22 @@ pub(super) fn trace_blocks(
                         }
                         continue;
                     }
-                    let sample = shade_primary_at(
-                        &setup.scene,
-                        &setup.settings,
-                        &rays[lane],
-                        hits[lane],
-                        Some(screen()),
-                        camera_ray.cyclopean,
-                        &LightSampling::for_pixel(index, x, y),
-                    );
+                    let shade = || {
+                        shade_primary_at(
+                            &setup.scene,
+                            &setup.settings,
+                            &rays[lane],
+                            hits[lane],
+                            Some(screen()),
+                            camera_ray.cyclopean,
+                            &LightSampling::for_pixel(index, x, y),
+                        )
+                    };
+                    let sample = if block_shadows {
+                        scratch.shadows.shading(lane, shade)
+                    } else {
+                        shade()
+                    };
                     colors[k] += sample.color;
                     if s == 0 && keeps_hits {
                         records.record(k, sample.hit.as_ref(), &camera_ray, eye_rays);
