@@ -12,7 +12,7 @@ use crate::accel::procedural::{ProceduralPrimitives, ProceduralSlots};
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
 use crate::accel::wide_bvh::{
     BoxTest, FourWideBoxTest, LeafAlignment, LeafSizing, LeafTest, MAX_PRIMITIVES, PADDING,
-    TraversalRay, WideBvh, WideNode, build_wide_bvh, leaf_range, prefetch, traverse, traverse_with,
+    TraversalRay, WideBvh, WideNode, build_wide_bvh, group_leaf, leaf_range, prefetch, traverse, traverse_with,
 };
 use crate::accel::{GeometryPrims, PrimHit, Ray};
 use glam::{Vec2, Vec3, Vec3A};
@@ -538,12 +538,12 @@ impl GeometryBvh {
     /// reach, when that can spare triangle tests; every primitive otherwise.
     #[inline(always)]
     fn leaf_candidates(&self, code: u32, frustum: &FrustumPacket, group: usize, lanes: u32) -> u32 {
-        let (first, count) = leaf_range(code);
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups)
-                if count > 1 && lanes.count_ones() > 1 =>
+                if leaf_range(code).1 > 1 && lanes.count_ones() > 1 =>
             {
-                frustum.triangle_candidates(group, lanes, &groups[first as usize], count)
+                let (triangles, leaf_lanes) = group_leaf(code);
+                frustum.triangle_candidates(group, lanes, &groups[triangles], leaf_lanes)
             }
             _ => u32::MAX,
         }
@@ -556,7 +556,7 @@ impl GeometryBvh {
         let first = first as usize;
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
-                if let Some(group) = groups.get(first) {
+                if let Some(group) = groups.get(group_leaf(code).0) {
                     prefetch(group);
                     prefetch(&group.vertices[1]);
                     prefetch(&group.vertices[2][2]);
@@ -608,9 +608,10 @@ impl GeometryBvh {
         };
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
-                let group = &groups[first as usize];
-                let base = first * GROUP_LANES as u32;
-                let mut triangles = candidates & ((1 << count) - 1);
+                let (group_index, leaf_lanes) = group_leaf(code);
+                let group = &groups[group_index];
+                let base = group_index as u32 * GROUP_LANES as u32;
+                let mut triangles = candidates & leaf_lanes;
                 if triangles == 0 {
                     return;
                 }
@@ -622,7 +623,7 @@ impl GeometryBvh {
                         let lane = remaining.trailing_zeros() as usize;
                         remaining &= remaining - 1;
                         if let Some((hit_lane, t, bary)) =
-                            group_closest(group, count, &packet.ray(lane))
+                            group_closest(group, leaf_lanes, &packet.ray(lane))
                         {
                             packet.record_hit(lane, t, bary, group.triangle(hit_lane).normal());
                             closest[lane] = Some(base + hit_lane as u32);
@@ -875,11 +876,11 @@ struct ClosestTriangle<'a> {
 impl LeafTest for ClosestTriangle<'_> {
     #[inline(always)]
     fn test(&mut self, code: u32, ray: &mut TraversalRay) -> bool {
-        let (group, count) = leaf_range(code);
-        let hit = group_closest(&self.groups[group as usize], count, ray);
+        let (group, lanes) = group_leaf(code);
+        let hit = group_closest(&self.groups[group], lanes, ray);
         if let Some((lane, t, bary)) = hit {
             ray.t_max = t;
-            self.closest = Some((group * GROUP_LANES as u32 + lane as u32, bary));
+            self.closest = Some((group as u32 * GROUP_LANES as u32 + lane as u32, bary));
         }
         hit.is_some()
     }
@@ -893,8 +894,8 @@ struct AnyTriangle<'a> {
 impl LeafTest for AnyTriangle<'_> {
     #[inline(always)]
     fn test(&mut self, code: u32, ray: &mut TraversalRay) -> bool {
-        let (group, count) = leaf_range(code);
-        group_any(&self.groups[group as usize], count, ray)
+        let (group, lanes) = group_leaf(code);
+        group_any(&self.groups[group], lanes, ray)
     }
 }
 

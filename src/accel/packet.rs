@@ -910,7 +910,7 @@ impl FrustumPacket {
         })
     }
 
-    /// Lanes of a leaf's `triangles` (the first `count`) whose box some of the `lanes` of
+    /// Lanes of a leaf's `triangles` (those in `leaf_lanes`) whose box some of the `lanes` of
     /// group `group` may reach within their intervals: the others cannot be hit by these rays
     /// (conservative as [`frustum_child_hits`]), so they need not be tested.
     #[inline(always)]
@@ -919,7 +919,7 @@ impl FrustumPacket {
         group: usize,
         lanes: u32,
         triangles: &TriangleGroup,
-        count: u32,
+        leaf_lanes: u32,
     ) -> u32 {
         let packet = &self.groups[group];
         let t_high = Vec4::select(lane_mask(lanes), packet.t_max, Vec4::NEG_INFINITY).max_element();
@@ -946,7 +946,7 @@ impl FrustumPacket {
             bounds.t_min_low,
             t_high,
         );
-        reached & ((1 << count) - 1)
+        reached & leaf_lanes
     }
 }
 

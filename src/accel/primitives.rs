@@ -127,10 +127,10 @@ impl TriangleGroup {
 }
 
 /// A group's watertight test against one ray, lane by lane the arithmetic of
-/// [`triangle_t_uv`] (the same `t` and barycentrics): the hit lanes among the first `count`,
-/// their `t`, and the edge functions `V`, `W` with the determinant `U + V + W`.
+/// [`triangle_t_uv`] (the same `t` and barycentrics): the hit lanes among `lanes` (bit per
+/// lane), their `t`, and the edge functions `V`, `W` with the determinant `U + V + W`.
 #[inline(always)]
-fn group_hits(group: &TriangleGroup, count: u32, ray: &TraversalRay) -> (u32, Vec4, [Vec4; 3]) {
+fn group_hits(group: &TriangleGroup, lanes: u32, ray: &TraversalRay) -> (u32, Vec4, [Vec4; 3]) {
     let [kx, ky, kz] = ray.shear_axes;
     let origin = ray.permuted_origin;
     let (shear_x, shear_y) = (Vec4::splat(ray.shear.x), Vec4::splat(ray.shear.y));
@@ -143,7 +143,6 @@ fn group_hits(group: &TriangleGroup, count: u32, ray: &TraversalRay) -> (u32, Ve
     let (x0, y0, z0) = sheared(&group.vertices[0]);
     let (x1, y1, z1) = sheared(&group.vertices[1]);
     let (x2, y2, z2) = sheared(&group.vertices[2]);
-    let lanes = (1u32 << count) - 1;
     let mut u = x2 * y1 - y2 * x1;
     let mut v = x0 * y2 - y0 * x2;
     let mut w = x1 * y0 - y1 * x0;
@@ -172,15 +171,16 @@ fn group_hits(group: &TriangleGroup, count: u32, ray: &TraversalRay) -> (u32, Ve
     (inside.bitmask() & candidates, t, [v, w, determinant])
 }
 
-/// Closest hit among a group's first `count` triangles: `(lane, t, b1, b2)`. Among lanes hit
-/// at the same `t` the last one wins, as when the triangles are tested one after another.
+/// Closest hit among a group's triangles in `lanes` (bit per lane): `(lane, t, b1, b2)`. Among
+/// lanes hit at the same `t` the last one wins, as when the triangles are tested one after
+/// another.
 #[inline(always)]
 pub(crate) fn group_closest(
     group: &TriangleGroup,
-    count: u32,
+    lanes: u32,
     ray: &TraversalRay,
 ) -> Option<(usize, f32, Vec2)> {
-    let (hits, t, [v, w, determinant]) = group_hits(group, count, ray);
+    let (hits, t, [v, w, determinant]) = group_hits(group, lanes, ray);
     if hits == 0 {
         return None;
     }
@@ -198,10 +198,10 @@ pub(crate) fn group_closest(
     Some((lane, t[lane], Vec2::new(v[lane] * inv, w[lane] * inv)))
 }
 
-/// Whether any of a group's first `count` triangles is hit.
+/// Whether any of a group's triangles in `lanes` (bit per lane) is hit.
 #[inline(always)]
-pub(crate) fn group_any(group: &TriangleGroup, count: u32, ray: &TraversalRay) -> bool {
-    group_hits(group, count, ray).0 != 0
+pub(crate) fn group_any(group: &TriangleGroup, lanes: u32, ray: &TraversalRay) -> bool {
+    group_hits(group, lanes, ray).0 != 0
 }
 
 /// Edge functions recomputed in f64 for the rare rays that pass exactly through an edge.

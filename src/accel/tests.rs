@@ -2287,10 +2287,6 @@ mod packet_and_structure {
             assert!(nodes.is_empty() && order.is_empty());
             return;
         }
-        let unit = match alignment {
-            LeafAlignment::Packed => 1,
-            LeafAlignment::Group => 4,
-        };
         let mut slot_seen = vec![0u32; order.len()];
         let mut node_seen = vec![0u32; nodes.len()];
         let mut stack = vec![0usize];
@@ -2322,21 +2318,14 @@ mod packet_and_structure {
                 } else {
                     let (first, count) = leaf_range(code);
                     assert!((1..=4).contains(&count));
-                    let first = (first * unit) as usize;
+                    let first = first as usize;
+                    if alignment == LeafAlignment::Group {
+                        assert!(first % 4 + count as usize <= 4, "a leaf within one group");
+                    }
                     for i in first..first + count as usize {
                         slot_seen[i] += 1;
                         assert_ne!(order[i], PADDING);
                         assert!(inside(&boxes[order[i] as usize]));
-                    }
-                    for i in first + count as usize
-                        ..first
-                            .next_multiple_of(unit as usize)
-                            .max(first + unit as usize)
-                    {
-                        if unit == 4 {
-                            assert_eq!(order[i], PADDING, "groups padded");
-                            slot_seen[i] += 1;
-                        }
                     }
                 }
             }
@@ -2349,6 +2338,18 @@ mod packet_and_structure {
             node_seen.iter().all(|&c| c == 1),
             "{n}: nodes {node_seen:?}"
         );
+        if alignment == LeafAlignment::Group {
+            assert_eq!(order.len() % 4, 0, "whole groups");
+            for group in order.chunks(4) {
+                assert_ne!(group[0], PADDING, "padding repeats a real first lane");
+            }
+        }
+        // Padding slots belong to no leaf.
+        for (seen, &index) in slot_seen.iter_mut().zip(&order) {
+            if index == PADDING {
+                *seen += 1;
+            }
+        }
         assert!(slot_seen.iter().all(|&c| c == 1), "{n}: slots");
         let mut ids: Vec<u32> = order.iter().copied().filter(|&i| i != PADDING).collect();
         ids.sort();

@@ -33,6 +33,26 @@ use rayon::slice::ParallelSlice;
 /// Leaves hold at most four primitives (one SIMD group of triangles).
 pub(crate) const MAX_PRIMS_PER_LEAF: u32 = 4;
 
+/// Leaves of triangle groups ([`LeafAlignment::Group`]) hold at most this many triangles.
+pub(crate) fn group_leaf_cap() -> u32 {
+    static CAP: std::sync::OnceLock<u32> = std::sync::OnceLock::new();
+    *CAP.get_or_init(|| {
+        std::env::var("CAVETRACE_LEAF_CAP")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(2u32)
+            .clamp(1, MAX_PRIMS_PER_LEAF)
+    })
+}
+
+/// The largest leaf for `alignment`.
+fn leaf_cap(alignment: LeafAlignment) -> u32 {
+    match alignment {
+        LeafAlignment::Packed => MAX_PRIMS_PER_LEAF,
+        LeafAlignment::Group => group_leaf_cap(),
+    }
+}
+
 /// Runs of neighbouring primitives that start the binary build are at most this long.
 const MAX_RUN: u32 = 3;
 
@@ -82,11 +102,19 @@ impl Default for WideNode {
     }
 }
 
-/// A leaf's primitives: `count` slots from `first` (with [`LeafAlignment::Group`], `first` is
-/// the group: slots `4 * first..4 * first + count`).
+/// A leaf's primitives: `count` slots from `first` (with [`LeafAlignment::Group`] they lie
+/// within one group of four: `first / 4` is the group, `first % 4` the first lane).
 #[inline(always)]
 pub(crate) fn leaf_range(code: u32) -> (u32, u32) {
     (code & LEAF_FIRST_MASK, ((code >> LEAF_COUNT_SHIFT) & 3) + 1)
+}
+
+/// A [`LeafAlignment::Group`] leaf: its group and its lanes in the group (bit per lane).
+#[inline(always)]
+pub(crate) fn group_leaf(code: u32) -> (usize, u32) {
+    let (first, count) = leaf_range(code);
+    let lanes = MAX_PRIMS_PER_LEAF;
+    ((first / lanes) as usize, ((1 << count) - 1) << (first % lanes))
 }
 
 fn leaf_code(first: u32, count: u32) -> u32 {
@@ -142,7 +170,7 @@ pub(crate) fn build_wide_bvh(
     // obvhs' PLOC merges the leaves it is given: runs of neighbours for whole leaves, else one
     // per box (what its `build` would make).
     let leaves: Vec<Bvh2Node> = match sizing {
-        LeafSizing::Whole => neighbour_clusters(boxes),
+        LeafSizing::Whole => neighbour_runs(boxes, MAX_RUN.min(leaf_cap(alignment))),
         LeafSizing::Split => boxes
             .par_iter()
             .enumerate()
@@ -183,7 +211,13 @@ pub(crate) fn build_wide_bvh(
 /// and packets of primary rays got 6 % faster; single rays were about 4 % slower. Runs of three
 /// regardless of shape built in 200 ms but cost single rays 8 %. Boxes are scanned in chunks in
 /// parallel; a run never crosses a chunk boundary.
+#[cfg(test)]
 pub(crate) fn neighbour_clusters(boxes: &[Aabb]) -> Vec<Bvh2Node> {
+    neighbour_runs(boxes, MAX_RUN)
+}
+
+/// [`neighbour_clusters`] with runs of at most `max_run`.
+fn neighbour_runs(boxes: &[Aabb], max_run: u32) -> Vec<Bvh2Node> {
     const CHUNK: usize = 1 << 12;
     let joins = |cluster: &Aabb, last: &Aabb, next: &Aabb| {
         let touch = last.min.cmple(next.max).all() && next.min.cmple(last.max).all();
@@ -203,7 +237,7 @@ pub(crate) fn neighbour_clusters(boxes: &[Aabb]) -> Vec<Bvh2Node> {
             let mut cluster = boxes[0];
             for i in 1..=boxes.len() {
                 if i < boxes.len()
-                    && i - first < MAX_RUN as usize
+                    && i - first < max_run as usize
                     && joins(&cluster, &boxes[i - 1], &boxes[i])
                 {
                     cluster.extend(boxes[i].min);
@@ -358,15 +392,11 @@ pub(crate) fn collapse_to_wide(
 
     // Per subtree: subtree node j >= 1 moves to descendant_base + j - 1, its leaves' first
     // slots (groups) move up by primitive_base.
-    let unit = match alignment {
-        LeafAlignment::Packed => 1,
-        LeafAlignment::Group => MAX_PRIMS_PER_LEAF,
-    };
     let mut relocations = Vec::with_capacity(subtrees.len());
     let mut descendant_base = 1 + subtrees.len() as u32;
     let mut primitive_base = root_primitives.len() as u32;
     for subtree in &subtrees {
-        relocations.push((descendant_base, primitive_base / unit));
+        relocations.push((descendant_base, primitive_base));
         descendant_base += subtree.nodes.len() as u32 - 1;
         primitive_base += subtree.primitives.len() as u32;
     }
@@ -468,6 +498,8 @@ fn wide_node(
     let slots = assign_slots(children, &parent_box);
     let mut node = WideNode::default();
     let mut inner_children = InnerChildren::new((0, 0));
+    // Grouped leaves: (slot, count, primitives), packed into shared groups below.
+    let mut group_leaves = WideList::new((0u8, 0u32, [0u32; MAX_PRIMS_PER_LEAF as usize]));
     for (slot, &position) in slots.iter().enumerate() {
         if position == EMPTY_SLOT {
             continue;
@@ -485,18 +517,55 @@ fn wide_node(
                 collect_primitives(bvh2, partner as usize, primitive_order);
             }
             let count = (primitive_order.len() - before) as u32;
-            node.children[slot] = match alignment {
-                LeafAlignment::Packed => leaf_code(before as u32, count),
+            match alignment {
+                LeafAlignment::Packed => node.children[slot] = leaf_code(before as u32, count),
                 LeafAlignment::Group => {
-                    primitive_order.resize(before + MAX_PRIMS_PER_LEAF as usize, PADDING);
-                    leaf_code(before as u32 / MAX_PRIMS_PER_LEAF, count)
+                    let mut primitives = [0u32; MAX_PRIMS_PER_LEAF as usize];
+                    primitives[..count as usize].copy_from_slice(&primitive_order[before..]);
+                    primitive_order.truncate(before);
+                    group_leaves.push((slot as u8, count, primitives));
                 }
-            };
+            }
         } else {
             inner_children.push((slot as u8, child.index));
         }
     }
+    share_groups(&mut node, group_leaves, primitive_order);
     (node, inner_children)
+}
+
+/// Packs a node's grouped leaves into groups of four slots, several leaves to a group where
+/// they fit (largest first, each into the first group with room; padding with [`PADDING`]
+/// after the last lane used), and sets their codes.
+fn share_groups(
+    node: &mut WideNode,
+    mut leaves: WideList<(u8, u32, [u32; MAX_PRIMS_PER_LEAF as usize])>,
+    primitive_order: &mut Vec<u32>,
+) {
+    let group = MAX_PRIMS_PER_LEAF as usize;
+    leaves.entries[..leaves.len].sort_by_key(|&(slot, count, _)| (std::cmp::Reverse(count), slot));
+    // (first slot, lanes used) of the node's groups.
+    let mut groups = WideList::new((0usize, 0usize));
+    for &(slot, count, primitives) in leaves.as_slice() {
+        let count = count as usize;
+        let position = match groups
+            .as_slice()
+            .iter()
+            .position(|&(_, used)| used + count <= group)
+        {
+            Some(position) => position,
+            None => {
+                groups.push((primitive_order.len(), 0));
+                primitive_order.resize(primitive_order.len() + group, PADDING);
+                groups.len - 1
+            }
+        };
+        let (start, used) = &mut groups.entries[position];
+        let first = *start + *used;
+        primitive_order[first..first + count].copy_from_slice(&primitives[..count]);
+        *used += count;
+        node.children[slot as usize] = leaf_code(first as u32, count as u32);
+    }
 }
 
 /// Binary subtrees sharing a leaf with a candidate (see [`pair_small_leaves`]): each leaf
@@ -510,7 +579,7 @@ struct Partners {
 /// Joins the two sibling leaves whose primitives fit one group of four and whose union has the
 /// smallest surface area into one leaf (box: their union), so that triangle groups are fuller
 /// (fewer padding lanes, fewer leaves) and a slot is freed. Returns whether a pair was found.
-fn pair_small_leaves(children: &mut Candidates) -> bool {
+fn pair_small_leaves(children: &mut Candidates, cap: u32) -> bool {
     let list = children.as_slice();
     let mut best: Option<(usize, usize, f32)> = None;
     for i in 0..list.len() {
@@ -521,7 +590,7 @@ fn pair_small_leaves(children: &mut Candidates) -> bool {
             let Some(second) = list[j].leaf_count else {
                 continue;
             };
-            if first + second > MAX_PRIMS_PER_LEAF {
+            if first + second > cap {
                 continue;
             }
             let area = list[i].aabb.union(&list[j].aabb).half_area();
@@ -558,11 +627,11 @@ fn pair_small_leaves(children: &mut Candidates) -> bool {
 /// primitive and every inner node at least two, so a lower bound decides most nodes after
 /// loading their two children. A node with two inner children is taken as too large (at most
 /// four primitives only if both hold two; opening it instead is as correct).
-fn leaf_sized_count(bvh2: &Bvh2, index: usize) -> Option<u32> {
+fn leaf_sized_count(bvh2: &Bvh2, index: usize, cap: u32) -> Option<u32> {
     let nodes = &bvh2.nodes;
     let mut node = &nodes[index];
     if node.is_leaf() {
-        return (node.prim_count <= MAX_PRIMS_PER_LEAF).then_some(node.prim_count);
+        return (node.prim_count <= cap).then_some(node.prim_count);
     }
     let at_least = |node: &Bvh2Node| if node.is_leaf() { node.prim_count } else { 2 };
     // Primitives in the leaves seen so far, outside `node`.
@@ -573,7 +642,7 @@ fn leaf_sized_count(bvh2: &Bvh2, index: usize) -> Option<u32> {
         let bound = counted
             .saturating_add(at_least(left))
             .saturating_add(at_least(right));
-        if bound > MAX_PRIMS_PER_LEAF {
+        if bound > cap {
             return None;
         }
         match (left.is_leaf(), right.is_leaf()) {
@@ -618,10 +687,10 @@ fn prefetch_pair(nodes: &[Bvh2Node], first: usize) {
 /// children, which `leaf_sized_count` has just loaded, and sizes their children, whose loads
 /// are requested here so that they overlap with the work before.
 #[inline(always)]
-fn candidate_pair(bvh2: &Bvh2, first: usize) -> [Candidate; 2] {
+fn candidate_pair(bvh2: &Bvh2, first: usize, cap: u32) -> [Candidate; 2] {
     let binary = &bvh2.nodes;
     let candidates =
-        [first, first + 1].map(|index| Candidate::of(bvh2, index, leaf_sized_count(bvh2, index)));
+        [first, first + 1].map(|index| Candidate::of(bvh2, index, leaf_sized_count(bvh2, index, cap)));
     for candidate in &candidates {
         if candidate.leaf_count.is_none() {
             let children = binary[candidate.index as usize].first_index as usize;
@@ -646,8 +715,9 @@ fn wide_children(
 ) -> Candidates {
     let binary = &bvh2.nodes;
     let node = &binary[index];
+    let cap = leaf_cap(alignment);
     let mut children = Candidates::new(Candidate::of(bvh2, 0, None));
-    if may_be_leaf && let Some(count) = leaf_sized_count(bvh2, index) {
+    if may_be_leaf && let Some(count) = leaf_sized_count(bvh2, index, cap) {
         // Only for a tiny root: a single leaf child.
         children.push(Candidate::of(bvh2, index, Some(count)));
         return children;
@@ -655,7 +725,7 @@ fn wide_children(
     // Grouped leaves share groups: small sibling leaves are joined, to free a slot for a
     // subtree still to open, and at the end to fill the groups.
     let join_leaves = alignment == LeafAlignment::Group;
-    let [first, second] = candidate_pair(bvh2, node.first_index as usize);
+    let [first, second] = candidate_pair(bvh2, node.first_index as usize, cap);
     children.push(first);
     children.push(second);
     loop {
@@ -682,7 +752,7 @@ fn wide_children(
         };
         if children.len == WIDTH {
             let chosen = children.entries[position].index;
-            if !(must_open && join_leaves && pair_small_leaves(&mut children)) {
+            if !(must_open && join_leaves && pair_small_leaves(&mut children, cap)) {
                 break;
             }
             // Joining moved candidates (never the chosen one, which is no leaf).
@@ -696,11 +766,14 @@ fn wide_children(
             position = moved;
         }
         let opened = binary[children.entries[position].index as usize].first_index as usize;
-        let [first, second] = candidate_pair(bvh2, opened);
+        let [first, second] = candidate_pair(bvh2, opened, cap);
         children.entries[position] = first;
         children.push(second);
     }
-    while join_leaves && children.len > 2 && pair_small_leaves(&mut children) {}
+    static JOIN_AT_END: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    let join_at_end =
+        *JOIN_AT_END.get_or_init(|| std::env::var_os("CAVETRACE_LEAF_JOIN").is_some());
+    while join_at_end && join_leaves && children.len > 2 && pair_small_leaves(&mut children, cap) {}
     children
 }
 
