@@ -540,7 +540,7 @@ impl GeometryBvh {
     fn leaf_candidates(&self, code: u32, frustum: &FrustumPacket, group: usize, lanes: u32) -> u32 {
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups)
-                if leaf_range(code).1 > 1 && lanes.count_ones() > 1 =>
+                if leaf_range(code).1 > 1 && lanes.count_ones() > 1 && triangle_cull() =>
             {
                 let (triangles, leaf_lanes) = group_leaf(code);
                 frustum.triangle_candidates(group, lanes, &groups[triangles], leaf_lanes)
@@ -635,8 +635,7 @@ impl GeometryBvh {
                     let triangle_lane = triangles.trailing_zeros() as usize;
                     triangles &= triangles - 1;
                     let slot = base + triangle_lane as u32;
-                    let triangle = group.triangle(triangle_lane);
-                    let mut hits = triangle_packet(&triangle, packet, lanes);
+                    let mut hits = triangle_packet(group, triangle_lane, packet, lanes);
                     while hits != 0 {
                         closest[hits.trailing_zeros() as usize] = Some(slot);
                         hits &= hits - 1;
@@ -836,6 +835,12 @@ impl GeometryBvh {
             }
         }
     }
+}
+
+/// Experiment switch: `CAVETRACE_NO_TRIANGLE_CULL` turns the frustum leaves' triangle cull off.
+fn triangle_cull() -> bool {
+    static CULL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *CULL.get_or_init(|| std::env::var_os("CAVETRACE_NO_TRIANGLE_CULL").is_none())
 }
 
 /// [`GeometryBvh::closest_slot`] over triangle groups, the whole walk compiled for the selected

@@ -16,7 +16,7 @@
 //! ray by ray by the callers.
 
 use crate::accel::geometry::prepare as prepare_one;
-use crate::accel::primitives::{PackedTriangle, TriangleGroup, triangle_t_uv};
+use crate::accel::primitives::{TriangleGroup, triangle_t_uv};
 use crate::accel::wide_bvh::{
     BoxRay, LEAF_BIT, MAX_INV_DIRECTION, ORDER, SLAB_ERROR, TraversalRay, TraversalStack, WideNode,
     child_hits, prefetch,
@@ -440,11 +440,13 @@ fn walk_lane<F>(
     }
 }
 
-/// Watertight test of one triangle against the `lanes` of a packet; lanes that hit get their
-/// `t_max` shrunk and their bit set in the returned mask.
+/// Watertight test of the triangle in lane `triangle` of `group` against the `lanes` of a
+/// packet; lanes that hit get their `t_max` shrunk and their bit set in the returned mask.
+/// Each coordinate is broadcast straight from the group (no gather into a triangle first).
 #[inline(always)]
 pub(crate) fn triangle_packet(
-    triangle: &PackedTriangle,
+    group: &TriangleGroup,
+    triangle: usize,
     packet: &mut RayPacket,
     lanes: u32,
 ) -> u32 {
@@ -452,9 +454,10 @@ pub(crate) fn triangle_packet(
     let [shear_x, shear_y, shear_z] = packet.shear;
     let [origin_x, origin_y, origin_z] = packet.permuted_origin;
     let vertex = |i: usize| {
-        let z = Vec4::splat(triangle.rows[kz][i]) - origin_z;
-        let x = (Vec4::splat(triangle.rows[kx][i]) - origin_x) - shear_x * z;
-        let y = (Vec4::splat(triangle.rows[ky][i]) - origin_y) - shear_y * z;
+        let coordinate = |axis: usize| Vec4::splat(group.vertices[i][axis][triangle]);
+        let z = coordinate(kz) - origin_z;
+        let x = (coordinate(kx) - origin_x) - shear_x * z;
+        let y = (coordinate(ky) - origin_y) - shear_y * z;
         (x, y, z)
     };
     let (x0, y0, z0) = vertex(0);
@@ -486,7 +489,7 @@ pub(crate) fn triangle_packet(
             let inv = Vec4::ONE / determinant;
             packet.hit_uv[0] = Vec4::select(hit, v * inv, packet.hit_uv[0]);
             packet.hit_uv[1] = Vec4::select(hit, w * inv, packet.hit_uv[1]);
-            let normal = triangle.normal();
+            let normal = group.triangle(triangle).normal();
             for axis in 0..3 {
                 packet.hit_normal[axis] =
                     Vec4::select(hit, Vec4::splat(normal[axis]), packet.hit_normal[axis]);
@@ -499,7 +502,8 @@ pub(crate) fn triangle_packet(
     while remaining != 0 {
         let lane = remaining.trailing_zeros() as usize;
         remaining &= remaining - 1;
-        if let Some((t, uv)) = triangle_t_uv(triangle, &packet.ray(lane)) {
+        let triangle = group.triangle(triangle);
+        if let Some((t, uv)) = triangle_t_uv(&triangle, &packet.ray(lane)) {
             packet.record_hit(lane, t, uv, triangle.normal());
             hits |= 1 << lane;
         }
