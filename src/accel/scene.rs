@@ -235,12 +235,10 @@ impl SceneBvh {
     ) -> Option<SceneHit> {
         let placement = &self.placements[slot as usize];
         let uv = Vec2::new(packet.hit_uv[0][lane], packet.hit_uv[1][lane]);
-        let hit = match placement.geometry.triangle_hit_from_uv(
-            primitive_slot,
-            packet.t_max[lane],
-            uv,
-            packet.hit_normal(lane),
-        ) {
+        let hit = match placement
+            .geometry
+            .triangle_hit_from_uv(primitive_slot, packet.t_max[lane], uv)
+        {
             Some(hit) => hit,
             None => {
                 let object = placement.object_ray(&packet.ray(lane))?;
@@ -327,8 +325,7 @@ impl SceneBvh {
                 continue;
             };
             if let Some((primitive_slot, bary)) = placement.geometry.closest_slot(&mut object) {
-                let normal = placement.geometry.triangle_normal(primitive_slot);
-                frustum.groups[index / LANES].record_hit(index % LANES, object.t_max, bary, normal);
+                frustum.groups[index / LANES].record_hit(index % LANES, object.t_max, bary);
                 *found = Some(primitive_slot);
             }
         }
@@ -399,8 +396,7 @@ impl SceneBvh {
                     continue;
                 };
                 if let Some((primitive_slot, bary)) = placement.geometry.closest_slot(&mut object) {
-                    let normal = placement.geometry.triangle_normal(primitive_slot);
-                    packet.record_hit(lane, object.t_max, bary, normal);
+                    packet.record_hit(lane, object.t_max, bary);
                     slots[lane] = Some(primitive_slot);
                 }
             }
