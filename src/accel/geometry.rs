@@ -625,7 +625,7 @@ impl GeometryBvh {
                         if let Some((hit_lane, t, bary)) =
                             group_closest(group, leaf_lanes, &packet.ray(lane))
                         {
-                            packet.record_hit(lane, t, bary);
+                            packet.record_hit(lane, t, bary, group.triangle(hit_lane).normal());
                             closest[lane] = Some(base + hit_lane as u32);
                         }
                     }
@@ -703,7 +703,7 @@ impl GeometryBvh {
     /// Full hit record for the primitive in `slot`, found for `lane` of a packet.
     pub(crate) fn packet_hit(&self, slot: u32, packet: &RayPacket, lane: usize) -> PrimHit {
         let uv = Vec2::new(packet.hit_uv[0][lane], packet.hit_uv[1][lane]);
-        self.triangle_hit_from_uv(slot, packet.t_max[lane], uv)
+        self.triangle_hit_from_uv(slot, packet.t_max[lane], uv, packet.hit_normal(lane))
             .unwrap_or_else(|| self.hit_details(slot, &packet.ray(lane)))
     }
 
@@ -715,27 +715,45 @@ impl GeometryBvh {
         bary: Vec2,
         ray: &TraversalRay,
     ) -> PrimHit {
-        self.triangle_hit_from_uv(slot, ray.t_max, bary)
+        self.triangle_hit_from_uv(slot, ray.t_max, bary, self.triangle_normal(slot))
             .unwrap_or_else(|| self.hit_details(slot, ray))
     }
 
-    /// The hit record of a triangle or quad slot from the `t` and barycentrics its test
+    /// The unit normal of the triangle in a triangle or quad slot; zero for other primitives.
+    pub(crate) fn triangle_normal(&self, slot: u32) -> Vec3 {
+        match &self.primitives {
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                Self::triangle(groups, slot).normal()
+            }
+            PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) | PrimitiveData::Procedural(_) => {
+                Vec3::ZERO
+            }
+        }
+    }
+
+    /// The hit record of a triangle or quad slot from the `t`, barycentrics and normal its test
     /// produced (bit-identical to what [`Self::hit_details`] recomputes); `None` for spheres
-    /// and tubes. The normal is computed here, once per ray, not at every hit during the walk.
-    pub(crate) fn triangle_hit_from_uv(&self, slot: u32, t: f32, bary: Vec2) -> Option<PrimHit> {
+    /// and tubes. The normal comes from the test so that the triangle is not loaded again.
+    pub(crate) fn triangle_hit_from_uv(
+        &self,
+        slot: u32,
+        t: f32,
+        bary: Vec2,
+        normal: Vec3,
+    ) -> Option<PrimHit> {
         let source_id = self.source_ids[slot as usize];
         match &self.primitives {
-            PrimitiveData::Triangles(groups) => Some(PrimHit {
+            PrimitiveData::Triangles(_) => Some(PrimHit {
                 t,
                 primitive: source_id,
                 uv: bary,
-                normal: Self::triangle(groups, slot).normal(),
+                normal,
             }),
-            PrimitiveData::Quads(groups) => Some(PrimHit {
+            PrimitiveData::Quads(_) => Some(PrimHit {
                 t,
                 primitive: source_id & !QUAD_SECOND_HALF,
                 uv: quad_coordinates(bary, source_id),
-                normal: Self::triangle(groups, slot).normal(),
+                normal,
             }),
             PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) | PrimitiveData::Procedural(_) => {
                 None

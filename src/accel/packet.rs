@@ -39,6 +39,8 @@ pub(crate) struct RayPacket {
     /// Barycentrics `(b1, b2)` of the triangle hit at `t_max` (meaningless for other
     /// primitive kinds, which recompute their details).
     pub hit_uv: [Vec4; 2],
+    /// Unit normal (x, y, z) of that triangle in the packet's space.
+    pub hit_normal: [Vec4; 3],
     octant_inv: u32,
     shear_axes: [usize; 3],
     shear: [Vec4; 3],
@@ -69,6 +71,7 @@ impl RayPacket {
             t_min: Vec4::INFINITY,
             t_max: Vec4::NEG_INFINITY,
             hit_uv: [Vec4::ZERO; 2],
+            hit_normal: [Vec4::ZERO; 3],
             octant_inv: filler.octant_inv,
             shear_axes: filler.shear_axes,
             shear: [Vec4::ZERO; 3],
@@ -189,6 +192,7 @@ impl RayPacket {
             t_min: Vec4::select(active, t_min, Vec4::INFINITY),
             t_max: Vec4::select(active, t_max, Vec4::NEG_INFINITY),
             hit_uv: [Vec4::ZERO; 2],
+            hit_normal: [Vec4::ZERO; 3],
             octant_inv,
             shear_axes: [kx, ky, kz],
             shear: [
@@ -201,11 +205,15 @@ impl RayPacket {
         })
     }
 
-    /// Records a hit found for `lane` outside the packet tests.
-    pub fn record_hit(&mut self, lane: usize, t: f32, bary: glam::Vec2) {
+    /// Records a hit found for `lane` outside the packet tests (`normal`: the triangle's, or
+    /// zero for other primitives).
+    pub fn record_hit(&mut self, lane: usize, t: f32, bary: glam::Vec2, normal: glam::Vec3) {
         self.t_max[lane] = t;
         self.hit_uv[0][lane] = bary.x;
         self.hit_uv[1][lane] = bary.y;
+        for axis in 0..3 {
+            self.hit_normal[axis][lane] = normal[axis];
+        }
     }
 
     /// Takes over the hit of `from`'s lane `from_lane` (same ray in another space).
@@ -213,6 +221,19 @@ impl RayPacket {
         self.t_max[lane] = from.t_max[from_lane];
         self.hit_uv[0][lane] = from.hit_uv[0][from_lane];
         self.hit_uv[1][lane] = from.hit_uv[1][from_lane];
+        for axis in 0..3 {
+            self.hit_normal[axis][lane] = from.hit_normal[axis][from_lane];
+        }
+    }
+
+    /// The normal recorded with `lane`'s hit.
+    #[inline]
+    pub fn hit_normal(&self, lane: usize) -> glam::Vec3 {
+        glam::Vec3::new(
+            self.hit_normal[0][lane],
+            self.hit_normal[1][lane],
+            self.hit_normal[2][lane],
+        )
     }
 
     /// Deactivates every lane (their stale ray data stays finite and is never used).
@@ -468,6 +489,11 @@ pub(crate) fn triangle_packet(
             let inv = Vec4::ONE / determinant;
             packet.hit_uv[0] = Vec4::select(hit, v * inv, packet.hit_uv[0]);
             packet.hit_uv[1] = Vec4::select(hit, w * inv, packet.hit_uv[1]);
+            let normal = group.triangle(triangle).normal();
+            for axis in 0..3 {
+                packet.hit_normal[axis] =
+                    Vec4::select(hit, Vec4::splat(normal[axis]), packet.hit_normal[axis]);
+            }
         }
         hits
     };
@@ -478,7 +504,7 @@ pub(crate) fn triangle_packet(
         remaining &= remaining - 1;
         let triangle = group.triangle(triangle);
         if let Some((t, uv)) = triangle_t_uv(&triangle, &packet.ray(lane)) {
-            packet.record_hit(lane, t, uv);
+            packet.record_hit(lane, t, uv, triangle.normal());
             hits |= 1 << lane;
         }
     }
@@ -720,7 +746,8 @@ impl FrustumPacket {
                 t_min: Vec4::INFINITY,
                 t_max: Vec4::NEG_INFINITY,
                 hit_uv: [Vec4::ZERO; 2],
-                    octant_inv: 0,
+                hit_normal: [Vec4::ZERO; 3],
+                octant_inv: 0,
                 shear_axes: [0, 1, 2],
                 shear: [Vec4::ZERO; 3],
                 permuted_origin: [Vec4::ZERO; 3],

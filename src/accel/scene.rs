@@ -235,10 +235,12 @@ impl SceneBvh {
     ) -> Option<SceneHit> {
         let placement = &self.placements[slot as usize];
         let uv = Vec2::new(packet.hit_uv[0][lane], packet.hit_uv[1][lane]);
-        let hit = match placement
-            .geometry
-            .triangle_hit_from_uv(primitive_slot, packet.t_max[lane], uv)
-        {
+        let hit = match placement.geometry.triangle_hit_from_uv(
+            primitive_slot,
+            packet.t_max[lane],
+            uv,
+            packet.hit_normal(lane),
+        ) {
             Some(hit) => hit,
             None => {
                 let object = placement.object_ray(&packet.ray(lane))?;
@@ -325,7 +327,8 @@ impl SceneBvh {
                 continue;
             };
             if let Some((primitive_slot, bary)) = placement.geometry.closest_slot(&mut object) {
-                frustum.groups[index / LANES].record_hit(index % LANES, object.t_max, bary);
+                let normal = placement.geometry.triangle_normal(primitive_slot);
+                frustum.groups[index / LANES].record_hit(index % LANES, object.t_max, bary, normal);
                 *found = Some(primitive_slot);
             }
         }
@@ -396,7 +399,8 @@ impl SceneBvh {
                     continue;
                 };
                 if let Some((primitive_slot, bary)) = placement.geometry.closest_slot(&mut object) {
-                    packet.record_hit(lane, object.t_max, bary);
+                    let normal = placement.geometry.triangle_normal(primitive_slot);
+                    packet.record_hit(lane, object.t_max, bary, normal);
                     slots[lane] = Some(primitive_slot);
                 }
             }
