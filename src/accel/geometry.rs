@@ -12,7 +12,8 @@ use crate::accel::procedural::{ProceduralPrimitives, ProceduralSlots};
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
 use crate::accel::wide_bvh::{
     BoxTest, FourWideBoxTest, LeafAlignment, LeafSizing, LeafTest, MAX_PRIMITIVES, PADDING,
-    TraversalRay, WideBvh, WideNode, build_wide_bvh, group_leaf, leaf_range, prefetch, traverse, traverse_with,
+    TraversalRay, WideBvh, WideNode, build_wide_bvh, group_leaf, leaf_range, prefetch, traverse,
+    traverse_with,
 };
 use crate::accel::{GeometryPrims, PrimHit, Ray};
 use glam::{Vec2, Vec3, Vec3A};
@@ -506,12 +507,10 @@ impl GeometryBvh {
                 while groups != 0 {
                     let group = groups.trailing_zeros() as usize;
                     groups &= groups - 1;
-                    let candidates = self.leaf_candidates(code, frustum, group, lanes[group]);
                     self.test_leaf_packet(
                         code,
                         &mut frustum.groups[group],
                         lanes[group],
-                        candidates,
                         &mut closest_by_group[group],
                     );
                 }
@@ -529,24 +528,8 @@ impl GeometryBvh {
         closest: &mut [Option<u32>; LANES],
     ) {
         traverse_packet(&self.nodes, packet, lanes, |code, lanes, packet| {
-            self.test_leaf_packet(code, packet, lanes, u32::MAX, closest);
+            self.test_leaf_packet(code, packet, lanes, closest);
         });
-    }
-
-    /// The primitives of a leaf (bit per slot from its first) worth testing against the `lanes`
-    /// of a frustum packet's `group`: a triangle group's triangles whose boxes those rays may
-    /// reach, when that can spare triangle tests; every primitive otherwise.
-    #[inline(always)]
-    fn leaf_candidates(&self, code: u32, frustum: &FrustumPacket, group: usize, lanes: u32) -> u32 {
-        match &self.primitives {
-            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups)
-                if leaf_range(code).1 > 1 && lanes.count_ones() > 1 && triangle_cull() =>
-            {
-                let (triangles, leaf_lanes) = group_leaf(code);
-                frustum.triangle_candidates(group, lanes, &groups[triangles], leaf_lanes)
-            }
-            _ => u32::MAX,
-        }
     }
 
     /// Starts loading the primitives of a leaf.
@@ -577,18 +560,16 @@ impl GeometryBvh {
     }
 
     /// Tests a leaf's primitives against the packet's `lanes`; lanes that hit get their
-    /// `t_max` shrunk and their slot written to `closest`. Triangles: only the `candidates`
-    /// (bit per triangle of the group; the others no lane can hit); with fewer rays than such
-    /// triangles each ray tests the whole group at once, else each triangle the four rays, in
-    /// slot order (the same hits either way); spheres and tubes lane by lane with the
-    /// single-ray routines.
+    /// `t_max` shrunk and their slot written to `closest`. Triangles: with fewer rays than the
+    /// leaf has triangles each ray tests the leaf's lanes of the group at once, else each
+    /// triangle the four rays, in slot order (the same hits either way); spheres and tubes
+    /// lane by lane with the single-ray routines.
     #[inline(always)]
     fn test_leaf_packet(
         &self,
         code: u32,
         packet: &mut RayPacket,
         lanes: u32,
-        candidates: u32,
         closest: &mut [Option<u32>; LANES],
     ) {
         let (first, count) = leaf_range(code);
@@ -611,10 +592,7 @@ impl GeometryBvh {
                 let (group_index, leaf_lanes) = group_leaf(code);
                 let group = &groups[group_index];
                 let base = group_index as u32 * GROUP_LANES as u32;
-                let mut triangles = candidates & leaf_lanes;
-                if triangles == 0 {
-                    return;
-                }
+                let mut triangles = leaf_lanes;
                 if lanes.count_ones() < triangles.count_ones() {
                     // Fewer rays than triangles: each ray takes the whole group in one pass
                     // (lanes = triangles), the single-ray test with the same hits.
@@ -835,12 +813,6 @@ impl GeometryBvh {
             }
         }
     }
-}
-
-/// Experiment switch: `CAVETRACE_NO_TRIANGLE_CULL` turns the frustum leaves' triangle cull off.
-fn triangle_cull() -> bool {
-    static CULL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *CULL.get_or_init(|| std::env::var_os("CAVETRACE_NO_TRIANGLE_CULL").is_none())
 }
 
 /// [`GeometryBvh::closest_slot`] over triangle groups, the whole walk compiled for the selected

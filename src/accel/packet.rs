@@ -7,8 +7,7 @@
 //!   for the whole tile with interval arithmetic over the rays' inverse directions and origins
 //!   (one shared eye point, or each ray its own: several viewers, a matrix camera's near
 //!   plane), inner nodes and leaf boxes also per quadrant of four groups the same way; only
-//!   then are leaf boxes tested per group, each lane with its own origin, and a leaf's
-//!   triangles culled by their boxes against the group's bounds before the group tests them.
+//!   then are leaf boxes tested per group, each lane with its own origin.
 //!
 //! Triangles are tested against four rays with the same watertight arithmetic as the
 //! single-ray path, lane by lane in the same operation order, so every ray gets a
@@ -604,8 +603,8 @@ impl RayBounds {
     }
 }
 
-/// Ray bounds of the `active` lanes of `groups`, per quadrant and over all of them (and, when
-/// asked, per group), written in place (they are large, and this runs for every packet).
+/// Ray bounds of the `active` lanes of `groups`, per quadrant and over all of them, written in
+/// place (they are large, and this runs for every packet).
 #[inline]
 fn bounds_into(
     groups: &[RayPacket],
@@ -613,7 +612,6 @@ fn bounds_into(
     shared_origin: Option<Vec3A>,
     quadrants: &mut [RayBounds; QUADRANTS],
     whole: &mut RayBounds,
-    mut per_group: Option<&mut [RayBounds; FRUSTUM_GROUPS]>,
 ) {
     *whole = RayBounds::EMPTY;
     for (quadrant, members) in quadrants.iter_mut().zip(QUADRANT_GROUPS) {
@@ -622,11 +620,8 @@ fn bounds_into(
             if let Some(packet) = groups.get(group)
                 && packet.lanes & active[group] != 0
             {
-                let bounds = RayBounds::of_group(packet, active[group], shared_origin);
-                *quadrant = quadrant.union(bounds);
-                if let Some(per_group) = per_group.as_deref_mut() {
-                    per_group[group] = bounds.finished();
-                }
+                *quadrant =
+                    quadrant.union(RayBounds::of_group(packet, active[group], shared_origin));
             }
         }
         *whole = whole.union(*quadrant);
@@ -727,8 +722,6 @@ pub(crate) struct FrustumPacket {
     pub group_count: usize,
     whole: RayBounds,
     quadrants: [RayBounds; QUADRANTS],
-    /// Bounds of every lane of each group, to cull a leaf's triangles before a group tests them.
-    group_bounds: [RayBounds; FRUSTUM_GROUPS],
     octant_inv: u32,
 }
 
@@ -756,7 +749,6 @@ impl FrustumPacket {
             group_count: 0,
             whole: RayBounds::EMPTY,
             quadrants: [RayBounds::EMPTY; QUADRANTS],
-            group_bounds: [RayBounds::EMPTY; FRUSTUM_GROUPS],
             octant_inv: 0,
         }
     }
@@ -848,7 +840,6 @@ impl FrustumPacket {
             shared_origin,
             &mut self.quadrants,
             &mut self.whole,
-            Some(&mut self.group_bounds),
         );
     }
 
@@ -862,7 +853,6 @@ impl FrustumPacket {
             None,
             &mut quadrants,
             &mut whole,
-            None,
         );
         (quadrants, whole)
     }
@@ -912,45 +902,6 @@ impl FrustumPacket {
             }
             high.max_element()
         })
-    }
-
-    /// Lanes of a leaf's `triangles` (those in `leaf_lanes`) whose box some of the `lanes` of
-    /// group `group` may reach within their intervals: the others cannot be hit by these rays
-    /// (conservative as [`frustum_child_hits`]), so they need not be tested.
-    #[inline(always)]
-    pub fn triangle_candidates(
-        &self,
-        group: usize,
-        lanes: u32,
-        triangles: &TriangleGroup,
-        leaf_lanes: u32,
-    ) -> u32 {
-        let packet = &self.groups[group];
-        let t_high = Vec4::select(lane_mask(lanes), packet.t_max, Vec4::NEG_INFINITY).max_element();
-        let bounds = &self.group_bounds[group];
-        let rows = PlaneRows::new(self.octant_inv);
-        let [a, b, c] = &triangles.vertices;
-        let low: [Vec4; 3] = std::array::from_fn(|axis| a[axis].min(b[axis]).min(c[axis]));
-        let high: [Vec4; 3] = std::array::from_fn(|axis| a[axis].max(b[axis]).max(c[axis]));
-        // Even plane rows are minima, odd ones maxima (see `WideNode::planes`).
-        let plane = |row: usize, axis: usize| {
-            if row.is_multiple_of(2) {
-                low[axis]
-            } else {
-                high[axis]
-            }
-        };
-        let entry = std::array::from_fn(|axis| plane(rows.entry[axis], axis));
-        let exit = std::array::from_fn(|axis| plane(rows.exit[axis], axis));
-        let reached = frustum_box_hits(
-            &entry,
-            &exit,
-            bounds,
-            bounds.widening,
-            bounds.t_min_low,
-            t_high,
-        );
-        reached & leaf_lanes
     }
 }
 

@@ -33,26 +33,6 @@ use rayon::slice::ParallelSlice;
 /// Leaves hold at most four primitives (one SIMD group of triangles).
 pub(crate) const MAX_PRIMS_PER_LEAF: u32 = 4;
 
-/// Leaves of triangle groups ([`LeafAlignment::Group`]) hold at most this many triangles.
-pub(crate) fn group_leaf_cap() -> u32 {
-    static CAP: std::sync::OnceLock<u32> = std::sync::OnceLock::new();
-    *CAP.get_or_init(|| {
-        std::env::var("CAVETRACE_LEAF_CAP")
-            .ok()
-            .and_then(|v| v.parse().ok())
-            .unwrap_or(2u32)
-            .clamp(1, MAX_PRIMS_PER_LEAF)
-    })
-}
-
-/// The largest leaf for `alignment`.
-fn leaf_cap(alignment: LeafAlignment) -> u32 {
-    match alignment {
-        LeafAlignment::Packed => MAX_PRIMS_PER_LEAF,
-        LeafAlignment::Group => group_leaf_cap(),
-    }
-}
-
 /// Runs of neighbouring primitives that start the binary build are at most this long.
 const MAX_RUN: u32 = 3;
 
@@ -114,7 +94,10 @@ pub(crate) fn leaf_range(code: u32) -> (u32, u32) {
 pub(crate) fn group_leaf(code: u32) -> (usize, u32) {
     let (first, count) = leaf_range(code);
     let lanes = MAX_PRIMS_PER_LEAF;
-    ((first / lanes) as usize, ((1 << count) - 1) << (first % lanes))
+    (
+        (first / lanes) as usize,
+        ((1 << count) - 1) << (first % lanes),
+    )
 }
 
 fn leaf_code(first: u32, count: u32) -> u32 {
@@ -170,7 +153,7 @@ pub(crate) fn build_wide_bvh(
     // obvhs' PLOC merges the leaves it is given: runs of neighbours for whole leaves, else one
     // per box (what its `build` would make).
     let leaves: Vec<Bvh2Node> = match sizing {
-        LeafSizing::Whole => neighbour_runs(boxes, MAX_RUN.min(leaf_cap(alignment))),
+        LeafSizing::Whole => neighbour_clusters(boxes),
         LeafSizing::Split => boxes
             .par_iter()
             .enumerate()
@@ -211,13 +194,7 @@ pub(crate) fn build_wide_bvh(
 /// and packets of primary rays got 6 % faster; single rays were about 4 % slower. Runs of three
 /// regardless of shape built in 200 ms but cost single rays 8 %. Boxes are scanned in chunks in
 /// parallel; a run never crosses a chunk boundary.
-#[cfg(test)]
 pub(crate) fn neighbour_clusters(boxes: &[Aabb]) -> Vec<Bvh2Node> {
-    neighbour_runs(boxes, MAX_RUN)
-}
-
-/// [`neighbour_clusters`] with runs of at most `max_run`.
-fn neighbour_runs(boxes: &[Aabb], max_run: u32) -> Vec<Bvh2Node> {
     const CHUNK: usize = 1 << 12;
     let joins = |cluster: &Aabb, last: &Aabb, next: &Aabb| {
         let touch = last.min.cmple(next.max).all() && next.min.cmple(last.max).all();
@@ -237,7 +214,7 @@ fn neighbour_runs(boxes: &[Aabb], max_run: u32) -> Vec<Bvh2Node> {
             let mut cluster = boxes[0];
             for i in 1..=boxes.len() {
                 if i < boxes.len()
-                    && i - first < max_run as usize
+                    && i - first < MAX_RUN as usize
                     && joins(&cluster, &boxes[i - 1], &boxes[i])
                 {
                     cluster.extend(boxes[i].min);
@@ -391,7 +368,7 @@ pub(crate) fn collapse_to_wide(
     primitive_parts.extend(subtrees.iter().map(|subtree| &subtree.primitives[..]));
 
     // Per subtree: subtree node j >= 1 moves to descendant_base + j - 1, its leaves' first
-    // slots (groups) move up by primitive_base.
+    // slots move up by primitive_base (a multiple of four with `LeafAlignment::Group`).
     let mut relocations = Vec::with_capacity(subtrees.len());
     let mut descendant_base = 1 + subtrees.len() as u32;
     let mut primitive_base = root_primitives.len() as u32;
@@ -480,7 +457,8 @@ fn collapse_subtree(
 }
 
 /// One wide node for `binary_index`: child boxes, leaves (their primitives are appended to
-/// `primitive_order`, each leaf padded to a group of four with `LeafAlignment::Group`) and the
+/// `primitive_order`; with `LeafAlignment::Group` the node's leaves share groups of four, see
+/// [`share_groups`]) and the
 /// slots and binary nodes of its inner children, whose codes are left for the caller. Only
 /// the root may be small enough to be a leaf itself (`may_be_leaf`).
 fn wide_node(
@@ -577,9 +555,9 @@ struct Partners {
 }
 
 /// Joins the two sibling leaves whose primitives fit one group of four and whose union has the
-/// smallest surface area into one leaf (box: their union), so that triangle groups are fuller
-/// (fewer padding lanes, fewer leaves) and a slot is freed. Returns whether a pair was found.
-fn pair_small_leaves(children: &mut Candidates, cap: u32) -> bool {
+/// smallest surface area into one leaf (box: their union), so that a slot is freed. Returns
+/// whether a pair was found.
+fn pair_small_leaves(children: &mut Candidates) -> bool {
     let list = children.as_slice();
     let mut best: Option<(usize, usize, f32)> = None;
     for i in 0..list.len() {
@@ -590,7 +568,7 @@ fn pair_small_leaves(children: &mut Candidates, cap: u32) -> bool {
             let Some(second) = list[j].leaf_count else {
                 continue;
             };
-            if first + second > cap {
+            if first + second > MAX_PRIMS_PER_LEAF {
                 continue;
             }
             let area = list[i].aabb.union(&list[j].aabb).half_area();
@@ -627,11 +605,11 @@ fn pair_small_leaves(children: &mut Candidates, cap: u32) -> bool {
 /// primitive and every inner node at least two, so a lower bound decides most nodes after
 /// loading their two children. A node with two inner children is taken as too large (at most
 /// four primitives only if both hold two; opening it instead is as correct).
-fn leaf_sized_count(bvh2: &Bvh2, index: usize, cap: u32) -> Option<u32> {
+fn leaf_sized_count(bvh2: &Bvh2, index: usize) -> Option<u32> {
     let nodes = &bvh2.nodes;
     let mut node = &nodes[index];
     if node.is_leaf() {
-        return (node.prim_count <= cap).then_some(node.prim_count);
+        return (node.prim_count <= MAX_PRIMS_PER_LEAF).then_some(node.prim_count);
     }
     let at_least = |node: &Bvh2Node| if node.is_leaf() { node.prim_count } else { 2 };
     // Primitives in the leaves seen so far, outside `node`.
@@ -642,7 +620,7 @@ fn leaf_sized_count(bvh2: &Bvh2, index: usize, cap: u32) -> Option<u32> {
         let bound = counted
             .saturating_add(at_least(left))
             .saturating_add(at_least(right));
-        if bound > cap {
+        if bound > MAX_PRIMS_PER_LEAF {
             return None;
         }
         match (left.is_leaf(), right.is_leaf()) {
@@ -687,10 +665,10 @@ fn prefetch_pair(nodes: &[Bvh2Node], first: usize) {
 /// children, which `leaf_sized_count` has just loaded, and sizes their children, whose loads
 /// are requested here so that they overlap with the work before.
 #[inline(always)]
-fn candidate_pair(bvh2: &Bvh2, first: usize, cap: u32) -> [Candidate; 2] {
+fn candidate_pair(bvh2: &Bvh2, first: usize) -> [Candidate; 2] {
     let binary = &bvh2.nodes;
     let candidates =
-        [first, first + 1].map(|index| Candidate::of(bvh2, index, leaf_sized_count(bvh2, index, cap)));
+        [first, first + 1].map(|index| Candidate::of(bvh2, index, leaf_sized_count(bvh2, index)));
     for candidate in &candidates {
         if candidate.leaf_count.is_none() {
             let children = binary[candidate.index as usize].first_index as usize;
@@ -715,17 +693,17 @@ fn wide_children(
 ) -> Candidates {
     let binary = &bvh2.nodes;
     let node = &binary[index];
-    let cap = leaf_cap(alignment);
     let mut children = Candidates::new(Candidate::of(bvh2, 0, None));
-    if may_be_leaf && let Some(count) = leaf_sized_count(bvh2, index, cap) {
+    if may_be_leaf && let Some(count) = leaf_sized_count(bvh2, index) {
         // Only for a tiny root: a single leaf child.
         children.push(Candidate::of(bvh2, index, Some(count)));
         return children;
     }
-    // Grouped leaves share groups: small sibling leaves are joined, to free a slot for a
-    // subtree still to open, and at the end to fill the groups.
+    // Grouped leaves: small sibling leaves are joined only to free a slot for a subtree still
+    // to open. Joining more to fill groups is not needed (siblings share groups) and loosens
+    // the leaf boxes: the frustum packets were 2-5 % slower with it.
     let join_leaves = alignment == LeafAlignment::Group;
-    let [first, second] = candidate_pair(bvh2, node.first_index as usize, cap);
+    let [first, second] = candidate_pair(bvh2, node.first_index as usize);
     children.push(first);
     children.push(second);
     loop {
@@ -752,7 +730,7 @@ fn wide_children(
         };
         if children.len == WIDTH {
             let chosen = children.entries[position].index;
-            if !(must_open && join_leaves && pair_small_leaves(&mut children, cap)) {
+            if !(must_open && join_leaves && pair_small_leaves(&mut children)) {
                 break;
             }
             // Joining moved candidates (never the chosen one, which is no leaf).
@@ -766,14 +744,10 @@ fn wide_children(
             position = moved;
         }
         let opened = binary[children.entries[position].index as usize].first_index as usize;
-        let [first, second] = candidate_pair(bvh2, opened, cap);
+        let [first, second] = candidate_pair(bvh2, opened);
         children.entries[position] = first;
         children.push(second);
     }
-    static JOIN_AT_END: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    let join_at_end =
-        *JOIN_AT_END.get_or_init(|| std::env::var_os("CAVETRACE_LEAF_JOIN").is_some());
-    while join_at_end && join_leaves && children.len > 2 && pair_small_leaves(&mut children, cap) {}
     children
 }
 
