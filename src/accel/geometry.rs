@@ -5,15 +5,15 @@ use crate::accel::packet::{
     triangle_packet,
 };
 use crate::accel::primitives::{
-    GROUP_LANES, PackedSphere, PackedTriangle, TriangleGroup, group_any, group_closest,
+    GROUP_LANES, PackedSphere, PackedTriangle, TriangleGroup, group_closest,
     is_usable_box, sphere_surface, sphere_t, triangle_t_uv,
 };
 use crate::accel::procedural::{ProceduralPrimitives, ProceduralSlots};
+use crate::accel::single_ray;
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
 use crate::accel::wide_bvh::{
-    BoxTest, FourWideBoxTest, LeafAlignment, LeafSizing, LeafTest, MAX_PRIMITIVES, PADDING,
-    TraversalRay, WideBvh, WideNode, build_wide_bvh, group_leaf, leaf_range, prefetch, traverse,
-    traverse_with,
+    LeafAlignment, LeafSizing, MAX_PRIMITIVES, PADDING, TraversalRay, WideBvh, WideNode,
+    build_wide_bvh, group_leaf, leaf_range, prefetch, traverse,
 };
 use crate::accel::{GeometryPrims, PrimHit, Ray};
 use glam::{Vec2, Vec3, Vec3A};
@@ -245,6 +245,7 @@ impl GeometryBvh {
                     primitive_count: accepted,
                     skipped_primitive_count: input_count - accepted,
                 }
+                .checked()
             }
             GeometryPrims::Quads { positions, indices } => {
                 let mut collected = Collected::with_capacity(indices.len() * 2);
@@ -267,6 +268,7 @@ impl GeometryBvh {
                     |triangles| PrimitiveData::Quads(triangle_groups(&triangles)),
                     (accepted, indices.len()),
                 )
+                .checked()
             }
             GeometryPrims::Spheres { centers, radii } => {
                 let mut collected = Collected::with_capacity(centers.len());
@@ -421,6 +423,16 @@ impl GeometryBvh {
         self.nodes.capacity() * size_of::<WideNode>()
             + self.source_ids.capacity() * size_of::<u32>()
             + primitive_bytes
+    }
+
+    /// Asserts that a triangle or quad BVH's codes are in range, which the single-ray walks
+    /// rely on instead of bounds checks.
+    fn checked(self) -> GeometryBvh {
+        if let PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) = &self.primitives
+        {
+            assert!(single_ray::codes_in_range(&self.nodes, groups.len()));
+        }
+        self
     }
 
     pub(crate) fn is_empty(&self) -> bool {
@@ -815,114 +827,23 @@ impl GeometryBvh {
     }
 }
 
-/// [`GeometryBvh::closest_slot`] over triangle groups, the whole walk compiled for the selected
-/// instruction set (so that its box test is inlined).
+/// [`GeometryBvh::closest_slot`] over triangle groups (see `single_ray`).
 #[inline]
 fn closest_triangle_slot(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
     ray: &mut TraversalRay,
 ) -> Option<(u32, Vec2)> {
-    #[cfg(target_arch = "x86_64")]
-    if crate::isa::avx2_selected() {
-        // SAFETY: AVX2 is selected only on CPUs that have it.
-        return unsafe { avx2_walks::closest_triangle_slot(nodes, groups, ray) };
-    }
-    closest_triangle_slot_on::<FourWideBoxTest>(nodes, groups, ray)
+    // SAFETY: triangle and quad BVHs are checked with `codes_in_range` when built
+    // (`GeometryBvh::checked`) and never change afterwards.
+    unsafe { single_ray::closest_triangle_slot(nodes, groups, ray) }
 }
 
-/// [`GeometryBvh::any_hit`] over triangle groups, compiled per instruction set as
-/// [`closest_triangle_slot`].
+/// [`GeometryBvh::any_hit`] over triangle groups (see `single_ray`).
 #[inline]
-fn any_triangle_hit(nodes: &[WideNode], groups: &[TriangleGroup], ray: &mut TraversalRay) -> bool {
-    #[cfg(target_arch = "x86_64")]
-    if crate::isa::avx2_selected() {
-        // SAFETY: AVX2 is selected only on CPUs that have it.
-        return unsafe { avx2_walks::any_triangle_hit(nodes, groups, ray) };
-    }
-    any_triangle_hit_on::<FourWideBoxTest>(nodes, groups, ray)
-}
-
-/// The leaf test of the closest-hit walk over triangle groups: keeps the closest slot and its
-/// barycentrics.
-struct ClosestTriangle<'a> {
-    groups: &'a [TriangleGroup],
-    closest: Option<(u32, Vec2)>,
-}
-
-impl LeafTest for ClosestTriangle<'_> {
-    #[inline(always)]
-    fn test(&mut self, code: u32, ray: &mut TraversalRay) -> bool {
-        let (group, lanes) = group_leaf(code);
-        let hit = group_closest(&self.groups[group], lanes, ray);
-        if let Some((lane, t, bary)) = hit {
-            ray.t_max = t;
-            self.closest = Some((group as u32 * GROUP_LANES as u32 + lane as u32, bary));
-        }
-        hit.is_some()
-    }
-}
-
-/// The leaf test of the any-hit walk over triangle groups.
-struct AnyTriangle<'a> {
-    groups: &'a [TriangleGroup],
-}
-
-impl LeafTest for AnyTriangle<'_> {
-    #[inline(always)]
-    fn test(&mut self, code: u32, ray: &mut TraversalRay) -> bool {
-        let (group, lanes) = group_leaf(code);
-        group_any(&self.groups[group], lanes, ray)
-    }
-}
-
-#[inline(always)]
-fn closest_triangle_slot_on<B: BoxTest>(
-    nodes: &[WideNode],
-    groups: &[TriangleGroup],
-    ray: &mut TraversalRay,
-) -> Option<(u32, Vec2)> {
-    let mut leaf = ClosestTriangle {
-        groups,
-        closest: None,
-    };
-    traverse_with::<B, false, _>(nodes, ray, &mut leaf);
-    leaf.closest
-}
-
-#[inline(always)]
-fn any_triangle_hit_on<B: BoxTest>(
-    nodes: &[WideNode],
-    groups: &[TriangleGroup],
-    ray: &mut TraversalRay,
-) -> bool {
-    traverse_with::<B, true, _>(nodes, ray, &mut AnyTriangle { groups })
-}
-
-/// The triangle walks compiled for AVX2: the same operations (glam's four-wide triangle test
-/// with VEX encodings, no fused multiply-adds), the eight-wide box test inlined.
-#[cfg(target_arch = "x86_64")]
-mod avx2_walks {
-    use super::*;
-    use crate::accel::wide_bvh::Avx2BoxTest;
-
-    #[target_feature(enable = "avx2")]
-    pub(super) fn closest_triangle_slot(
-        nodes: &[WideNode],
-        groups: &[TriangleGroup],
-        ray: &mut TraversalRay,
-    ) -> Option<(u32, Vec2)> {
-        closest_triangle_slot_on::<Avx2BoxTest>(nodes, groups, ray)
-    }
-
-    #[target_feature(enable = "avx2")]
-    pub(super) fn any_triangle_hit(
-        nodes: &[WideNode],
-        groups: &[TriangleGroup],
-        ray: &mut TraversalRay,
-    ) -> bool {
-        any_triangle_hit_on::<Avx2BoxTest>(nodes, groups, ray)
-    }
+fn any_triangle_hit(nodes: &[WideNode], groups: &[TriangleGroup], ray: &TraversalRay) -> bool {
+    // SAFETY: as in `closest_triangle_slot`.
+    unsafe { single_ray::any_triangle_hit(nodes, groups, ray) }
 }
 
 /// Maps barycentrics of one half of a quad onto the quad's unit square.

@@ -47,6 +47,7 @@ mod packet;
 mod primitives;
 mod procedural;
 mod scene;
+mod single_ray;
 mod tube;
 mod wide_bvh;
 

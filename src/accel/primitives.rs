@@ -126,49 +126,112 @@ impl TriangleGroup {
     }
 }
 
-/// A group's watertight test against one ray, lane by lane the arithmetic of
-/// [`triangle_t_uv`] (the same `t` and barycentrics): the hit lanes among `lanes` (bit per
-/// lane), their `t`, and the edge functions `V`, `W` with the determinant `U + V + W`.
+/// What a group's watertight test needs of one ray, set up once per ray: the permuted axes,
+/// and the permuted origin, the shear and `t_min` splat across the lanes.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct GroupRay {
+    axes: [usize; 3],
+    origin: [Vec4; 3],
+    shear: [Vec4; 3],
+    t_min: Vec4,
+}
+
+impl GroupRay {
+    #[inline(always)]
+    pub fn new(ray: &TraversalRay) -> GroupRay {
+        let axes = ray.shear_axes;
+        // `hits` indexes vertex rows by these without bounds checks.
+        assert!(axes.iter().all(|&axis| axis < 3));
+        let origin = ray.permuted_origin;
+        GroupRay {
+            axes,
+            origin: [origin.x, origin.y, origin.z].map(Vec4::splat),
+            shear: [ray.shear.x, ray.shear.y, ray.shear.z].map(Vec4::splat),
+            t_min: Vec4::splat(ray.t_min),
+        }
+    }
+
+    /// A group's watertight test, lane by lane the arithmetic of [`triangle_t_uv`] (the same
+    /// `t` and barycentrics), with `t` accepted in `[t_min, t_max]`: the hit lanes among
+    /// `lanes` (bit per lane), their `t`, and the edge functions `V`, `W` with the determinant
+    /// `U + V + W`.
+    #[inline(always)]
+    pub fn hits(&self, group: &TriangleGroup, lanes: u32, t_max: f32) -> (u32, Vec4, [Vec4; 3]) {
+        let [kx, ky, kz] = self.axes;
+        let [origin_x, origin_y, origin_z] = self.origin;
+        let [shear_x, shear_y, shear_z] = self.shear;
+        let sheared = |vertex: &[Vec4; 3]| {
+            // SAFETY: `new` checked that every axis is below 3.
+            let row = |axis: usize| unsafe { *vertex.get_unchecked(axis) };
+            let z = row(kz) - origin_z;
+            let x = (row(kx) - origin_x) - shear_x * z;
+            let y = (row(ky) - origin_y) - shear_y * z;
+            (x, y, z)
+        };
+        let (x0, y0, z0) = sheared(&group.vertices[0]);
+        let (x1, y1, z1) = sheared(&group.vertices[1]);
+        let (x2, y2, z2) = sheared(&group.vertices[2]);
+        let mut u = x2 * y1 - y2 * x1;
+        let mut v = x0 * y2 - y0 * x2;
+        let mut w = x1 * y0 - y1 * x0;
+        let zero = Vec4::ZERO;
+        let mut on_edge = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & lanes;
+        while on_edge != 0 {
+            let lane = on_edge.trailing_zeros() as usize;
+            on_edge &= on_edge - 1;
+            let exact = edge_functions_f64(
+                Vec4::new(x0[lane], x1[lane], x2[lane], 0.0),
+                Vec4::new(y0[lane], y1[lane], y2[lane], 0.0),
+            );
+            (u[lane], v[lane], w[lane]) = (exact.x, exact.y, exact.z);
+        }
+        let negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
+        let positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
+        let determinant = u + v + w;
+        let candidates = (!(negative & positive) & determinant.cmpne(zero)).bitmask() & lanes;
+        if candidates == 0 {
+            return (0, zero, [v, w, determinant]);
+        }
+        let scaled_t = u * (z0 * shear_z) + v * (z1 * shear_z) + w * (z2 * shear_z);
+        let t = scaled_t / determinant;
+        let inside = t.cmpge(self.t_min) & t.cmple(Vec4::splat(t_max));
+        (inside.bitmask() & candidates, t, [v, w, determinant])
+    }
+}
+
+/// [`GroupRay::hits`] for a ray used once.
 #[inline(always)]
 fn group_hits(group: &TriangleGroup, lanes: u32, ray: &TraversalRay) -> (u32, Vec4, [Vec4; 3]) {
-    let [kx, ky, kz] = ray.shear_axes;
-    let origin = ray.permuted_origin;
-    let (shear_x, shear_y) = (Vec4::splat(ray.shear.x), Vec4::splat(ray.shear.y));
-    let sheared = |vertex: &[Vec4; 3]| {
-        let z = vertex[kz] - Vec4::splat(origin.z);
-        let x = (vertex[kx] - Vec4::splat(origin.x)) - shear_x * z;
-        let y = (vertex[ky] - Vec4::splat(origin.y)) - shear_y * z;
-        (x, y, z)
-    };
-    let (x0, y0, z0) = sheared(&group.vertices[0]);
-    let (x1, y1, z1) = sheared(&group.vertices[1]);
-    let (x2, y2, z2) = sheared(&group.vertices[2]);
-    let mut u = x2 * y1 - y2 * x1;
-    let mut v = x0 * y2 - y0 * x2;
-    let mut w = x1 * y0 - y1 * x0;
-    let zero = Vec4::ZERO;
-    let mut on_edge = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & lanes;
-    while on_edge != 0 {
-        let lane = on_edge.trailing_zeros() as usize;
-        on_edge &= on_edge - 1;
-        let exact = edge_functions_f64(
-            Vec4::new(x0[lane], x1[lane], x2[lane], 0.0),
-            Vec4::new(y0[lane], y1[lane], y2[lane], 0.0),
-        );
-        (u[lane], v[lane], w[lane]) = (exact.x, exact.y, exact.z);
+    GroupRay::new(ray).hits(group, lanes, ray.t_max)
+}
+
+/// `MISSED[hits]`: per lane `-inf` where bit `lane` of `hits` is set, else `+inf` (the max of a
+/// lane's `t` with it keeps the hits and puts the rest beyond them).
+static MISSED: [Vec4; 16] = {
+    let mut table = [Vec4::ZERO; 16];
+    let mut hits = 0;
+    while hits < 16 {
+        let mut lanes = [f32::INFINITY; 4];
+        let mut lane = 0;
+        while lane < 4 {
+            if hits & (1 << lane) != 0 {
+                lanes[lane] = f32::NEG_INFINITY;
+            }
+            lane += 1;
+        }
+        table[hits] = Vec4::from_array(lanes);
+        hits += 1;
     }
-    let negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
-    let positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
-    let determinant = u + v + w;
-    let candidates = (!(negative & positive) & determinant.cmpne(zero)).bitmask() & lanes;
-    if candidates == 0 {
-        return (0, zero, [v, w, determinant]);
-    }
-    let shear_z = Vec4::splat(ray.shear.z);
-    let scaled_t = u * (z0 * shear_z) + v * (z1 * shear_z) + w * (z2 * shear_z);
-    let t = scaled_t / determinant;
-    let inside = t.cmpge(Vec4::splat(ray.t_min)) & t.cmple(Vec4::splat(ray.t_max));
-    (inside.bitmask() & candidates, t, [v, w, determinant])
+    table
+};
+
+/// Among the hit lanes (`hits`, bit per lane, not empty) the one with the smallest `t`; among
+/// lanes hit at the same `t` the last one, as when the triangles are tested one after another.
+#[inline(always)]
+pub(crate) fn closest_lane(hits: u32, t: Vec4) -> usize {
+    let candidates = t.max(MISSED[(hits & 15) as usize]);
+    let nearest = candidates.cmpeq(Vec4::splat(candidates.min_element())).bitmask() & hits;
+    (31 - nearest.leading_zeros()) as usize
 }
 
 /// Closest hit among a group's triangles in `lanes` (bit per lane): `(lane, t, b1, b2)`. Among
@@ -184,24 +247,9 @@ pub(crate) fn group_closest(
     if hits == 0 {
         return None;
     }
-    let mut best = 31 - hits.leading_zeros();
-    let mut rest = hits & !(1 << best);
-    while rest != 0 {
-        let lane = 31 - rest.leading_zeros();
-        rest &= !(1 << lane);
-        if t[lane as usize] < t[best as usize] {
-            best = lane;
-        }
-    }
-    let lane = best as usize;
+    let lane = closest_lane(hits, t);
     let inv = 1.0 / determinant[lane];
     Some((lane, t[lane], Vec2::new(v[lane] * inv, w[lane] * inv)))
-}
-
-/// Whether any of a group's triangles in `lanes` (bit per lane) is hit.
-#[inline(always)]
-pub(crate) fn group_any(group: &TriangleGroup, lanes: u32, ray: &TraversalRay) -> bool {
-    group_hits(group, lanes, ray).0 != 0
 }
 
 /// Edge functions recomputed in f64 for the rare rays that pass exactly through an edge.

@@ -1160,31 +1160,6 @@ impl BoxTest for RuntimeBoxTest {
     }
 }
 
-/// The four-wide box test (the baseline path).
-pub(crate) struct FourWideBoxTest;
-
-impl BoxTest for FourWideBoxTest {
-    #[inline(always)]
-    fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
-        child_hits_four_wide(node, ray, t_min, t_max)
-    }
-}
-
-/// The eight-wide AVX2 box test. Only walks compiled for AVX2 (inside a
-/// `#[target_feature(enable = "avx2")]` function, entered only when AVX2 is selected) use it.
-#[cfg(target_arch = "x86_64")]
-pub(crate) struct Avx2BoxTest;
-
-#[cfg(target_arch = "x86_64")]
-impl BoxTest for Avx2BoxTest {
-    #[inline(always)]
-    fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
-        // SAFETY: this test is only used by walks entered when AVX2 is selected, which happens
-        // only on CPUs that have it.
-        unsafe { avx2::child_hits(node, ray, t_min, t_max) }
-    }
-}
-
 /// Walks the BVH nearest-first and calls `test_leaf(leaf_code, ray)` for every leaf whose box
 /// the ray reaches within `[t_min, t_max]` (see [`leaf_range`]). The callback returns whether it
 /// accepted a hit; for closest-hit use it must then shrink `ray.t_max` to the hit, and
