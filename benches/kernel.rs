@@ -20,6 +20,8 @@
 //! `CAVETRACE_BENCH_QUICK=1`: two sizes at 256×256, 3 frames. `CAVETRACE_BENCH_GRIDS=22,708`:
 //! only those sizes (for profiling one). `CAVETRACE_BENCH_PARTS=single` (any of `packets`,
 //! `single`, `frame`, comma-separated): only those parts (the others print as 0).
+//! `CAVETRACE_BENCH_ISAS=avx2` (`baseline`, `avx2`, comma-separated): only those paths (for
+//! counting one path's instructions).
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -196,9 +198,11 @@ fn main() {
     let embree_probe = std::env::var("CAVETRACE_EMBREE_PROBE").ok();
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
+    let chosen_isas = std::env::var("CAVETRACE_BENCH_ISAS").unwrap_or_default();
     let isas: Vec<Isa> = [Isa::Baseline, Isa::Avx2]
         .into_iter()
         .filter(|isa| isa.supported())
+        .filter(|isa| chosen_isas.is_empty() || chosen_isas.split(',').any(|i| i == isa.name()))
         .collect();
     println!(
         "kernel: the embree_rays scene, {size}x{size}, {threads} threads, medians of frames \

@@ -5,8 +5,8 @@ use crate::accel::packet::{
     triangle_packet,
 };
 use crate::accel::primitives::{
-    GROUP_LANES, PackedSphere, PackedTriangle, TriangleGroup, group_closest,
-    is_usable_box, sphere_surface, sphere_t, triangle_t_uv,
+    GROUP_LANES, PackedSphere, PackedTriangle, TriangleGroup, group_closest, is_usable_box,
+    sphere_surface, sphere_t, triangle_t_uv,
 };
 use crate::accel::procedural::{ProceduralPrimitives, ProceduralSlots};
 use crate::accel::single_ray;
@@ -428,8 +428,7 @@ impl GeometryBvh {
     /// Asserts that a triangle or quad BVH's codes are in range, which the single-ray walks
     /// rely on instead of bounds checks.
     fn checked(self) -> GeometryBvh {
-        if let PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) = &self.primitives
-        {
+        if let PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) = &self.primitives {
             assert!(single_ray::codes_in_range(&self.nodes, groups.len()));
         }
         self
@@ -713,7 +712,8 @@ impl GeometryBvh {
     pub(crate) fn triangle_normal(&self, slot: u32) -> Vec3 {
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
-                Self::triangle(groups, slot).normal()
+                let lanes = GROUP_LANES as u32;
+                groups[(slot / lanes) as usize].normal((slot % lanes) as usize)
             }
             PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) | PrimitiveData::Procedural(_) => {
                 Vec3::ZERO

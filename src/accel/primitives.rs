@@ -78,9 +78,14 @@ impl PackedTriangle {
     /// Unit normal `(v1 - v0) x (v2 - v0)`; non-zero for every constructed triangle.
     #[inline]
     pub fn normal(&self) -> Vec3 {
-        let [v0, v1, v2] = self.vertices();
-        (v1 - v0).cross(v2 - v0).normalize_or_zero()
+        unit_normal(self.vertices())
     }
+}
+
+/// Unit normal `(v1 - v0) x (v2 - v0)` of a triangle's vertices (zero for a degenerate one).
+#[inline(always)]
+fn unit_normal([v0, v1, v2]: [Vec3; 3]) -> Vec3 {
+    (v1 - v0).cross(v2 - v0).normalize_or_zero()
 }
 
 /// Triangles in a group: a leaf's triangles tested together against one ray.
@@ -107,6 +112,15 @@ impl TriangleGroup {
             }
         }
         TriangleGroup { vertices }
+    }
+
+    /// [`PackedTriangle::normal`] of the triangle in `lane`, read straight from the lanes.
+    #[inline]
+    pub fn normal(&self, lane: usize) -> Vec3 {
+        unit_normal(
+            self.vertices
+                .map(|[x, y, z]| Vec3::new(x[lane], y[lane], z[lane])),
+        )
     }
 
     /// The triangle in `lane`.
@@ -230,7 +244,10 @@ static MISSED: [Vec4; 16] = {
 #[inline(always)]
 pub(crate) fn closest_lane(hits: u32, t: Vec4) -> usize {
     let candidates = t.max(MISSED[(hits & 15) as usize]);
-    let nearest = candidates.cmpeq(Vec4::splat(candidates.min_element())).bitmask() & hits;
+    let nearest = candidates
+        .cmpeq(Vec4::splat(candidates.min_element()))
+        .bitmask()
+        & hits;
     (31 - nearest.leading_zeros()) as usize
 }
 

@@ -28,8 +28,9 @@ use glam::{Vec2, Vec4};
 use std::mem::MaybeUninit;
 
 /// `VISIT[order][mask]` for the hit children `mask` (bit per slot) of a ray whose children
-/// are visited nearest-first in slots `i ^ order`: the nearest hit child's slot in the low four
-/// bits, then four bits per other hit child's slot, farthest first.
+/// are visited nearest-first in slots `i ^ order`: the nearest hit child's slot in bits 0..3,
+/// the other hit children's slots three bits each from bit 3 on, farthest first, and their
+/// number from bit [`OTHERS_SHIFT`] on.
 pub(crate) static VISIT: [[u32; 256]; 8] = {
     let mut table = [[0u32; 256]; 8];
     let mut order = 0;
@@ -41,22 +42,25 @@ pub(crate) static VISIT: [[u32; 256]; 8] = {
                 nearest += 1;
             }
             let mut entry = (nearest ^ order) as u32;
-            let mut shift = 4;
+            let mut others = 0;
             let mut position = 7;
             while position > nearest {
                 if mask & (1 << (position ^ order)) != 0 {
-                    entry |= ((position ^ order) as u32) << shift;
-                    shift += 4;
+                    entry |= ((position ^ order) as u32) << (3 + 3 * others);
+                    others += 1;
                 }
                 position -= 1;
             }
-            table[order][mask] = entry;
+            table[order][mask] = entry | (others << OTHERS_SHIFT);
             mask += 1;
         }
         order += 1;
     }
     table
 };
+
+/// Where a [`VISIT`] entry keeps the number of children to push.
+const OTHERS_SHIFT: u32 = 28;
 
 /// Entries of the stack kept inline (the walk restarts with a larger one if it needs more).
 const INLINE_STACK: usize = 128;
@@ -101,7 +105,7 @@ trait Lanes {
         t_max: f32,
     ) -> (u32, Self::Nears);
 
-    /// Pushes `count` children (slots four bits each in `slots`, first pushed first).
+    /// Pushes `count` children (slots three bits each in `slots`, first pushed first).
     ///
     /// # Safety
     /// `stack.len <= stack.last_push`.
@@ -185,7 +189,7 @@ impl Lanes for FourWide {
         stack: &mut Stack,
     ) {
         for index in 0..count as usize {
-            let slot = ((slots >> (4 * index)) & 7) as usize;
+            let slot = ((slots >> (3 * index)) & 7) as usize;
             // SAFETY: `count < WIDTH` and `stack.len + WIDTH <= capacity` (the caller's
             // promise).
             unsafe {
@@ -254,7 +258,10 @@ mod avx2 {
         let [near_x, far_x] = distances(node, ray, 0, rows(ORDER, 0));
         let [near_y, far_y] = distances(node, ray, 1, rows(ORDER, 1));
         let [near_z, far_z] = distances(node, ray, 2, rows(ORDER, 2));
-        let near = _mm256_max_ps(_mm256_max_ps(near_x, near_y), _mm256_max_ps(near_z, ray.t_min));
+        let near = _mm256_max_ps(
+            _mm256_max_ps(near_x, near_y),
+            _mm256_max_ps(near_z, ray.t_min),
+        );
         let far = _mm256_min_ps(
             _mm256_min_ps(far_x, far_y),
             _mm256_min_ps(far_z, _mm256_set1_ps(t_max)),
@@ -280,7 +287,7 @@ mod avx2 {
         nears: __m256,
         stack: &mut Stack,
     ) {
-        let shifts = _mm256_setr_epi32(0, 4, 8, 12, 16, 20, 24, 28);
+        let shifts = _mm256_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21);
         // The permutations read the low three bits of each lane: the slot.
         let slots = _mm256_srlv_epi32(_mm256_set1_epi32(slots as i32), shifts);
         // SAFETY: the codes are eight u32, 32-byte aligned (`WideNode` is, and they follow six
@@ -370,13 +377,13 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
             if mask != 0 {
                 let visit = VISIT[ORDER][(mask & 0xff) as usize];
                 code = node.children[(visit & 7) as usize];
-                let others = mask.count_ones() - 1;
+                let others = visit >> OTHERS_SHIFT;
                 if others != 0 {
                     if stack.len > stack.last_push {
                         return Err(Overflow);
                     }
                     // SAFETY: just checked.
-                    unsafe { I::push(node, visit >> 4, others, nears, stack) };
+                    unsafe { I::push(node, visit >> 3, others, nears, stack) };
                 }
                 continue;
             }
@@ -387,7 +394,15 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
             let (hits, t, [v, w, determinant]) = group_ray.hits(group, lanes, t_max);
             if hits != 0 {
                 if ANY_HIT {
-                    return Ok((Some(Hit { slot: 0, v: 0.0, w: 0.0, determinant: 1.0 }), t_max));
+                    return Ok((
+                        Some(Hit {
+                            slot: 0,
+                            v: 0.0,
+                            w: 0.0,
+                            determinant: 1.0,
+                        }),
+                        t_max,
+                    ));
                 }
                 let lane = closest_lane(hits, t);
                 t_max = t[lane];
@@ -541,7 +556,11 @@ mod avx2_walks {
     /// # Safety
     /// As [`closest`].
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn any(nodes: &[WideNode], groups: &[TriangleGroup], ray: &TraversalRay) -> bool {
+    pub(super) unsafe fn any(
+        nodes: &[WideNode],
+        groups: &[TriangleGroup],
+        ray: &TraversalRay,
+    ) -> bool {
         // SAFETY: the caller's promise.
         unsafe { walk_ray::<Avx2, true>(nodes, groups, ray) }
             .0

@@ -17,7 +17,7 @@
 //! instruction-set path performs the same operations in the same order (no fused
 //! multiply-adds), so each finds the same children, in the same order, and the same hits.
 
-use glam::{Vec3, Vec3A, Vec4};
+use glam::{Vec3, Vec3A, Vec3Swizzles, Vec4};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::node::Bvh2Node;
@@ -832,47 +832,44 @@ impl TraversalRay {
     /// that are not finite or beyond `MAX_COORDINATE`, or an empty/NaN interval.
     #[inline]
     pub fn new(origin: Vec3A, direction: Vec3A, t_min: f32, t_max: f32) -> Option<TraversalRay> {
-        // `!(a <= b)` also rejects NaN.
+        // Comparisons that are false for NaN reject it; `!(a <= b)` too.
         #[allow(clippy::neg_cmp_op_on_partial_ord)]
         let bad_interval = !(t_min <= t_max);
+        let abs = direction.abs();
+        let too_short = Vec3A::splat(1.0 / MAX_INV_DIRECTION);
         if bad_interval
-            || !origin.is_finite()
-            || origin.abs().max_element() > MAX_COORDINATE
-            || !direction.is_finite()
-            || direction.abs().max_element() < 1.0 / MAX_INV_DIRECTION
+            || !origin.abs().cmple(Vec3A::splat(MAX_COORDINATE)).all()
+            || !abs.cmplt(Vec3A::INFINITY).all()
+            || !abs.cmpge(too_short).any()
         {
             return None;
         }
-        let inv = |d: f32| {
-            // The sign must agree with the `< 0.0` octant test below, also for -0.0.
-            if d.abs() < 1.0 / MAX_INV_DIRECTION {
-                if d < 0.0 {
-                    -MAX_INV_DIRECTION
-                } else {
-                    MAX_INV_DIRECTION
-                }
-            } else {
-                1.0 / d
-            }
-        };
-        let inv_direction = Vec3A::new(inv(direction.x), inv(direction.y), inv(direction.z));
-        let octant_inv = (if direction.x < 0.0 { 0 } else { 4 })
-            | (if direction.y < 0.0 { 0 } else { 2 })
-            | (if direction.z < 0.0 { 0 } else { 1 });
-        let abs = direction.abs();
-        let kz = if abs.x >= abs.y && abs.x >= abs.z {
-            0
+        // Components too short to invert are clamped, their sign agreeing with the octant's
+        // `< 0.0` test, also for -0.0. A vector division rounds each lane as a scalar one.
+        let negative = direction.cmplt(Vec3A::ZERO);
+        let clamped = Vec3A::select(
+            negative,
+            Vec3A::splat(-MAX_INV_DIRECTION),
+            Vec3A::splat(MAX_INV_DIRECTION),
+        );
+        let inv_direction = Vec3A::select(abs.cmplt(too_short), clamped, Vec3A::ONE / direction);
+        let octant_inv = OCTANT_INV[negative.bitmask() as usize & 7];
+        // The dominant axis last (ties to the lower axis), the others in cyclic order.
+        let (shear_axes, [d, inv, o]) = if abs.x >= abs.y && abs.x >= abs.z {
+            (
+                [1, 2, 0],
+                [direction, inv_direction, origin].map(Vec3A::yzx),
+            )
         } else if abs.y >= abs.z {
-            1
+            (
+                [2, 0, 1],
+                [direction, inv_direction, origin].map(Vec3A::zxy),
+            )
         } else {
-            2
+            ([0, 1, 2], [direction, inv_direction, origin])
         };
-        let kx = (kz + 1) % 3;
-        let ky = (kx + 1) % 3;
-        let d = direction.to_array();
-        let o = origin.to_array();
         // The dominant component is never clamped, so this is exactly 1 / d[kz].
-        let inv_dominant = inv_direction[kz];
+        let inv_dominant = inv.z;
         Some(TraversalRay {
             origin,
             direction,
@@ -880,12 +877,25 @@ impl TraversalRay {
             t_min,
             t_max,
             octant_inv,
-            shear_axes: [kx, ky, kz],
-            shear: Vec3::new(d[kx] * inv_dominant, d[ky] * inv_dominant, inv_dominant),
-            permuted_origin: Vec3::new(o[kx], o[ky], o[kz]),
+            shear_axes,
+            shear: Vec3::new(d.x * inv_dominant, d.y * inv_dominant, inv_dominant),
+            permuted_origin: o.into(),
         })
     }
 }
+
+/// `OCTANT_INV[negative]`: [`TraversalRay::octant_inv`] for the direction components that are
+/// negative (x: 1, y: 2, z: 4).
+static OCTANT_INV: [u32; 8] = {
+    let mut table = [0; 8];
+    let mut negative = 0;
+    while negative < 8 {
+        table[negative] =
+            7 ^ (((negative & 1) << 2) | (negative & 2) | ((negative >> 2) & 1)) as u32;
+        negative += 1;
+    }
+    table
+};
 
 /// Inverse direction components are clamped to this magnitude. Together with
 /// `MAX_COORDINATE` (which also bounds ray origins) and [`EMPTY_PLANE`] it keeps every slab
