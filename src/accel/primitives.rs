@@ -171,6 +171,30 @@ impl GroupRay {
     /// `U + V + W`.
     #[inline(always)]
     pub fn hits(&self, group: &TriangleGroup, lanes: u32, t_max: f32) -> (u32, Vec4, [Vec4; 3]) {
+        self.hits_with::<false>(group, lanes, t_max)
+    }
+
+    /// [`Self::hits`] for a group where some lane's edge function came out exactly zero: the
+    /// whole test again, those lanes' edge functions redone in f64. Out of line, so that the
+    /// common path keeps no sheared coordinates around for it.
+    #[cold]
+    #[inline(never)]
+    fn hits_on_edges(
+        &self,
+        group: &TriangleGroup,
+        lanes: u32,
+        t_max: f32,
+    ) -> (u32, Vec4, [Vec4; 3]) {
+        self.hits_with::<true>(group, lanes, t_max)
+    }
+
+    #[inline(always)]
+    fn hits_with<const ON_EDGES: bool>(
+        &self,
+        group: &TriangleGroup,
+        lanes: u32,
+        t_max: f32,
+    ) -> (u32, Vec4, [Vec4; 3]) {
         let [kx, ky, kz] = self.axes;
         let [origin_x, origin_y, origin_z] = self.origin;
         let [shear_x, shear_y, shear_z] = self.shear;
@@ -190,6 +214,9 @@ impl GroupRay {
         let mut w = x1 * y0 - y1 * x0;
         let zero = Vec4::ZERO;
         let mut on_edge = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & lanes;
+        if !ON_EDGES && on_edge != 0 {
+            return self.hits_on_edges(group, lanes, t_max);
+        }
         while on_edge != 0 {
             let lane = on_edge.trailing_zeros() as usize;
             on_edge &= on_edge - 1;

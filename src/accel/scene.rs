@@ -145,11 +145,19 @@ impl SceneBvh {
         if let [placement] = self.placements.as_slice() {
             // A single placement needs no top level: its box test culls no more than the
             // geometry's own root node does.
-            let mut object = placement.object_ray(&world)?;
-            let (primitive_slot, bary) = placement.geometry.closest_slot(&mut object)?;
+            // Without a transform the world ray is the object ray (no copy).
+            let mut transformed;
+            let object = match placement.world_to_object {
+                None => &mut world,
+                Some(_) => {
+                    transformed = placement.object_ray(&world)?;
+                    &mut transformed
+                }
+            };
+            let (primitive_slot, bary) = placement.geometry.closest_slot(object)?;
             let hit = placement
                 .geometry
-                .hit_with_barycentrics(primitive_slot, bary, &object);
+                .hit_with_barycentrics(primitive_slot, bary, object);
             return Some(self.scene_hit(placement, hit));
         }
         traverse::<false, _>(self.top_level_nodes(), &mut world, |code, world| {
