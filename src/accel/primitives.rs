@@ -268,14 +268,13 @@ static MISSED: [Vec4; 16] = {
 
 /// Among the hit lanes (`hits`, bit per lane, not empty) the one with the smallest `t`; among
 /// lanes hit at the same `t` the last one, as when the triangles are tested one after another.
+/// Returns the lane and its `t`.
 #[inline(always)]
-pub(crate) fn closest_lane(hits: u32, t: Vec4) -> usize {
+pub(crate) fn closest_lane(hits: u32, t: Vec4) -> (usize, f32) {
     let candidates = t.max(MISSED[(hits & 15) as usize]);
-    let nearest = candidates
-        .cmpeq(Vec4::splat(candidates.min_element()))
-        .bitmask()
-        & hits;
-    (31 - nearest.leading_zeros()) as usize
+    let nearest_t = candidates.min_element();
+    let nearest = candidates.cmpeq(Vec4::splat(nearest_t)).bitmask() & hits;
+    ((31 - nearest.leading_zeros()) as usize, nearest_t)
 }
 
 /// Closest hit among a group's triangles in `lanes` (bit per lane): `(lane, t, b1, b2)`. Among
@@ -291,9 +290,9 @@ pub(crate) fn group_closest(
     if hits == 0 {
         return None;
     }
-    let lane = closest_lane(hits, t);
+    let (lane, t) = closest_lane(hits, t);
     let inv = 1.0 / determinant[lane];
-    Some((lane, t[lane], Vec2::new(v[lane] * inv, w[lane] * inv)))
+    Some((lane, t, Vec2::new(v[lane] * inv, w[lane] * inv)))
 }
 
 /// Edge functions recomputed in f64 for the rare rays that pass exactly through an edge.

@@ -79,13 +79,15 @@ struct Stack {
 /// The stack was about to overflow; the walk must be redone with a larger one.
 struct Overflow;
 
-/// A hit: its slot, and the edge functions `V`, `W` and determinant its barycentrics come from.
+/// A hit: its group and lane, and the group's edge functions `V`, `W` and determinants its
+/// barycentrics come from (lanes are picked once the walk is over).
 #[derive(Clone, Copy)]
 struct Hit {
-    slot: u32,
-    v: f32,
-    w: f32,
-    determinant: f32,
+    group: usize,
+    lane: usize,
+    v: Vec4,
+    w: Vec4,
+    determinant: Vec4,
 }
 
 /// An instruction set's box test and push.
@@ -393,25 +395,22 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
             let group = unsafe { groups.get_unchecked(group_index) };
             let (hits, t, [v, w, determinant]) = group_ray.hits(group, lanes, t_max);
             if hits != 0 {
-                if ANY_HIT {
-                    return Ok((
-                        Some(Hit {
-                            slot: 0,
-                            v: 0.0,
-                            w: 0.0,
-                            determinant: 1.0,
-                        }),
-                        t_max,
-                    ));
-                }
-                let lane = closest_lane(hits, t);
-                t_max = t[lane];
+                let (lane, t) = if ANY_HIT {
+                    (0, t_max)
+                } else {
+                    closest_lane(hits, t)
+                };
+                t_max = t;
                 found = Some(Hit {
-                    slot: (group_index * GROUP_LANES + lane) as u32,
-                    v: v[lane],
-                    w: w[lane],
-                    determinant: determinant[lane],
+                    group: group_index,
+                    lane,
+                    v,
+                    w,
+                    determinant,
                 });
+                if ANY_HIT {
+                    return Ok((found, t_max));
+                }
             }
         }
         loop {
@@ -505,10 +504,17 @@ pub(crate) unsafe fn closest_triangle_slot(
     #[cfg(not(target_arch = "x86_64"))]
     // SAFETY: the caller's promise.
     let (hit, t) = unsafe { walk_ray::<FourWide, false>(nodes, groups, ray) };
-    let hit = hit?;
+    let Hit {
+        group,
+        lane,
+        v,
+        w,
+        determinant,
+    } = hit?;
     ray.t_max = t;
-    let inv = 1.0 / hit.determinant;
-    Some((hit.slot, Vec2::new(hit.v * inv, hit.w * inv)))
+    let inv = 1.0 / determinant[lane];
+    let slot = (group * GROUP_LANES + lane) as u32;
+    Some((slot, Vec2::new(v[lane] * inv, w[lane] * inv)))
 }
 
 /// Whether any of `groups` under `nodes` is hit.
