@@ -440,12 +440,23 @@ impl GeometryBvh {
 
     /// Closest hit; shrinks `ray.t_max` to it and returns its BVH slot with, for triangles
     /// and quads, the barycentrics `(b1, b2)` of the hit (zero for other kinds).
-    #[inline]
+    #[inline(always)]
     pub(crate) fn closest_slot(&self, ray: &mut TraversalRay) -> Option<(u32, Vec2)> {
-        let mut closest = None;
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
-                return closest_triangle_slot(&self.nodes, groups, ray);
+                closest_triangle_slot(&self.nodes, groups, ray)
+            }
+            _ => self.closest_other_slot(ray),
+        }
+    }
+
+    /// [`Self::closest_slot`] for spheres, tubes and procedural primitives.
+    #[inline(never)]
+    fn closest_other_slot(&self, ray: &mut TraversalRay) -> Option<(u32, Vec2)> {
+        let mut closest = None;
+        match &self.primitives {
+            PrimitiveData::Triangles(_) | PrimitiveData::Quads(_) => {
+                unreachable!("triangle walks are taken by closest_slot")
             }
             PrimitiveData::Spheres(spheres) => {
                 traverse::<false, _>(&self.nodes, ray, |code, ray| {
