@@ -69,6 +69,24 @@ impl GeometryBvh {
     pub(crate) fn leaf_count(&self) -> usize {
         crate::accel::wide_bvh::leaf_count(&self.nodes)
     }
+
+    /// For triangles and quads: the closest hit's slot and `t` and the any-hit answer of the
+    /// single-ray walks with an inline stack of eight entries (restarting on the heap).
+    pub(crate) fn walks_with_small_stack(&self, ray: &TraversalRay) -> (Option<(u32, f32)>, bool) {
+        let (PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups)) = &self.primitives
+        else {
+            panic!("only triangle and quad BVHs have these walks");
+        };
+        // SAFETY: checked at build (`checked`).
+        unsafe { single_ray::test_paths::with_small_stack(&self.nodes, groups, ray) }
+    }
+
+    /// Closest hit's slot and `t` of the single-ray walk ([`Self::closest_slot`]).
+    pub(crate) fn closest_slot_and_t(&self, ray: &TraversalRay) -> Option<(u32, f32)> {
+        let mut ray = *ray;
+        self.closest_slot(&mut ray)
+            .map(|(slot, _)| (slot, ray.t_max))
+    }
 }
 
 impl std::fmt::Debug for GeometryBvh {

@@ -435,21 +435,22 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
 /// # Safety
 /// `codes_in_range(nodes, groups.len())` and `nodes` not empty.
 #[inline(always)]
-unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool>(
+unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
     ray: &TraversalRay,
 ) -> (Option<Hit>, f32) {
+    const { assert!(INLINE >= WIDTH) };
     let box_ray = I::box_ray(ray);
     let group_ray = GroupRay::new(ray);
     let order = (7 ^ (ray.octant_inv & 7)) as usize;
-    let mut codes = [MaybeUninit::<u32>::uninit(); INLINE_STACK];
-    let mut nears = [MaybeUninit::<f32>::uninit(); INLINE_STACK];
+    let mut codes = [MaybeUninit::<u32>::uninit(); INLINE];
+    let mut nears = [MaybeUninit::<f32>::uninit(); INLINE];
     let mut stack = Stack {
         codes: codes.as_mut_ptr().cast(),
         nears: nears.as_mut_ptr().cast(),
         len: 0,
-        last_push: INLINE_STACK - WIDTH,
+        last_push: INLINE - WIDTH,
     };
     // Holds the stack once it has outgrown the inline one.
     let mut heap: (Vec<u32>, Vec<f32>);
@@ -499,11 +500,11 @@ pub(crate) unsafe fn closest_triangle_slot(
         unsafe { avx2_walks::closest(nodes, groups, ray) }
     } else {
         // SAFETY: the caller's promise.
-        unsafe { walk_ray::<FourWide, false>(nodes, groups, ray) }
+        unsafe { walk_ray::<FourWide, false, INLINE_STACK>(nodes, groups, ray) }
     };
     #[cfg(not(target_arch = "x86_64"))]
     // SAFETY: the caller's promise.
-    let (hit, t) = unsafe { walk_ray::<FourWide, false>(nodes, groups, ray) };
+    let (hit, t) = unsafe { walk_ray::<FourWide, false, INLINE_STACK>(nodes, groups, ray) };
     let Hit {
         group,
         lane,
@@ -536,7 +537,7 @@ pub(crate) unsafe fn any_triangle_hit(
         return unsafe { avx2_walks::any(nodes, groups, ray) };
     }
     // SAFETY: the caller's promise.
-    unsafe { walk_ray::<FourWide, true>(nodes, groups, ray) }
+    unsafe { walk_ray::<FourWide, true, INLINE_STACK>(nodes, groups, ray) }
         .0
         .is_some()
 }
@@ -556,7 +557,7 @@ mod avx2_walks {
         ray: &TraversalRay,
     ) -> (Option<Hit>, f32) {
         // SAFETY: the caller's promise.
-        unsafe { walk_ray::<Avx2, false>(nodes, groups, ray) }
+        unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray) }
     }
 
     /// # Safety
@@ -568,8 +569,107 @@ mod avx2_walks {
         ray: &TraversalRay,
     ) -> bool {
         // SAFETY: the caller's promise.
-        unsafe { walk_ray::<Avx2, true>(nodes, groups, ray) }
+        unsafe { walk_ray::<Avx2, true, INLINE_STACK>(nodes, groups, ray) }
             .0
             .is_some()
+    }
+}
+
+/// Test hooks: the box test of every path this CPU has, and the walks with a small inline
+/// stack (so that they restart on the heap).
+#[cfg(test)]
+pub(crate) mod test_paths {
+    use super::*;
+
+    /// The single-ray box test of each path for `ray` (its octant's code), as
+    /// `(mask, entry distances)`.
+    pub(crate) fn child_hits(node: &WideNode, ray: &TraversalRay) -> Vec<(u32, [f32; WIDTH])> {
+        macro_rules! octants {
+            ($($order:literal)*) => {
+                match (7 ^ (ray.octant_inv & 7)) as usize {
+                    $($order => of_order::<$order>(node, ray),)*
+                    _ => unreachable!(),
+                }
+            };
+        }
+        octants!(0 1 2 3 4 5 6 7)
+    }
+
+    fn of_order<const ORDER: usize>(
+        node: &WideNode,
+        ray: &TraversalRay,
+    ) -> Vec<(u32, [f32; WIDTH])> {
+        let mut paths = vec![FourWide::child_hits::<ORDER>(
+            node,
+            &FourWide::box_ray(ray),
+            ray.t_max,
+        )];
+        #[cfg(target_arch = "x86_64")]
+        if crate::isa::Isa::Avx2.supported() {
+            let (mask, near) = Avx2::child_hits::<ORDER>(node, &Avx2::box_ray(ray), ray.t_max);
+            let mut nears = [0.0f32; WIDTH];
+            // SAFETY: `nears` holds eight floats.
+            unsafe { std::arch::x86_64::_mm256_storeu_ps(nears.as_mut_ptr(), near) };
+            paths.push((mask, nears));
+        }
+        paths
+    }
+
+    /// Closest hit and any-hit answer of the selected path's walk with an inline stack of
+    /// eight entries.
+    ///
+    /// # Safety
+    /// `codes_in_range(nodes, groups.len())`.
+    pub(crate) unsafe fn with_small_stack(
+        nodes: &[WideNode],
+        groups: &[TriangleGroup],
+        ray: &TraversalRay,
+    ) -> (Option<(u32, f32)>, bool) {
+        if nodes.is_empty() {
+            return (None, false);
+        }
+        let slot = |(hit, t): (Option<Hit>, f32)| {
+            hit.map(|hit| ((hit.group * GROUP_LANES + hit.lane) as u32, t))
+        };
+        // SAFETY: the caller's promise (AVX2 only where the CPU has it).
+        unsafe {
+            #[cfg(target_arch = "x86_64")]
+            if crate::isa::avx2_selected() {
+                return (
+                    slot(walk_ray::<Avx2, false, WIDTH>(nodes, groups, ray)),
+                    walk_ray::<Avx2, true, WIDTH>(nodes, groups, ray)
+                        .0
+                        .is_some(),
+                );
+            }
+            (
+                slot(walk_ray::<FourWide, false, WIDTH>(nodes, groups, ray)),
+                walk_ray::<FourWide, true, WIDTH>(nodes, groups, ray)
+                    .0
+                    .is_some(),
+            )
+        }
+    }
+
+    #[test]
+    fn the_visit_table_lists_hit_children_in_the_walks_order() {
+        use crate::accel::wide_bvh::ORDER;
+        for order in 0..8 {
+            for mask in 1..256usize {
+                // The reference: positions of the ordered mask, nearest first, as slots.
+                let ordered = u32::from(ORDER[order][mask]);
+                let slots: Vec<u32> = (0..8)
+                    .filter(|i| ordered & (1 << i) != 0)
+                    .map(|i| i ^ order as u32)
+                    .collect();
+                let entry = VISIT[order][mask];
+                assert_eq!(entry & 7, slots[0], "order {order} mask {mask:#b}");
+                let others = (entry >> OTHERS_SHIFT) as usize;
+                assert_eq!(others, slots.len() - 1, "order {order} mask {mask:#b}");
+                let pushed: Vec<u32> = (0..others).map(|k| (entry >> (3 + 3 * k)) & 7).collect();
+                let farthest_first: Vec<u32> = slots[1..].iter().rev().copied().collect();
+                assert_eq!(pushed, farthest_first, "order {order} mask {mask:#b}");
+            }
+        }
     }
 }

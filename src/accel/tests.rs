@@ -1569,10 +1569,37 @@ fn every_box_test_path_matches_the_scalar_reference() {
                 });
             }
             mismatches += paths.into_iter().filter(|path| !same(*path)).count();
+            // The single-ray walks' tests (`(origin - plane) * -inverse`, per octant).
+            mismatches += crate::accel::single_ray::test_paths::child_hits(node, &prepared)
+                .into_iter()
+                .filter(|path| !same(*path))
+                .count();
         }
     }
     assert!(hits > 1000, "{hits}");
     assert_eq!(mismatches, 0);
+}
+
+#[test]
+fn single_ray_walks_restart_with_a_larger_stack_and_find_the_same_hits() {
+    // Eight inline entries overflow on most rays through a few thousand triangles; the walks
+    // then restart on the heap and must still give the answers of the inline-stack walk.
+    let mut rng = Rng::new(23);
+    let geometries = [
+        GeometryBvh::build(random_triangles(&mut rng, 3000, 6.0, 1.5)),
+        GeometryBvh::build(random_quads(&mut rng, 1500, 6.0, 1.5)),
+    ];
+    let mut hits = 0;
+    for geometry in &geometries {
+        for test_ray in random_rays(&mut rng, 2000, 6.0) {
+            let ray = traversal_ray(&test_ray);
+            let (closest, any) = geometry.walks_with_small_stack(&ray);
+            assert_eq!(closest, geometry.closest_slot_and_t(&ray), "{test_ray:?}");
+            assert_eq!(any, geometry.occluded(&test_ray), "{test_ray:?}");
+            hits += usize::from(closest.is_some());
+        }
+    }
+    assert!(hits > 1000, "{hits}");
 }
 
 #[test]
