@@ -23,7 +23,7 @@
 //! the instruction's memory operand.
 
 use crate::accel::primitives::{GROUP_LANES, GroupRay, TriangleGroup, closest_lane};
-use crate::accel::wide_bvh::{LEAF_BIT, SLAB_ERROR, TraversalRay, WIDTH, WideNode, group_leaf};
+use crate::accel::wide_bvh::{LEAF_BIT, TraversalRay, WIDTH, WideNode, group_leaf, widened};
 use glam::{Vec2, Vec4};
 use std::mem::MaybeUninit;
 
@@ -156,7 +156,6 @@ impl Lanes for FourWide {
     ) -> (u32, [f32; WIDTH]) {
         let mut nears = [0.0f32; WIDTH];
         let mut mask = 0;
-        let error = Vec4::splat(SLAB_ERROR);
         for half in 0..2 {
             let lanes = 4 * half..4 * half + 4;
             let distances = |axis: usize| {
@@ -174,9 +173,8 @@ impl Lanes for FourWide {
             let (near_z, far_z) = distances(2);
             let near = near_x.max(near_y).max(near_z.max(ray.t_min));
             let far = far_x.min(far_y).min(far_z.min(Vec4::splat(t_max)));
-            let near = near - near.abs() * error;
-            let far = far + far.abs() * error;
-            mask |= near.cmple(far).bitmask() << (4 * half);
+            let (near, hit) = widened(near, far);
+            mask |= hit << (4 * half);
             near.write_to_slice(&mut nears[lanes]);
         }
         (mask, nears)

@@ -1018,13 +1018,21 @@ pub(crate) fn child_hits_four_wide(
             near = near.max((entry - origin) * inv);
             far = far.min((exit - origin) * inv);
         }
-        let error = Vec4::splat(SLAB_ERROR);
-        let near = near - near.abs() * error;
-        let far = far + far.abs() * error;
-        mask |= near.cmple(far).bitmask() << (4 * half);
+        let (near, hit) = widened(near, far);
+        mask |= hit << (4 * half);
         near.write_to_slice(&mut nears[lanes]);
     }
     (mask, nears)
+}
+
+/// Four children's entry and exit distances widened by [`SLAB_ERROR`] of their magnitude: the
+/// widened entries, and which children are hit (bit per lane).
+#[inline(always)]
+pub(crate) fn widened(near: Vec4, far: Vec4) -> (Vec4, u32) {
+    let error = Vec4::splat(SLAB_ERROR);
+    let near = near - near.abs() * error;
+    let far = far + far.abs() * error;
+    (near, near.cmple(far).bitmask())
 }
 
 /// Reference box test, one child at a time, in the same operations.
@@ -1154,8 +1162,8 @@ fn spill_push<T>(spill: &mut Vec<T>, entry: T) {
     spill.push(entry);
 }
 
-/// A box test of a node's eight children (see [`child_hits`]); the walk is generic over it so
-/// that each instruction-set path compiles the whole walk with its test inlined.
+/// A box test of a node's eight children (see [`child_hits`]) for [`traverse_with`]. (Triangle
+/// and quad BVHs take the walks of `single_ray`, compiled per instruction set.)
 pub(crate) trait BoxTest {
     fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]);
 }
@@ -1188,8 +1196,6 @@ where
 }
 
 /// What [`traverse_with`] calls for a leaf: `test(leaf_code, ray)` as `traverse`'s callback.
-/// A type of its own (rather than a closure) gets its test inlined into walks compiled for
-/// another instruction set.
 pub(crate) trait LeafTest {
     fn test(&mut self, code: u32, ray: &mut TraversalRay) -> bool;
 }
