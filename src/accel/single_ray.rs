@@ -440,7 +440,11 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
 ) -> (Option<Hit>, f32) {
     const { assert!(INLINE >= WIDTH) };
     let box_ray = I::box_ray(ray);
+    // Kept in memory (opaque to the optimiser): the leaf test then reads its values as memory
+    // operands, where otherwise copies of them were spilled for the whole walk (13 fewer
+    // instructions per ray at 968 triangles).
     let group_ray = GroupRay::new(ray);
+    let group_ray: &GroupRay = std::hint::black_box(&group_ray);
     let order = (7 ^ (ray.octant_inv & 7)) as usize;
     let mut codes = [MaybeUninit::<u32>::uninit(); INLINE];
     let mut nears = [MaybeUninit::<f32>::uninit(); INLINE];
@@ -457,7 +461,7 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
             ($($order:literal)*) => {
                 match order {
                     $($order => unsafe {
-                        walk::<I, $order, ANY_HIT>(nodes, groups, &box_ray, &group_ray, ray.t_max, &mut stack)
+                        walk::<I, $order, ANY_HIT>(nodes, groups, &box_ray, group_ray, ray.t_max, &mut stack)
                     },)*
                     _ => unreachable!(),
                 }
