@@ -1,8 +1,7 @@
 //! Bottom-level BVH: one wide BVH over the primitives of one geometry.
 
 use crate::accel::packet::{
-    FRUSTUM_RAYS, FrustumPacket, LANES, RayPacket, traverse_frustum, traverse_packet,
-    triangle_packet,
+    FRUSTUM_RAYS, FrustumPacket, LANES, RayPacket, group_packet, traverse_frustum, traverse_packet,
 };
 use crate::accel::primitives::{
     GROUP_LANES, PackedSphere, PackedTriangle, TriangleGroup, group_any, group_closest,
@@ -592,7 +591,7 @@ impl GeometryBvh {
                 let (group_index, leaf_lanes) = group_leaf(code);
                 let group = &groups[group_index];
                 let base = group_index as u32 * GROUP_LANES as u32;
-                let mut triangles = leaf_lanes;
+                let triangles = leaf_lanes;
                 if lanes.count_ones() < triangles.count_ones() {
                     // Fewer rays than triangles: each ray takes the whole group in one pass
                     // (lanes = triangles), the single-ray test with the same hits.
@@ -609,16 +608,19 @@ impl GeometryBvh {
                     }
                     return;
                 }
-                while triangles != 0 {
-                    let triangle_lane = triangles.trailing_zeros() as usize;
-                    triangles &= triangles - 1;
-                    let slot = base + triangle_lane as u32;
-                    let mut hits = triangle_packet(group, triangle_lane, packet, lanes);
-                    while hits != 0 {
-                        closest[hits.trailing_zeros() as usize] = Some(slot);
-                        hits &= hits - 1;
-                    }
-                }
+                group_packet(
+                    group,
+                    triangles,
+                    packet,
+                    lanes,
+                    |triangle_lane, mut hits| {
+                        let slot = base + triangle_lane as u32;
+                        while hits != 0 {
+                            closest[hits.trailing_zeros() as usize] = Some(slot);
+                            hits &= hits - 1;
+                        }
+                    },
+                );
             }
             PrimitiveData::Spheres(spheres) => {
                 for slot in first..first + count {

@@ -439,24 +439,53 @@ fn walk_lane<F>(
     }
 }
 
-/// Watertight test of the triangle in lane `triangle` of `group` against the `lanes` of a
-/// packet; lanes that hit get their `t_max` shrunk and their bit set in the returned mask.
-/// Each coordinate is broadcast straight from the group (no gather into a triangle first).
+/// A triangle group's vertex coordinates in a packet's sheared axis order (`kx`, `ky`, `kz`):
+/// `coordinates[vertex][axis]`, one lane per triangle, loaded once per (packet, leaf).
+#[derive(Clone, Copy)]
+pub(crate) struct PermutedGroup {
+    coordinates: [[Vec4; 3]; 3],
+}
+
+impl PermutedGroup {
+    #[inline(always)]
+    pub fn new(group: &TriangleGroup, packet: &RayPacket) -> PermutedGroup {
+        let [kx, ky, kz] = packet.shear_axes;
+        PermutedGroup {
+            coordinates: group
+                .vertices
+                .map(|vertex| [vertex[kx], vertex[ky], vertex[kz]]),
+        }
+    }
+}
+
+/// Lane `L` of `values` in every lane (a constant shuffle, no load).
 #[inline(always)]
-pub(crate) fn triangle_packet(
+fn broadcast<const L: usize>(values: Vec4) -> Vec4 {
+    match L {
+        0 => Vec4::splat(values.x),
+        1 => Vec4::splat(values.y),
+        2 => Vec4::splat(values.z),
+        _ => Vec4::splat(values.w),
+    }
+}
+
+/// Watertight test of the triangle in lane `L` of `group` (`permuted`: its coordinates for
+/// this packet) against the `lanes` of a packet; lanes that hit get their `t_max` shrunk and
+/// their bit set in the returned mask. Lane by lane the single-ray test's arithmetic.
+#[inline(always)]
+pub(crate) fn triangle_packet<const L: usize>(
     group: &TriangleGroup,
-    triangle: usize,
+    permuted: &PermutedGroup,
     packet: &mut RayPacket,
     lanes: u32,
 ) -> u32 {
-    let [kx, ky, kz] = packet.shear_axes;
     let [shear_x, shear_y, shear_z] = packet.shear;
     let [origin_x, origin_y, origin_z] = packet.permuted_origin;
     let vertex = |i: usize| {
-        let coordinate = |axis: usize| Vec4::splat(group.vertices[i][axis][triangle]);
-        let z = coordinate(kz) - origin_z;
-        let x = (coordinate(kx) - origin_x) - shear_x * z;
-        let y = (coordinate(ky) - origin_y) - shear_y * z;
+        let [px, py, pz] = permuted.coordinates[i];
+        let z = broadcast::<L>(pz) - origin_z;
+        let x = (broadcast::<L>(px) - origin_x) - shear_x * z;
+        let y = (broadcast::<L>(py) - origin_y) - shear_y * z;
         (x, y, z)
     };
     let (x0, y0, z0) = vertex(0);
@@ -468,19 +497,23 @@ pub(crate) fn triangle_packet(
     let w = x1 * y0 - y1 * x0;
     let zero = Vec4::ZERO;
     let on_edge = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & lanes;
-    let negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
-    let positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
-    let inside = !(negative & positive);
-    let determinant = u + v + w;
-    let candidates = inside & determinant.cmpne(zero);
+    // Off the edges (u, v, w all nonzero) the single-ray test's "no two signs differ and the
+    // determinant is nonzero" is "u, v and w have one sign bit": a sum of nonzero values of
+    // one sign is never zero. (A NaN lane fails the `t` comparisons either way.)
+    let (sign_u, sign_v, sign_w) = (
+        u.is_negative_bitmask(),
+        v.is_negative_bitmask(),
+        w.is_negative_bitmask(),
+    );
+    let candidates = !((sign_u ^ sign_v) | (sign_u ^ sign_w)) & lanes & !on_edge;
+    let mut hits = 0;
     // Most groups miss most triangles of a leaf they reach: skip the division for them.
-    let mut hits = if candidates.bitmask() & lanes & !on_edge == 0 {
-        0
-    } else {
+    if candidates != 0 {
+        let determinant = u + v + w;
         let scaled_t = u * (z0 * shear_z) + v * (z1 * shear_z) + w * (z2 * shear_z);
         let t = scaled_t / determinant;
-        let accepted: BVec4A = candidates & t.cmpge(packet.t_min) & t.cmple(packet.t_max);
-        let hits = accepted.bitmask() & lanes & !on_edge;
+        let accepted = t.cmpge(packet.t_min) & t.cmple(packet.t_max);
+        hits = accepted.bitmask() & candidates;
         if hits != 0 {
             let hit = lane_mask(hits);
             packet.t_max = Vec4::select(hit, t, packet.t_max);
@@ -488,26 +521,66 @@ pub(crate) fn triangle_packet(
             let inv = Vec4::ONE / determinant;
             packet.hit_uv[0] = Vec4::select(hit, v * inv, packet.hit_uv[0]);
             packet.hit_uv[1] = Vec4::select(hit, w * inv, packet.hit_uv[1]);
-            let normal = group.triangle(triangle).normal();
+            let normal = group.triangle(L).normal();
             for axis in 0..3 {
                 packet.hit_normal[axis] =
                     Vec4::select(hit, Vec4::splat(normal[axis]), packet.hit_normal[axis]);
             }
         }
-        hits
-    };
-    // Rays through an edge or vertex take the single-ray path with its f64 edge functions.
+    }
+    if on_edge != 0 {
+        hits |= triangle_on_edges(group, L, packet, on_edge);
+    }
+    hits
+}
+
+/// Rays through an edge or vertex of the triangle in lane `triangle` take the single-ray path
+/// with its f64 edge functions; returns the lanes among `on_edge` that hit.
+#[cold]
+#[inline(never)]
+fn triangle_on_edges(
+    group: &TriangleGroup,
+    triangle: usize,
+    packet: &mut RayPacket,
+    on_edge: u32,
+) -> u32 {
+    let triangle = group.triangle(triangle);
+    let mut hits = 0;
     let mut remaining = on_edge;
     while remaining != 0 {
         let lane = remaining.trailing_zeros() as usize;
         remaining &= remaining - 1;
-        let triangle = group.triangle(triangle);
         if let Some((t, uv)) = triangle_t_uv(&triangle, &packet.ray(lane)) {
             packet.record_hit(lane, t, uv, triangle.normal());
             hits |= 1 << lane;
         }
     }
     hits
+}
+
+/// Tests the triangles of `group` in `triangles` (bit per lane), in lane order, against the
+/// `lanes` of a packet, calling `hit(lane, rays)` with the rays that hit each.
+#[inline(always)]
+pub(crate) fn group_packet(
+    group: &TriangleGroup,
+    triangles: u32,
+    packet: &mut RayPacket,
+    lanes: u32,
+    mut hit: impl FnMut(usize, u32),
+) {
+    let permuted = PermutedGroup::new(group, packet);
+    if triangles & 1 != 0 {
+        hit(0, triangle_packet::<0>(group, &permuted, packet, lanes));
+    }
+    if triangles & 2 != 0 {
+        hit(1, triangle_packet::<1>(group, &permuted, packet, lanes));
+    }
+    if triangles & 4 != 0 {
+        hit(2, triangle_packet::<2>(group, &permuted, packet, lanes));
+    }
+    if triangles & 8 != 0 {
+        hit(3, triangle_packet::<3>(group, &permuted, packet, lanes));
+    }
 }
 
 /// Most rays in a frustum packet (an 8x8 block of primary rays).
