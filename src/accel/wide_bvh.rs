@@ -254,7 +254,11 @@ pub(crate) fn leaf_count(nodes: &[WideNode]) -> usize {
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub(crate) enum LeafSizing {
     /// Subtrees of up to four primitives stay one leaf: for cheap primitive tests
-    /// (triangles, tested four at a time), fewer box tests win.
+    /// (triangles, tested four at a time), fewer box tests win. With
+    /// [`LeafAlignment::Group`] spare slots still split them: the node's leaves share their
+    /// groups, so a split costs no memory, and a packet's group of rays then tests only the
+    /// triangles under the smaller boxes it reaches (frustum packets 5 % faster at 968 and
+    /// 100k triangles, single rays unchanged).
     Whole,
     /// Spare slots split small subtrees into smaller leaves: for costly primitive tests
     /// (spheres and tubes in f64, instances), tighter boxes win.
@@ -708,13 +712,13 @@ fn wide_children(
     children.push(second);
     loop {
         // Open the largest subtree too large for a leaf; with spare slots and
-        // `LeafSizing::Split`, then the largest one that fits a leaf.
+        // `LeafSizing::Split` or `LeafAlignment::Group`, then the largest one that fits a leaf.
         let mut best: Option<(usize, bool, f32)> = None;
         for (position, child) in children.as_slice().iter().enumerate() {
             let must_open = child.leaf_count.is_none();
             if binary[child.index as usize].is_leaf()
                 || child.partners.len > 0
-                || (!must_open && sizing == LeafSizing::Whole)
+                || (!must_open && sizing == LeafSizing::Whole && alignment != LeafAlignment::Group)
             {
                 continue;
             }
