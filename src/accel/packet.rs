@@ -1000,7 +1000,7 @@ fn frustum_child_hits<const SPREAD: bool>(
         let plane = |row: usize| Vec4::from_slice(&node.planes[row][lanes.clone()]);
         let entry = rows.entry.map(plane);
         let exit = rows.exit.map(plane);
-        let reached = frustum_box_hits(
+        let reached = frustum_box_hits::<SPREAD>(
             &entry,
             &exit,
             bounds,
@@ -1016,7 +1016,7 @@ fn frustum_child_hits<const SPREAD: bool>(
 /// [`frustum_child_hits`] for four boxes given by their entry and exit planes per axis, with
 /// `widening` for the spread of the origins (zero when they all start at the centre).
 #[inline(always)]
-fn frustum_box_hits(
+fn frustum_box_hits<const SPREAD: bool>(
     entry: &[Vec4; 3],
     exit: &[Vec4; 3],
     bounds: &RayBounds,
@@ -1039,9 +1039,18 @@ fn frustum_box_hits(
         let exit = exit[axis] - origin;
         let (entry_low, entry_high) = (entry * inv_low, entry * inv_high);
         let (exit_low, exit_high) = (exit * inv_low, exit * inv_high);
-        let entry_margin =
-            (entry_low.abs().max(entry_high.abs()) + widening) * twice_error + widening;
-        let exit_margin = (exit_low.abs().max(exit_high.abs()) + widening) * twice_error + widening;
+        let (entry_margin, exit_margin) = if SPREAD {
+            (
+                (entry_low.abs().max(entry_high.abs()) + widening) * twice_error + widening,
+                (exit_low.abs().max(exit_high.abs()) + widening) * twice_error + widening,
+            )
+        } else {
+            // The same values with a zero widening, without adding it.
+            (
+                entry_low.abs().max(entry_high.abs()) * twice_error,
+                exit_low.abs().max(exit_high.abs()) * twice_error,
+            )
+        };
         near = near.max(entry_low.min(entry_high) - entry_margin);
         far = far.min(exit_low.max(exit_high) + exit_margin);
     }
