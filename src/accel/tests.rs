@@ -2778,6 +2778,61 @@ fn the_avx2_box_test_finds_the_hits_of_the_baseline() {
     }
 }
 
+#[test]
+fn frustum_packets_find_the_same_hits_on_every_path() {
+    use crate::accel::isa::{self, Isa};
+    if !Isa::Avx2.supported() {
+        eprintln!("this CPU has no AVX2 and FMA: only the baseline path exists here");
+        return;
+    }
+    // A height field (leaves of one or two quads, split into spare slots) and random
+    // triangles, seen by pinhole tiles from several sides.
+    let mut rng = Rng::new(23);
+    let grid_views = [
+        (vec3(-10.0, -8.0, 15.0), vec3(24.0, 24.0, 0.0)),
+        (vec3(30.0, 20.0, 20.0), vec3(20.0, 25.0, 0.0)),
+        (vec3(24.0, 23.0, 40.0), vec3(24.0, 24.0, 0.0)),
+    ];
+    let random_views = [
+        (vec3(-9.0, -7.0, 6.0), Vec3::ZERO),
+        (vec3(2.0, 3.0, 12.0), vec3(0.5, -0.5, 0.0)),
+        (vec3(8.0, -0.5, 1.0), vec3(-1.0, 0.5, 0.0)),
+    ];
+    let geometries = [
+        (GeometryBvh::build(bumpy_grid(48).1), grid_views),
+        (
+            GeometryBvh::build(random_triangles(&mut rng, 3000, 6.0, 0.8)),
+            random_views,
+        ),
+    ];
+    for (bvh, views) in &geometries {
+        for &(eye, target) in views {
+            let rays = camera_tiles(&mut rng, eye, target, 64);
+            let trace = |isa: Isa| {
+                assert_eq!(isa::select(isa), isa);
+                let mut hits = vec![None; rays.len()];
+                bvh.intersect_packet(&rays, &mut hits);
+                hits
+            };
+            let baseline = trace(Isa::Baseline);
+            let avx2 = trace(Isa::Avx2);
+            isa::select(Isa::from_environment());
+            let hit_count = baseline.iter().flatten().count();
+            assert!(hit_count > rays.len() / 4, "{hit_count} hits from {eye}");
+            for (i, (a, b)) in baseline.iter().zip(&avx2).enumerate() {
+                // Bit for bit: t, ids, barycentrics and normals.
+                assert_eq!(format!("{a:?}"), format!("{b:?}"), "ray {i}: {:?}", rays[i]);
+                assert_eq!(
+                    a.map(|hit| hit.t),
+                    bvh.intersect(&rays[i]).map(|hit| hit.t),
+                    "ray {i}: {:?}",
+                    rays[i]
+                );
+            }
+        }
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // Watertightness of closed meshes
 
