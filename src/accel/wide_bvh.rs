@@ -6,8 +6,9 @@
 //! plane of all children with nothing to decode. Children are placed in slots so that a ray
 //! visits them nearest-first by taking slot `i ^ octant` for `i = 0..8`, where `octant` has a
 //! bit set for each negative direction component. Leaves hold at most four primitives; with
-//! [`LeafAlignment::Group`] every leaf starts its own group of four slots, so that a triangle
-//! leaf is one SIMD group (see `primitives::TriangleGroup`).
+//! [`LeafAlignment::Group`] a leaf is a run of lanes within one group of four slots, the
+//! leaves of a node sharing groups (so spare child slots split them at no memory cost), and a
+//! triangle leaf is tested as one SIMD group (see `primitives::TriangleGroup`).
 //!
 //! The box test computes each slab distance as `(plane - origin) * inverse_direction`: two
 //! roundings of a value, so its relative error is bounded (three half-ulps with the rounded
