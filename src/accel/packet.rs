@@ -439,24 +439,53 @@ fn walk_lane<F>(
     }
 }
 
-/// Watertight test of the triangle in lane `triangle` of `group` against the `lanes` of a
-/// packet; lanes that hit get their `t_max` shrunk and their bit set in the returned mask.
-/// Each coordinate is broadcast straight from the group (no gather into a triangle first).
+/// A triangle group's vertex coordinates in a packet's sheared axis order (`kx`, `ky`, `kz`):
+/// `coordinates[vertex][axis]`, one lane per triangle, loaded once per (packet, leaf).
+#[derive(Clone, Copy)]
+pub(crate) struct PermutedGroup {
+    coordinates: [[Vec4; 3]; 3],
+}
+
+impl PermutedGroup {
+    #[inline(always)]
+    pub fn new(group: &TriangleGroup, packet: &RayPacket) -> PermutedGroup {
+        let [kx, ky, kz] = packet.shear_axes;
+        PermutedGroup {
+            coordinates: group
+                .vertices
+                .map(|vertex| [vertex[kx], vertex[ky], vertex[kz]]),
+        }
+    }
+}
+
+/// Lane `L` of `values` in every lane (a constant shuffle, no load).
 #[inline(always)]
-pub(crate) fn triangle_packet(
+fn broadcast<const L: usize>(values: Vec4) -> Vec4 {
+    match L {
+        0 => Vec4::splat(values.x),
+        1 => Vec4::splat(values.y),
+        2 => Vec4::splat(values.z),
+        _ => Vec4::splat(values.w),
+    }
+}
+
+/// Watertight test of the triangle in lane `L` of `group` (`permuted`: its coordinates for
+/// this packet) against the `lanes` of a packet; lanes that hit get their `t_max` shrunk and
+/// their bit set in the returned mask. Lane by lane the single-ray test's arithmetic.
+#[inline(always)]
+pub(crate) fn triangle_packet<const L: usize>(
     group: &TriangleGroup,
-    triangle: usize,
+    permuted: &PermutedGroup,
     packet: &mut RayPacket,
     lanes: u32,
 ) -> u32 {
-    let [kx, ky, kz] = packet.shear_axes;
     let [shear_x, shear_y, shear_z] = packet.shear;
     let [origin_x, origin_y, origin_z] = packet.permuted_origin;
     let vertex = |i: usize| {
-        let coordinate = |axis: usize| Vec4::splat(group.vertices[i][axis][triangle]);
-        let z = coordinate(kz) - origin_z;
-        let x = (coordinate(kx) - origin_x) - shear_x * z;
-        let y = (coordinate(ky) - origin_y) - shear_y * z;
+        let [px, py, pz] = permuted.coordinates[i];
+        let z = broadcast::<L>(pz) - origin_z;
+        let x = (broadcast::<L>(px) - origin_x) - shear_x * z;
+        let y = (broadcast::<L>(py) - origin_y) - shear_y * z;
         (x, y, z)
     };
     let (x0, y0, z0) = vertex(0);
@@ -468,19 +497,23 @@ pub(crate) fn triangle_packet(
     let w = x1 * y0 - y1 * x0;
     let zero = Vec4::ZERO;
     let on_edge = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & lanes;
-    let negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
-    let positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
-    let inside = !(negative & positive);
-    let determinant = u + v + w;
-    let candidates = inside & determinant.cmpne(zero);
+    // Off the edges (u, v, w all nonzero) the single-ray test's "no two signs differ and the
+    // determinant is nonzero" is "u, v and w have one sign bit": a sum of nonzero values of
+    // one sign is never zero. (A NaN lane fails the `t` comparisons either way.)
+    let (sign_u, sign_v, sign_w) = (
+        u.is_negative_bitmask(),
+        v.is_negative_bitmask(),
+        w.is_negative_bitmask(),
+    );
+    let candidates = !((sign_u ^ sign_v) | (sign_u ^ sign_w)) & lanes & !on_edge;
+    let mut hits = 0;
     // Most groups miss most triangles of a leaf they reach: skip the division for them.
-    let mut hits = if candidates.bitmask() & lanes & !on_edge == 0 {
-        0
-    } else {
+    if candidates != 0 {
+        let determinant = u + v + w;
         let scaled_t = u * (z0 * shear_z) + v * (z1 * shear_z) + w * (z2 * shear_z);
         let t = scaled_t / determinant;
-        let accepted: BVec4A = candidates & t.cmpge(packet.t_min) & t.cmple(packet.t_max);
-        let hits = accepted.bitmask() & lanes & !on_edge;
+        let accepted = t.cmpge(packet.t_min) & t.cmple(packet.t_max);
+        hits = accepted.bitmask() & candidates;
         if hits != 0 {
             let hit = lane_mask(hits);
             packet.t_max = Vec4::select(hit, t, packet.t_max);
@@ -488,26 +521,66 @@ pub(crate) fn triangle_packet(
             let inv = Vec4::ONE / determinant;
             packet.hit_uv[0] = Vec4::select(hit, v * inv, packet.hit_uv[0]);
             packet.hit_uv[1] = Vec4::select(hit, w * inv, packet.hit_uv[1]);
-            let normal = group.triangle(triangle).normal();
+            let normal = group.triangle(L).normal();
             for axis in 0..3 {
                 packet.hit_normal[axis] =
                     Vec4::select(hit, Vec4::splat(normal[axis]), packet.hit_normal[axis]);
             }
         }
-        hits
-    };
-    // Rays through an edge or vertex take the single-ray path with its f64 edge functions.
+    }
+    if on_edge != 0 {
+        hits |= triangle_on_edges(group, L, packet, on_edge);
+    }
+    hits
+}
+
+/// Rays through an edge or vertex of the triangle in lane `triangle` take the single-ray path
+/// with its f64 edge functions; returns the lanes among `on_edge` that hit.
+#[cold]
+#[inline(never)]
+fn triangle_on_edges(
+    group: &TriangleGroup,
+    triangle: usize,
+    packet: &mut RayPacket,
+    on_edge: u32,
+) -> u32 {
+    let triangle = group.triangle(triangle);
+    let mut hits = 0;
     let mut remaining = on_edge;
     while remaining != 0 {
         let lane = remaining.trailing_zeros() as usize;
         remaining &= remaining - 1;
-        let triangle = group.triangle(triangle);
         if let Some((t, uv)) = triangle_t_uv(&triangle, &packet.ray(lane)) {
             packet.record_hit(lane, t, uv, triangle.normal());
             hits |= 1 << lane;
         }
     }
     hits
+}
+
+/// Tests the triangles of `group` in `triangles` (bit per lane), in lane order, against the
+/// `lanes` of a packet, calling `hit(lane, rays)` with the rays that hit each.
+#[inline(always)]
+pub(crate) fn group_packet(
+    group: &TriangleGroup,
+    triangles: u32,
+    packet: &mut RayPacket,
+    lanes: u32,
+    mut hit: impl FnMut(usize, u32),
+) {
+    let permuted = PermutedGroup::new(group, packet);
+    if triangles & 1 != 0 {
+        hit(0, triangle_packet::<0>(group, &permuted, packet, lanes));
+    }
+    if triangles & 2 != 0 {
+        hit(1, triangle_packet::<1>(group, &permuted, packet, lanes));
+    }
+    if triangles & 4 != 0 {
+        hit(2, triangle_packet::<2>(group, &permuted, packet, lanes));
+    }
+    if triangles & 8 != 0 {
+        hit(3, triangle_packet::<3>(group, &permuted, packet, lanes));
+    }
 }
 
 /// Most rays in a frustum packet (an 8x8 block of primary rays).
@@ -913,13 +986,20 @@ impl FrustumPacket {
 /// Each end is widened by twice the single-ray test's relative error of its magnitude plus
 /// the widening, and the result like the single-ray test's, so every child any of the rays
 /// reaches on its own is kept. `SPREAD` false: every ray starts at `bounds.origin_centre`.
+/// `AVX2`: all eight children in one vector, the same operations per lane (only inside an
+/// AVX2 function).
 #[inline(always)]
-fn frustum_child_hits<const SPREAD: bool>(
+fn frustum_child_hits<const SPREAD: bool, const AVX2: bool>(
     node: &WideNode,
     rows: &PlaneRows,
     bounds: &RayBounds,
     t_max_high: f32,
 ) -> u32 {
+    #[cfg(target_arch = "x86_64")]
+    if AVX2 {
+        // SAFETY: `AVX2` is set only by walks compiled for AVX2, entered only on CPUs with it.
+        return unsafe { avx2::frustum_child_hits::<SPREAD>(node, rows, bounds, t_max_high) };
+    }
     let widening = if SPREAD { bounds.widening } else { Vec3A::ZERO };
     let mut mask = 0;
     for half in 0..2 {
@@ -927,7 +1007,7 @@ fn frustum_child_hits<const SPREAD: bool>(
         let plane = |row: usize| Vec4::from_slice(&node.planes[row][lanes.clone()]);
         let entry = rows.entry.map(plane);
         let exit = rows.exit.map(plane);
-        let reached = frustum_box_hits(
+        let reached = frustum_box_hits::<SPREAD>(
             &entry,
             &exit,
             bounds,
@@ -943,7 +1023,7 @@ fn frustum_child_hits<const SPREAD: bool>(
 /// [`frustum_child_hits`] for four boxes given by their entry and exit planes per axis, with
 /// `widening` for the spread of the origins (zero when they all start at the centre).
 #[inline(always)]
-fn frustum_box_hits(
+fn frustum_box_hits<const SPREAD: bool>(
     entry: &[Vec4; 3],
     exit: &[Vec4; 3],
     bounds: &RayBounds,
@@ -966,15 +1046,104 @@ fn frustum_box_hits(
         let exit = exit[axis] - origin;
         let (entry_low, entry_high) = (entry * inv_low, entry * inv_high);
         let (exit_low, exit_high) = (exit * inv_low, exit * inv_high);
-        let entry_margin =
-            (entry_low.abs().max(entry_high.abs()) + widening) * twice_error + widening;
-        let exit_margin = (exit_low.abs().max(exit_high.abs()) + widening) * twice_error + widening;
+        let (entry_margin, exit_margin) = if SPREAD {
+            (
+                (entry_low.abs().max(entry_high.abs()) + widening) * twice_error + widening,
+                (exit_low.abs().max(exit_high.abs()) + widening) * twice_error + widening,
+            )
+        } else {
+            // The same values with a zero widening, without adding it.
+            (
+                entry_low.abs().max(entry_high.abs()) * twice_error,
+                exit_low.abs().max(exit_high.abs()) * twice_error,
+            )
+        };
         near = near.max(entry_low.min(entry_high) - entry_margin);
         far = far.min(exit_low.max(exit_high) + exit_margin);
     }
     let near = near - near.abs() * error;
     let far = far + far.abs() * error;
     near.cmple(far).bitmask()
+}
+
+/// [`frustum_child_hits`] with AVX2.
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{PlaneRows, RayBounds};
+    use crate::accel::wide_bvh::{SLAB_ERROR, WideNode};
+    use std::arch::x86_64::*;
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn abs(values: __m256) -> __m256 {
+        _mm256_andnot_ps(_mm256_set1_ps(-0.0), values)
+    }
+
+    /// The operations of `frustum_box_hits`, in the same order, on eight children.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn frustum_child_hits<const SPREAD: bool>(
+        node: &WideNode,
+        rows: &PlaneRows,
+        bounds: &RayBounds,
+        t_max_high: f32,
+    ) -> u32 {
+        let mut near = _mm256_set1_ps(bounds.t_min_low);
+        let mut far = _mm256_set1_ps(t_max_high);
+        let twice_error = _mm256_set1_ps(2.0 * SLAB_ERROR);
+        for axis in 0..3 {
+            let inv_low = _mm256_set1_ps(bounds.inv_low[axis]);
+            let inv_high = _mm256_set1_ps(bounds.inv_high[axis]);
+            let origin = _mm256_set1_ps(bounds.origin_centre[axis]);
+            // SAFETY: every plane row is eight floats, 32-byte aligned (`WideNode` is).
+            let (entry, exit) = unsafe {
+                (
+                    _mm256_load_ps(node.planes[rows.entry[axis]].as_ptr()),
+                    _mm256_load_ps(node.planes[rows.exit[axis]].as_ptr()),
+                )
+            };
+            let entry = _mm256_sub_ps(entry, origin);
+            let exit = _mm256_sub_ps(exit, origin);
+            let (entry_low, entry_high) = (
+                _mm256_mul_ps(entry, inv_low),
+                _mm256_mul_ps(entry, inv_high),
+            );
+            let (exit_low, exit_high) =
+                (_mm256_mul_ps(exit, inv_low), _mm256_mul_ps(exit, inv_high));
+            let entry_abs = _mm256_max_ps(abs(entry_low), abs(entry_high));
+            let exit_abs = _mm256_max_ps(abs(exit_low), abs(exit_high));
+            let (entry_margin, exit_margin) = if SPREAD {
+                let widening = _mm256_set1_ps(bounds.widening[axis]);
+                (
+                    _mm256_add_ps(
+                        _mm256_mul_ps(_mm256_add_ps(entry_abs, widening), twice_error),
+                        widening,
+                    ),
+                    _mm256_add_ps(
+                        _mm256_mul_ps(_mm256_add_ps(exit_abs, widening), twice_error),
+                        widening,
+                    ),
+                )
+            } else {
+                (
+                    _mm256_mul_ps(entry_abs, twice_error),
+                    _mm256_mul_ps(exit_abs, twice_error),
+                )
+            };
+            near = _mm256_max_ps(
+                near,
+                _mm256_sub_ps(_mm256_min_ps(entry_low, entry_high), entry_margin),
+            );
+            far = _mm256_min_ps(
+                far,
+                _mm256_add_ps(_mm256_max_ps(exit_low, exit_high), exit_margin),
+            );
+        }
+        let error = _mm256_set1_ps(SLAB_ERROR);
+        let near = _mm256_sub_ps(near, _mm256_mul_ps(abs(near), error));
+        let far = _mm256_add_ps(far, _mm256_mul_ps(abs(far), error));
+        _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32
+    }
 }
 
 /// Most distinct ray origins a frustum packet is split into before it is traced as one frustum
@@ -986,7 +1155,7 @@ const MAX_ORIGINS: usize = 4;
 /// with, per group, the lanes whose own box test reaches the leaf; it must shrink the `t_max`
 /// of lanes that hit. Lanes from a few distinct origins are walked one origin at a time.
 #[inline(always)]
-pub(crate) fn traverse_frustum<F, P>(
+pub(crate) fn traverse_frustum<const AVX2: bool, F, P>(
     nodes: &[WideNode],
     frustum: &mut FrustumPacket,
     active: &[u32; FRUSTUM_GROUPS],
@@ -1007,7 +1176,7 @@ pub(crate) fn traverse_frustum<F, P>(
     };
     let Some((subsets, count)) = split else {
         if frustum.whole.shared_origin() {
-            walk_frustum::<false, _, _>(
+            walk_frustum::<false, AVX2, _, _>(
                 nodes,
                 frustum,
                 active,
@@ -1017,12 +1186,19 @@ pub(crate) fn traverse_frustum<F, P>(
             );
             return;
         }
-        walk_frustum::<true, _, _>(nodes, frustum, active, None, &prefetch_leaf, &mut test_leaf);
+        walk_frustum::<true, AVX2, _, _>(
+            nodes,
+            frustum,
+            active,
+            None,
+            &prefetch_leaf,
+            &mut test_leaf,
+        );
         return;
     };
     for subset in &subsets[..count] {
         let (quadrants, whole) = frustum.bounds(subset);
-        walk_frustum::<false, _, _>(
+        walk_frustum::<false, AVX2, _, _>(
             nodes,
             frustum,
             subset,
@@ -1036,7 +1212,7 @@ pub(crate) fn traverse_frustum<F, P>(
 /// [`traverse_frustum`] with the ray bounds (per quadrant, whole) of the `active` lanes: its own,
 /// or, with `None`, the packet's (read in place: they are too large to copy per packet).
 #[inline(always)]
-fn walk_frustum<const SPREAD: bool, F, P>(
+fn walk_frustum<const SPREAD: bool, const AVX2: bool, F, P>(
     nodes: &[WideNode],
     frustum: &mut FrustumPacket,
     active: &[u32; FRUSTUM_GROUPS],
@@ -1071,7 +1247,7 @@ fn walk_frustum<const SPREAD: bool, F, P>(
         if quadrants.count_ones() > 1 {
             let whole_high = t_max_high.into_iter().fold(f32::NEG_INFINITY, f32::max);
             let whole = own_bounds.map_or(&frustum.whole, |bounds| bounds.1);
-            if frustum_child_hits::<SPREAD>(node, &rows, whole, whole_high) == 0 {
+            if frustum_child_hits::<SPREAD, AVX2>(node, &rows, whole, whole_high) == 0 {
                 continue;
             }
         }
@@ -1080,7 +1256,7 @@ fn walk_frustum<const SPREAD: bool, F, P>(
         while remaining != 0 {
             let quadrant = remaining.trailing_zeros() as usize;
             remaining &= remaining - 1;
-            let reached = frustum_child_hits::<SPREAD>(
+            let reached = frustum_child_hits::<SPREAD, AVX2>(
                 node,
                 &rows,
                 &quadrant_bounds[quadrant],

@@ -284,7 +284,7 @@ impl SceneBvh {
             visit(0, &active, frustum);
         } else {
             let no_prefetch = |_| {};
-            traverse_frustum(
+            traverse_frustum::<false, _, _>(
                 &self.nodes,
                 frustum,
                 &active,

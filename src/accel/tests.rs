@@ -2478,7 +2478,7 @@ mod packet_and_structure {
 }
 
 #[test]
-fn triangle_leaves_stay_whole_and_sphere_and_tube_leaves_split() {
+fn whole_leaves_split_only_within_shared_groups_and_sphere_and_tube_leaves_split() {
     use crate::accel::wide_bvh::{build_wide_bvh, leaf_count};
     let mut rng = Rng::new(61);
     let boxes: Vec<obvhs::aabb::Aabb> = (0..3000)
@@ -2492,12 +2492,17 @@ fn triangle_leaves_stay_whole_and_sphere_and_tube_leaves_split() {
     // Whole: leaves of up to four boxes; split: spare slots break them up.
     assert!(whole * 4 >= 3000 && whole < 1500, "{whole}");
     assert!(split > 2 * whole, "{split} vs {whole}");
+    // Whole leaves in groups of four: spare slots split them too, but the node's leaves share
+    // their groups, so the slots (groups of four, padding included) stay as few.
+    let whole_grouped = build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group);
+    let grouped_leaves = leaf_count(&whole_grouped.nodes);
+    let slots = whole_grouped.order.len();
+    assert!(grouped_leaves > 2 * whole, "{grouped_leaves} vs {whole}");
+    assert!(slots * 10 < 3000 * 13, "{slots} slots for 3000 boxes");
     // Geometries choose by the cost of their primitive test.
     let per_leaf = |bvh: &GeometryBvh| bvh.primitive_count() as f64 / bvh.leaf_count() as f64;
-    let triangles = GeometryBvh::build(random_triangles(&mut rng, 3000, 20.0, 1.0));
     let spheres = GeometryBvh::build(random_spheres(&mut rng, 3000, 20.0, 0.5));
     let tubes = random_tubes(&mut rng, 3000, 20.0, 1.0).build();
-    assert!(per_leaf(&triangles) > 2.0, "{}", per_leaf(&triangles));
     assert!(per_leaf(&spheres) < 1.3, "{}", per_leaf(&spheres));
     assert!(per_leaf(&tubes) < 1.3, "{}", per_leaf(&tubes));
 }
@@ -2797,6 +2802,61 @@ fn the_avx2_box_test_finds_the_hits_of_the_baseline() {
     for (i, (a, b)) in baseline.iter().zip(&avx2).enumerate() {
         // Bit for bit: t, ids, barycentrics and normals.
         assert_eq!(format!("{a:?}"), format!("{b:?}"), "ray {i}: {:?}", rays[i]);
+    }
+}
+
+#[test]
+fn frustum_packets_find_the_same_hits_on_every_path() {
+    use crate::accel::isa::{self, Isa};
+    if !Isa::Avx2.supported() {
+        eprintln!("this CPU has no AVX2 and FMA: only the baseline path exists here");
+        return;
+    }
+    // A height field (leaves of one or two quads, split into spare slots) and random
+    // triangles, seen by pinhole tiles from several sides.
+    let mut rng = Rng::new(23);
+    let grid_views = [
+        (vec3(-10.0, -8.0, 15.0), vec3(24.0, 24.0, 0.0)),
+        (vec3(30.0, 20.0, 20.0), vec3(20.0, 25.0, 0.0)),
+        (vec3(24.0, 23.0, 40.0), vec3(24.0, 24.0, 0.0)),
+    ];
+    let random_views = [
+        (vec3(-9.0, -7.0, 6.0), Vec3::ZERO),
+        (vec3(2.0, 3.0, 12.0), vec3(0.5, -0.5, 0.0)),
+        (vec3(8.0, -0.5, 1.0), vec3(-1.0, 0.5, 0.0)),
+    ];
+    let geometries = [
+        (GeometryBvh::build(bumpy_grid(48).1), grid_views),
+        (
+            GeometryBvh::build(random_triangles(&mut rng, 3000, 6.0, 0.8)),
+            random_views,
+        ),
+    ];
+    for (bvh, views) in &geometries {
+        for &(eye, target) in views {
+            let rays = camera_tiles(&mut rng, eye, target, 64);
+            let trace = |isa: Isa| {
+                assert_eq!(isa::select(isa), isa);
+                let mut hits = vec![None; rays.len()];
+                bvh.intersect_packet(&rays, &mut hits);
+                hits
+            };
+            let baseline = trace(Isa::Baseline);
+            let avx2 = trace(Isa::Avx2);
+            isa::select(Isa::from_environment());
+            let hit_count = baseline.iter().flatten().count();
+            assert!(hit_count > rays.len() / 4, "{hit_count} hits from {eye}");
+            for (i, (a, b)) in baseline.iter().zip(&avx2).enumerate() {
+                // Bit for bit: t, ids, barycentrics and normals.
+                assert_eq!(format!("{a:?}"), format!("{b:?}"), "ray {i}: {:?}", rays[i]);
+                assert_eq!(
+                    a.map(|hit| hit.t),
+                    bvh.intersect(&rays[i]).map(|hit| hit.t),
+                    "ray {i}: {:?}",
+                    rays[i]
+                );
+            }
+        }
     }
 }
 
