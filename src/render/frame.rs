@@ -26,7 +26,7 @@ use crate::device::frame::Frame;
 use crate::device::memory::{self, TooBig};
 use crate::device::property::PropertyValue;
 use crate::render::interleave::lattice_size;
-use crate::render::progressive::{ColorPixels, Plan, SurfaceGuide, Throughput};
+use crate::render::progressive::{ColorPixels, DeadlineControl, Plan, SurfaceGuide, Throughput};
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
 
@@ -128,6 +128,8 @@ struct Inner {
     /// Budgeted renders: how far refinement got, and how fast tracing was.
     refinement: Option<Refinement>,
     throughput: Throughput,
+    /// When timed budgeted renders stop tracing, adapted to their overruns.
+    deadline: DeadlineControl,
     /// Fraction of the pixels of the last image that were traced (not filled).
     progress: f32,
     /// Smallest and largest value of the last render's parallax channel (NaN without one or
@@ -395,6 +397,14 @@ impl FrameState {
                 inner.running = None;
             }
             inner.callback_thread = None;
+            // How late a timed render handed its image over moves the next renders' deadline.
+            if let (Some(run), Some(budget)) = (&job.budgeted, setup.budget)
+                && budget.pixels.is_none()
+                && !cancelled
+            {
+                let elapsed = run.began.elapsed().as_secs_f64();
+                inner.deadline.record(f64::from(budget.seconds), elapsed);
+            }
         }
         self.finished.notify_all();
     }
@@ -559,7 +569,7 @@ fn fill_untraced(
     for channel in channels.iter_mut() {
         if color_pixels(&channel.format).is_none() {
             let bytes = channel.format.pixel_bytes;
-            plan.fill(width, units.0, units.1, bytes, &mut channel.bytes);
+            plan.fill(width, units, bytes, &mut channel.bytes, threads);
         }
     }
     let Some(index) = channels
