@@ -10,6 +10,7 @@ mod pixel_work;
 mod records;
 mod samples;
 mod tile;
+mod workers;
 
 use std::any::Any;
 use std::collections::HashMap;
@@ -40,6 +41,7 @@ use channels::{
 pub use pixel_work::PLAIN_PER_PIXEL_PATH;
 use pixel_work::PixelWork;
 use tile::{TileScratch, render_tile};
+use workers::ActiveWorkers;
 
 /// Side of the square tiles the threads share out.
 pub const TILE_SIZE: u32 = 32;
@@ -63,6 +65,8 @@ pub struct RenderSetup {
     pub completion: Option<(ANARIFrameCompletionCallback, usize, usize, usize)>,
     /// Frame-time budget (`ANARI_CAVETRACE_FRAME_BUDGET`); `None` renders every pixel.
     pub budget: Option<Budget>,
+    /// When anariRenderFrame was called: a budget counts from here.
+    pub requested: Instant,
     /// Cluster hook: the tiles this rank traces of a frame shared out among MPI ranks.
     pub tile_split: Option<Arc<crate::render::cluster::TileSplit>>,
 }
@@ -91,7 +95,8 @@ struct Job {
     tile_count: usize,
     /// Interleaved stereo: the two eyes' pixel sets, each traced as a lattice of its own.
     interleave: Option<[PixelSet; 2]>,
-    workers_left: AtomicUsize,
+    /// Workers at work: the last to leave finishes the render.
+    active_workers: ActiveWorkers,
     /// Threads rendering this job.
     workers: usize,
     channels: Mutex<Vec<Channel>>,
@@ -242,7 +247,7 @@ impl FrameState {
             tiles_x,
             tile_count: (tiles_x * tiles_y * eyes) as usize,
             interleave,
-            workers_left: AtomicUsize::new(workers),
+            active_workers: ActiveWorkers::default(),
             workers,
             formats,
             channels: Mutex::new(channels),
@@ -262,6 +267,9 @@ impl FrameState {
 
     /// One worker's share: tiles until none are left, then the last worker finishes the frame.
     fn work(&self, job: &Job) {
+        if !job.active_workers.join() {
+            return;
+        }
         let eyes = prepare_eyes(&job.setup);
         let mut scratch = TileScratch::default();
         while !job.cancel.load(Ordering::Acquire) {
@@ -294,7 +302,7 @@ impl FrameState {
                 }
             }
         }
-        if job.workers_left.fetch_sub(1, Ordering::AcqRel) == 1 {
+        if job.active_workers.leave() {
             self.finish(job);
         }
     }

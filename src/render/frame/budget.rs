@@ -93,7 +93,7 @@ pub(super) fn budgeted_run(
     inner: &mut Inner,
     threads: usize,
 ) -> Option<BudgetedRun> {
-    let began = Instant::now();
+    let began = setup.requested;
     let budget = setup.budget?;
     let camera = setup.camera.as_ref()?;
     let plan = Plan::new(&camera.viewports(setup.width, setup.height));
