@@ -335,9 +335,7 @@ pub fn primary(
     sampling: &LightSampling,
 ) -> Option<Sample> {
     // Every pixel of a frame asks: the answer for a frame that is no cluster pass stays inline.
-    if scene.cluster.is_none() {
-        return None;
-    }
+    scene.cluster.as_ref()?;
     primary_in_pass(scene, ray, hit, screen, cyclopean, sampling)
 }
 
