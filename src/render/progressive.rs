@@ -401,7 +401,9 @@ impl Plan {
                 .collect();
             let (x0, x1) = (v.x as usize * N, (v.x + v.width) as usize * N);
             // The lattice rows, filled along themselves and copied out for the bands to read.
-            let mut lattice_rows = Vec::with_capacity(v.height.div_ceil(stride) as usize);
+            let lattice_row_bytes = x1 - x0;
+            let mut lattice_rows =
+                Vec::with_capacity(v.height.div_ceil(stride) as usize * lattice_row_bytes);
             for y in (v.y..v.y + v.height).step_by(stride as usize) {
                 let row = &mut bytes[y as usize * row_bytes..][..row_bytes];
                 for (x, &source_column) in (v.x..v.x + v.width).zip(&columns) {
@@ -410,7 +412,7 @@ impl Plan {
                         row.copy_within(source..source + N, target);
                     }
                 }
-                lattice_rows.push(row[x0..x1].to_vec());
+                lattice_rows.extend_from_slice(&row[x0..x1]);
             }
             let rows = &mut bytes[v.y as usize * row_bytes..(v.y + v.height) as usize * row_bytes];
             let pixels = u64::from(v.width) * u64::from(v.height);
@@ -425,7 +427,8 @@ impl Plan {
                     let y = v.y + (first_row + k) as u32;
                     if !(y - v.y).is_multiple_of(stride) {
                         let source = (nearest(y, v.y, v.height) - v.y) / stride;
-                        row[x0..x1].copy_from_slice(&lattice_rows[source as usize]);
+                        let source = source as usize * lattice_row_bytes;
+                        row[x0..x1].copy_from_slice(&lattice_rows[source..][..lattice_row_bytes]);
                     }
                 }
             };
