@@ -94,28 +94,29 @@ impl TileRecords {
         reset(&mut self.normal, wanted.normal, pixels, Vec3::ZERO);
     }
 
-    /// Records pixel `k`'s first hit seen along `ray` of `eye` (a channel not wanted has no
-    /// values to set). A pixel is recorded at most once after [`TileRecords::reset`], so a miss
-    /// leaves the "nothing" values in place.
+    /// Records pixel `k`'s first hit seen along the camera ray `ray()` of `eye` (a channel
+    /// not wanted has no values to set; the ray is made only for the channels that read it).
+    /// A pixel is recorded at most once after [`TileRecords::reset`], so a miss leaves the
+    /// "nothing" values in place.
     #[inline(always)]
     pub(super) fn record(
         &mut self,
         k: usize,
         hit: Option<&PrimaryHit>,
-        ray: &CameraRay,
+        ray: impl Fn() -> CameraRay,
         eye: &EyeRays,
     ) {
         let Some(hit) = hit else {
             return;
         };
         if let Some(slot) = self.depth.get_mut(k) {
-            *slot = eye.depth(ray, hit.t);
+            *slot = eye.depth(&ray(), hit.t);
         }
         if let Some(slot) = self.window_depth.get_mut(k) {
-            *slot = eye.window_depth(ray, hit.point);
+            *slot = eye.window_depth(&ray(), hit.point);
         }
         if let Some(slot) = self.parallax.get_mut(k) {
-            *slot = eye.parallax(ray, hit.point);
+            *slot = eye.parallax(&ray(), hit.point);
         }
         if let Some(slot) = self.primitive_id.get_mut(k) {
             *slot = hit.primitive_id;

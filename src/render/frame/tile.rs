@@ -13,6 +13,7 @@ use crate::render::progressive::{FrameTile, SINGLE_RAY_STRIDE, TileMap};
 use crate::scene::light::LightSampling;
 
 use super::anaglyph::{anaglyph, anaglyph_eyes};
+use super::fast_block::FastBlock;
 use super::records::TileRecords;
 use super::samples::{jitter, lens_sample};
 use super::{Job, TILE_SIZE, lock};
@@ -422,6 +423,33 @@ pub(super) fn trace_blocks(
                         },
                     );
                 }
+                if let Some(eye_rays) = block_rays.filter(|_| work.fast_surfaces && !clustered) {
+                    // A whole block from one eye: shaded from the block's arrays.
+                    let fast = FastBlock {
+                        scene: &setup.scene,
+                        settings: &setup.settings,
+                        rays: &rays,
+                        hits: &hits,
+                        block: &block,
+                        eye: eye_rays,
+                    };
+                    let first = ((by - ty) * tile_width + bx - tx) as usize;
+                    let pixel = |lane: usize| {
+                        let (dx, dy) = PACKET_ORDER[lane];
+                        first + (dy * tile_width + dx) as usize
+                    };
+                    let screen = |lane: usize| {
+                        let (dx, dy) = PACKET_ORDER[lane];
+                        let (x, y) = map.pixel(bx + dx, by + dy);
+                        Vec2::new(
+                            (x as f32 + offset.x) / setup.width as f32,
+                            (y as f32 + offset.y) / setup.height as f32,
+                        )
+                    };
+                    let records = (s == 0 && keeps_hits).then_some(&mut *records);
+                    fast.shade(pixel, screen, colors, covered, records);
+                    continue;
+                }
                 for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
                     let camera = match block_rays {
                         Some(eye_rays) => Some((block.ray(lane), eye_rays)),
@@ -459,7 +487,7 @@ pub(super) fn trace_blocks(
                                 camera_ray.cyclopean,
                             );
                             colors[k] += sample.color;
-                            records.record(k, sample.hit.as_ref(), &camera_ray, eye_rays);
+                            records.record(k, sample.hit.as_ref(), || camera_ray, eye_rays);
                         } else {
                             colors[k] += fast_surface_color(
                                 scene,
@@ -490,7 +518,7 @@ pub(super) fn trace_blocks(
                     };
                     colors[k] += sample.color;
                     if s == 0 && keeps_hits {
-                        records.record(k, sample.hit.as_ref(), &camera_ray, eye_rays);
+                        records.record(k, sample.hit.as_ref(), || camera_ray, eye_rays);
                     }
                 }
             }
