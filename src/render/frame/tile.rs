@@ -200,7 +200,12 @@ pub(super) fn render_tile(
     // Walked row by row: a division per pixel for its lattice point cost a tenth of this loop.
     let (s0, s1) = (area.s0, area.s1);
     let lattice_points = (area.t0..area.t1).flat_map(|sy| (s0..s1).map(move |sx| (sx, sy)));
-    for (k, (color, (sx, sy))) in colors[..pixel_count]
+    // One sample of every pixel, not accumulated: the sums are the colours already.
+    let final_already = samples == 1
+        && color_sum.is_none()
+        && covered[..pixel_count].iter().all(|covered| *covered);
+    let pixels_to_finish = if final_already { 0 } else { pixel_count };
+    for (k, (color, (sx, sy))) in colors[..pixels_to_finish]
         .iter_mut()
         .zip(lattice_points)
         .enumerate()
@@ -279,6 +284,9 @@ pub(super) fn trace_blocks(
     let clustered = setup.scene.cluster.is_some();
     let (width, height) = (setup.width as usize, setup.height as usize);
     let records = &mut scratch.records;
+    // The tile's points are a plain rectangle of pixels (none skipped; a point's column and
+    // row give its pixel's).
+    let rectangle = map.rectangle_origin().is_some();
     let mut rays = [NO_RAY; 64];
     // Viewport coordinates of a block's rays, for cameras that make them four at a time.
     let mut batch: [Option<(f32, f32)>; 64] = [None; 64];
@@ -316,15 +324,30 @@ pub(super) fn trace_blocks(
                     let (width, height) = (viewport.width as f32, viewport.height as f32);
                     let mut s_lanes = [0.0; BLOCK_RAYS];
                     let mut t_lanes = [0.0; BLOCK_RAYS];
-                    for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
-                        let (sx, sy) = (bx + dx, by + dy);
-                        if map.skips(sx, sy) {
-                            return None;
+                    // As below, ray by ray.
+                    let s_of = |x: u32| ((x - viewport.x) as f32 + offset.x) / width;
+                    let t_of = |y: u32| ((y - viewport.y) as f32 + offset.y) / height;
+                    if rectangle {
+                        // A pixel's s depends on its column only and t on its row: 16
+                        // divisions for the block's 64 rays.
+                        let columns: [f32; PACKET_SIDE as usize] =
+                            std::array::from_fn(|dx| s_of(map.pixel(bx + dx as u32, by).0));
+                        let rows: [f32; PACKET_SIDE as usize] =
+                            std::array::from_fn(|dy| t_of(map.pixel(bx, by + dy as u32).1));
+                        for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
+                            s_lanes[lane] = columns[*dx as usize];
+                            t_lanes[lane] = rows[*dy as usize];
                         }
-                        // As below, ray by ray.
-                        let (x, y) = map.pixel(sx, sy);
-                        s_lanes[lane] = ((x - viewport.x) as f32 + offset.x) / width;
-                        t_lanes[lane] = ((y - viewport.y) as f32 + offset.y) / height;
+                    } else {
+                        for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
+                            let (sx, sy) = (bx + dx, by + dy);
+                            if map.skips(sx, sy) {
+                                return None;
+                            }
+                            let (x, y) = map.pixel(sx, sy);
+                            s_lanes[lane] = s_of(x);
+                            t_lanes[lane] = t_of(y);
+                        }
                     }
                     if !eye_rays.block_rays(&s_lanes, &t_lanes, &mut block) {
                         return None;
