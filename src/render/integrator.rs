@@ -1083,10 +1083,10 @@ impl<'a> UniformSurface<'a> {
         self.instance == hit.instance && self.geometry_index == hit.geometry
     }
 
-    /// The shading normal of `hit` seen along `ray`.
+    /// The shading normal of a hit of geometric normal `normal` seen along `direction`.
     #[inline(always)]
-    pub fn normal(ray: &Ray, hit: &SceneHit) -> Vec3 {
-        facing_ray(hit.normal, ray.direction).0
+    pub fn normal(normal: Vec3, direction: Vec3) -> Vec3 {
+        facing_ray(normal, direction).0
     }
 
     /// The hit point of `hit` along `ray`.

@@ -455,11 +455,8 @@ pub(super) fn trace_blocks(
                         hits: &hits,
                         block: &block,
                         eye: eye_rays,
-                    };
-                    let first = ((by - ty) * tile_width + bx - tx) as usize;
-                    let pixel = |lane: usize| {
-                        let (dx, dy) = PACKET_ORDER[lane];
-                        first + (dy * tile_width + dx) as usize
+                        first: ((by - ty) * tile_width + bx - tx) as usize,
+                        row_stride: tile_width as usize,
                     };
                     let screen = |lane: usize| {
                         let (dx, dy) = PACKET_ORDER[lane];
@@ -470,7 +467,7 @@ pub(super) fn trace_blocks(
                         )
                     };
                     let records = (s == 0 && keeps_hits).then_some(&mut *records);
-                    fast.shade(pixel, screen, colors, covered, records);
+                    fast.shade(screen, colors, covered, records);
                     continue;
                 }
                 for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
@@ -510,7 +507,8 @@ pub(super) fn trace_blocks(
                                 camera_ray.cyclopean,
                             );
                             colors[k] += sample.color;
-                            records.record(k, sample.hit.as_ref(), || camera_ray, eye_rays);
+                            let depth = |t| eye_rays.depth(&camera_ray, t);
+                            records.record(k, sample.hit.as_ref(), || camera_ray, depth, eye_rays);
                         } else {
                             colors[k] += fast_surface_color(
                                 scene,
@@ -541,7 +539,8 @@ pub(super) fn trace_blocks(
                     };
                     colors[k] += sample.color;
                     if s == 0 && keeps_hits {
-                        records.record(k, sample.hit.as_ref(), || camera_ray, eye_rays);
+                        let depth = |t| eye_rays.depth(&camera_ray, t);
+                            records.record(k, sample.hit.as_ref(), || camera_ray, depth, eye_rays);
                     }
                 }
             }
