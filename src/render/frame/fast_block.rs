@@ -139,7 +139,8 @@ impl FastBlock<'_> {
             let k = pixel(lane);
             covered[k] = true;
             let Some(hit) = self.hits[lane].as_ref().filter(|_| lanes.hit[lane]) else {
-                colors[k] += background.unwrap_or_else(|| self.settings.background_at(screen(lane)));
+                colors[k] +=
+                    background.unwrap_or_else(|| self.settings.background_at(screen(lane)));
                 continue;
             };
             colors[k] += Vec4::new(color[0][lane], color[1][lane], color[2][lane], 1.0);

@@ -540,7 +540,7 @@ pub(super) fn trace_blocks(
                     colors[k] += sample.color;
                     if s == 0 && keeps_hits {
                         let depth = |t| eye_rays.depth(&camera_ray, t);
-                            records.record(k, sample.hit.as_ref(), || camera_ray, depth, eye_rays);
+                        records.record(k, sample.hit.as_ref(), || camera_ray, depth, eye_rays);
                     }
                 }
             }
