@@ -866,7 +866,15 @@ impl BlockRays {
 
     /// Every ray's cyclopean point `cyclopean`.
     fn set_cyclopean(&mut self, cyclopean: Option<Vec3>) {
-        self.cyclopean = cyclopean.map(|c| c.to_array().map(|v| [v; BLOCK_RAYS]));
+        match cyclopean {
+            Some(c) => self.cyclopean = Some(c.to_array().map(|v| [v; BLOCK_RAYS])),
+            // Only the tag changes: assigning `None` wrote the whole option's bytes per block.
+            None => {
+                if self.cyclopean.is_some() {
+                    self.cyclopean = None;
+                }
+            }
+        }
     }
 
     /// Lane `i`: the ray from `eye` through `target` that [`clipped_ray`] makes.

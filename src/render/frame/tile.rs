@@ -88,6 +88,19 @@ pub(super) fn traced(camera_ray: &CameraRay) -> Ray {
     }
 }
 
+/// The ray to trace for lane `lane` of a block: [`traced`] of its camera ray, read straight
+/// from the block's arrays.
+#[inline(always)]
+fn traced_lane(block: &BlockRays, lane: usize) -> Ray {
+    let at = |v: &[[f32; BLOCK_RAYS]; 3]| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
+    Ray {
+        origin: at(&block.origin),
+        direction: at(&block.direction),
+        t_min: block.t_min[lane],
+        t_max: block.t_max[lane],
+    }
+}
+
 /// A worker's working memory, kept from one tile to the next.
 #[derive(Default)]
 pub(super) struct TileScratch {
@@ -353,7 +366,7 @@ pub(super) fn trace_blocks(
                         return None;
                     }
                     for (lane, ray) in rays.iter_mut().enumerate() {
-                        *ray = traced(&block.ray(lane));
+                        *ray = traced_lane(&block, lane);
                     }
                     Some(eye_rays)
                 });
