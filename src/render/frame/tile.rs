@@ -347,9 +347,18 @@ pub(super) fn trace_blocks(
                             std::array::from_fn(|dx| s_of(map.pixel(bx + dx as u32, by).0));
                         let rows: [f32; PACKET_SIDE as usize] =
                             std::array::from_fn(|dy| t_of(map.pixel(bx, by + dy as u32).1));
-                        for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
-                            s_lanes[lane] = columns[*dx as usize];
-                            t_lanes[lane] = rows[*dy as usize];
+                        // Quad by quad (PACKET_ORDER's 2×2 quads of consecutive lanes).
+                        let quads = s_lanes.chunks_exact_mut(4).zip(t_lanes.chunks_exact_mut(4));
+                        for (quad, (s4, t4)) in quads.enumerate() {
+                            let (c, r) = PACKET_ORDER[4 * quad];
+                            let (c, r) = (c as usize, r as usize);
+                            s4.copy_from_slice(&[
+                                columns[c],
+                                columns[c + 1],
+                                columns[c],
+                                columns[c + 1],
+                            ]);
+                            t4.copy_from_slice(&[rows[r], rows[r], rows[r + 1], rows[r + 1]]);
                         }
                     } else {
                         for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
@@ -564,6 +573,19 @@ pub(super) fn trace_blocks(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn packet_lanes_are_2x2_quads_of_consecutive_lanes() {
+        // The block's viewport coordinates are filled quad by quad on this layout.
+        for (lane, &(x, y)) in PACKET_ORDER.iter().enumerate() {
+            let (x0, y0) = PACKET_ORDER[lane & !3];
+            assert_eq!(
+                (x, y),
+                (x0 + lane as u32 % 2, y0 + lane as u32 / 2 % 2),
+                "{lane}"
+            );
+        }
+    }
 
     #[test]
     fn packet_quadrants_are_4x4_pixel_blocks() {
