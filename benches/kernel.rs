@@ -18,10 +18,9 @@
 //! light-field, shadow and secondary rays), and every instruction-set path this CPU has
 //! (baseline SSE2; AVX2), alternating frame by frame.
 //! `CAVETRACE_BENCH_QUICK=1`: two sizes at 256×256, 3 frames. `CAVETRACE_BENCH_GRIDS=22,708`:
-//! only those sizes (for profiling one). `CAVETRACE_BENCH_PARTS=single` (any of `packets`,
-//! `single`, `frame`, comma-separated): only those parts (the others print as 0).
-//! `CAVETRACE_BENCH_ISAS=avx2` (`baseline`, `avx2`, comma-separated): only those paths (for
-//! counting one path's instructions).
+//! only those sizes (for profiling one). `CAVETRACE_BENCH_PARTS=packets,frame`: only those of
+//! `packets`, `single`, `frame` (a part left out prints 0). `CAVETRACE_BENCH_ISAS=avx2`: only
+//! those instruction-set paths.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -191,18 +190,26 @@ fn main() {
             .collect()
     });
     let grids = chosen.as_deref().unwrap_or(grids);
-    let parts = std::env::var("CAVETRACE_BENCH_PARTS").unwrap_or_default();
-    let part = |name: &str| parts.is_empty() || parts.split(',').any(|p| p.trim() == name);
-    let (run_packets, run_single, run_frame) = (part("packets"), part("single"), part("frame"));
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let embree_probe = std::env::var("CAVETRACE_EMBREE_PROBE").ok();
+    let parts = std::env::var("CAVETRACE_BENCH_PARTS").ok();
+    let runs = |part: &str| {
+        parts
+            .as_deref()
+            .is_none_or(|list| list.split(',').any(|p| p.trim() == part))
+    };
+    let (run_packets, run_single, run_frame) = (runs("packets"), runs("single"), runs("frame"));
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
-    let chosen_isas = std::env::var("CAVETRACE_BENCH_ISAS").unwrap_or_default();
+    let chosen_isas = std::env::var("CAVETRACE_BENCH_ISAS").ok();
     let isas: Vec<Isa> = [Isa::Baseline, Isa::Avx2]
         .into_iter()
         .filter(|isa| isa.supported())
-        .filter(|isa| chosen_isas.is_empty() || chosen_isas.split(',').any(|i| i == isa.name()))
+        .filter(|isa| {
+            chosen_isas
+                .as_deref()
+                .is_none_or(|list| list.split(',').any(|name| name.trim() == isa.name()))
+        })
         .collect();
     println!(
         "kernel: the embree_rays scene, {size}x{size}, {threads} threads, medians of frames \
@@ -233,15 +240,13 @@ fn main() {
                 commit(dev, dev);
                 assert_eq!(isa::selected(), *isa);
                 let skipped = (0.0, 0.0, 0);
-                let (packet_ms, packet_cpu, packet_sum) = if run_packets {
-                    trace(&scene, &rays, threads, false)
-                } else {
-                    skipped
+                let (packet_ms, packet_cpu, packet_sum) = match run_packets {
+                    true => trace(&scene, &rays, threads, false),
+                    false => skipped,
                 };
-                let (single_ms, single_cpu, single_sum) = if run_single {
-                    trace(&scene, &rays, threads, true)
-                } else {
-                    skipped
+                let (single_ms, single_cpu, single_sum) = match run_single {
+                    true => trace(&scene, &rays, threads, true),
+                    false => skipped,
                 };
                 let (start, cpu_start) = (Instant::now(), cpu_ms());
                 if run_frame {

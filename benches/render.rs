@@ -646,7 +646,8 @@ fn stereo_section(dev: ANARIDevice, scenes: &[(&str, ANARIGeometry)], size: u32,
     ];
     // `CAVETRACE_BENCH_STEREO_CASES=rowInterleaved,checkerboard` runs those beside mono (for
     // profiling and quicker runs); `CAVETRACE_BENCH_RENDERER` and `CAVETRACE_BENCH_SCENE`
-    // (0 height field, 1 spheres) pick one renderer and one scene.
+    // (0 height field, 1 spheres, 2 the 968-triangle height field) pick one renderer and one
+    // scene.
     let chosen = std::env::var("CAVETRACE_BENCH_STEREO_CASES").ok();
     let cases: Vec<_> = cases
         .into_iter()
@@ -884,11 +885,15 @@ fn main() {
     if section("stereo") {
         let cloud = sphere_cloud(dev, spheres);
         commit(dev, cloud);
+        let small = height_field(dev, 22).0;
+        commit(dev, small);
         let scenes = [
             ("1M-triangle height field", geometry),
             ("100k spheres", cloud),
+            ("968-triangle height field", small),
         ];
         stereo_section(dev, &scenes, size, if quick { 3 } else { 7 });
+        anariRelease(dev, small);
         anariRelease(dev, cloud);
         anariRelease(dev, geometry);
         anariRelease(dev, dev);

@@ -35,8 +35,13 @@ fn render(
     renderer: &str,
     channels: &[(&str, ANARIDataType)],
     plain: bool,
+    background: Option<ANARIArray2D>,
 ) -> Vec<Vec<u8>> {
-    let renderer = plain_renderer(dev, renderer);
+    let renderer = anariNewRenderer(dev, c(renderer).as_ptr());
+    if let Some(image) = background {
+        set_object(dev, renderer, "background", ANARI_ARRAY2D, image);
+    }
+    commit(dev, renderer);
     let frame = anariNewFrame(dev);
     set(dev, frame, "size", ANARI_UINT32_VEC2, &SIZE);
     for (name, data_type) in channels {
@@ -60,11 +65,22 @@ fn render(
 /// Asserts that the block pipeline's channels equal the plain path's byte for byte, and that
 /// the scene was seen (some pixel hit something).
 fn assert_same(dev: ANARIDevice, world: ANARIWorld, camera: ANARICamera, what: &str) {
+    assert_same_with(dev, world, camera, None, what);
+}
+
+/// [`assert_same`] with a background image on the renderers when `background` is given.
+fn assert_same_with(
+    dev: ANARIDevice,
+    world: ANARIWorld,
+    camera: ANARICamera,
+    background: Option<ANARIArray2D>,
+    what: &str,
+) {
     for renderer in ["fast", "default"] {
         // Colour alone takes the fast renderer's colour-only path; every channel the other.
         for channels in [&CHANNELS[..1], &CHANNELS[..]] {
-            let pipeline = render(dev, world, camera, renderer, channels, false);
-            let plain = render(dev, world, camera, renderer, channels, true);
+            let pipeline = render(dev, world, camera, renderer, channels, false, background);
+            let plain = render(dev, world, camera, renderer, channels, true, background);
             for (k, (name, _)) in channels.iter().enumerate() {
                 let first_difference = pipeline[k].iter().zip(&plain[k]).position(|(a, b)| a != b);
                 assert_eq!(
@@ -232,5 +248,98 @@ fn block_pipeline_channels_equal_the_plain_per_pixel_path() {
         anariRelease(dev, camera);
     }
     release_all(dev, &[with_volume, without_volume]);
+    release_device(lib, dev);
+}
+
+/// A bumpy mesh coloured per vertex with vertex normals (shaded per hit) beside a plain quad
+/// (shaded from its constant colour), meeting inside blocks, under a background image: the
+/// fast renderer's block shading mixes both kinds of surface and misses in one block.
+fn coloured_smooth_world(dev: ANARIDevice) -> ANARIWorld {
+    let grid = 6;
+    let vertex = |i: u32, j: u32| {
+        let (x, y) = (
+            -0.8 + 1.2 * i as f32 / grid as f32,
+            -0.5 + j as f32 / grid as f32,
+        );
+        [x, y, -0.6 + 0.1 * (7.0 * x).sin() * (5.0 * y).cos()]
+    };
+    let mut positions = Vec::new();
+    for j in 0..grid {
+        for i in 0..grid {
+            let [a, b, c, d] =
+                [(i, j), (i + 1, j), (i, j + 1), (i + 1, j + 1)].map(|(i, j)| vertex(i, j));
+            positions.extend([a, b, d, a, d, c]);
+        }
+    }
+    let colors: Vec<[f32; 3]> = positions
+        .iter()
+        .map(|p| [0.5 + 0.5 * p[0], 0.5 + 0.5 * p[1], 0.3])
+        .collect();
+    let normals: Vec<[f32; 3]> = positions
+        .iter()
+        .map(|p| {
+            let n = [0.3 * (3.0 * p[0]).sin(), 0.2 * p[1], 1.0];
+            let length = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            n.map(|v| v / length)
+        })
+        .collect();
+    let mesh = triangle_geometry(dev, &positions);
+    set_array(dev, mesh, "vertex.color", ANARI_FLOAT32_VEC3, &colors);
+    set_array(dev, mesh, "vertex.normal", ANARI_FLOAT32_VEC3, &normals);
+    commit(dev, mesh);
+    let coloured = matte_colored_by(dev, "color");
+    let quad = geometry_with(dev, "quad", |g| {
+        let corners = [
+            [0.3f32, -0.3, -0.4],
+            [0.7, -0.3, -0.4],
+            [0.7, 0.3, -0.4],
+            [0.3, 0.3, -0.4],
+        ];
+        set_array(dev, g, "vertex.position", ANARI_FLOAT32_VEC3, &corners);
+    });
+    let plain = material(dev, [0.2, 0.6, 0.9], 0.0, 1.0);
+    let surfaces = [
+        surface(dev, mesh, coloured, 1),
+        surface(dev, quad, plain, 2),
+    ];
+    let world = world_of(dev, &surfaces);
+    release_all(
+        dev,
+        &[mesh, quad, coloured, plain, surfaces[0], surfaces[1]],
+    );
+    world
+}
+
+#[test]
+fn block_pipeline_equals_the_plain_path_on_coloured_smooth_surfaces_under_a_background_image() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    let world = coloured_smooth_world(dev);
+    let image = array2d(
+        dev,
+        ANARI_FLOAT32_VEC4,
+        &[
+            [1.0f32, 0.0, 0.0, 1.0],
+            [0.0, 1.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0, 1.0],
+            [1.0, 1.0, 1.0, 0.5],
+        ],
+        [2, 2],
+    );
+    let cameras = [
+        (
+            "perspective",
+            perspective_camera(dev, [0.05, 0.02, 1.5], [0.0, 0.0, -1.0], 0.8),
+        ),
+        ("sideBySide", off_axis(dev, "sideBySide")),
+    ];
+    for (name, camera) in cameras {
+        assert_same_with(dev, world, camera, None, &format!("{name}, coloured mesh"));
+        let what = format!("{name}, coloured mesh, background image");
+        assert_same_with(dev, world, camera, Some(image), &what);
+        anariRelease(dev, camera);
+    }
+    assert_eq!(log.errors(), vec![]);
+    release_all(dev, &[world, image]);
     release_device(lib, dev);
 }

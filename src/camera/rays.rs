@@ -564,23 +564,29 @@ impl EyeRays {
     /// for an orthographic matrix the distance from the near plane (again `t`).
     #[inline]
     pub fn depth(&self, ray: &CameraRay, t: f32) -> f32 {
-        let eye = match &self.generator {
-            // Without a lens the ray starts at the eye and `t` already is the distance.
-            Generator::Pinhole(p) if p.lens_right == DVec3::ZERO && p.lens_up == DVec3::ZERO => {
-                return t;
+        match &self.generator {
+            Generator::Pinhole(p) if !self.depth_is_ray_parameter() => {
+                let hit = ray.origin.as_dvec3() + ray.direction.as_dvec3() * f64::from(t);
+                (hit - p.eye).length() as f32
             }
-            Generator::Pinhole(p) => p.eye,
+            _ => t,
+        }
+    }
+
+    /// Whether [`Self::depth`] of a hit is its ray parameter `t`: for every generator but a
+    /// pinhole with a lens (without a lens its rays start at the eye and `t` already is the
+    /// distance). Asked once per block of hits rather than per hit.
+    #[inline]
+    pub fn depth_is_ray_parameter(&self) -> bool {
+        match &self.generator {
+            Generator::Pinhole(p) => p.lens_right == DVec3::ZERO && p.lens_up == DVec3::ZERO,
             Generator::Blended(_)
             | Generator::LightField(_)
             | Generator::Parallel(_)
             | Generator::Unproject(..)
             | Generator::Equirectangular(_)
-            | Generator::Dome(_) => {
-                return t;
-            }
-        };
-        let hit = ray.origin.as_dvec3() + ray.direction.as_dvec3() * f64::from(t);
-        (hit - eye).length() as f32
+            | Generator::Dome(_) => true,
+        }
     }
 
     /// OpenGL window-space depth in `[0,1]` (glDepthRange 0..1) of world point p, seen by
@@ -860,7 +866,15 @@ impl BlockRays {
 
     /// Every ray's cyclopean point `cyclopean`.
     fn set_cyclopean(&mut self, cyclopean: Option<Vec3>) {
-        self.cyclopean = cyclopean.map(|c| c.to_array().map(|v| [v; BLOCK_RAYS]));
+        match cyclopean {
+            Some(c) => self.cyclopean = Some(c.to_array().map(|v| [v; BLOCK_RAYS])),
+            // Only the tag changes: assigning `None` wrote the whole option's bytes per block.
+            None => {
+                if self.cyclopean.is_some() {
+                    self.cyclopean = None;
+                }
+            }
+        }
     }
 
     /// Lane `i`: the ray from `eye` through `target` that [`clipped_ray`] makes.

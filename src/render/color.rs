@@ -26,13 +26,29 @@ pub fn to_snorm16(value: f32) -> i16 {
 /// exact formula except within 1/2¹⁶ of a byte boundary.
 const SRGB_TABLE_STEPS: usize = 1 << 16;
 
-fn srgb_table() -> &'static [u8] {
-    static TABLE: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+/// Slots of the table: a power of two above [`SRGB_TABLE_STEPS`], so that an index masked
+/// with `SRGB_TABLE_SLOTS - 1` is in bounds without a check (indices of clamped values are at
+/// most `SRGB_TABLE_STEPS`, which the mask leaves alone; the slots past it are never read).
+const SRGB_TABLE_SLOTS: usize = 2 * SRGB_TABLE_STEPS;
+
+fn srgb_table() -> &'static [u8; SRGB_TABLE_SLOTS] {
+    static TABLE: std::sync::OnceLock<Box<[u8; SRGB_TABLE_SLOTS]>> = std::sync::OnceLock::new();
     TABLE.get_or_init(|| {
-        (0..=SRGB_TABLE_STEPS)
-            .map(|i| to_unorm8(linear_to_srgb(i as f32 / SRGB_TABLE_STEPS as f32)))
-            .collect()
+        let mut table: Box<[u8; SRGB_TABLE_SLOTS]> = vec![u8::MAX; SRGB_TABLE_SLOTS]
+            .into_boxed_slice()
+            .try_into()
+            .expect("a slice of SRGB_TABLE_SLOTS bytes");
+        for (i, slot) in table[..=SRGB_TABLE_STEPS].iter_mut().enumerate() {
+            *slot = to_unorm8(linear_to_srgb(i as f32 / SRGB_TABLE_STEPS as f32));
+        }
+        table
     })
+}
+
+/// Table slot `index` (at most [`SRGB_TABLE_STEPS`]) of `table`.
+#[inline(always)]
+fn slot(table: &[u8; SRGB_TABLE_SLOTS], index: usize) -> u8 {
+    table[index & (SRGB_TABLE_SLOTS - 1)]
 }
 
 /// Linear [0,1] → sRGB byte. A table lookup: this runs for every pixel of every frame, and
@@ -44,7 +60,12 @@ pub fn encode_srgb8(linear: f32) -> u8 {
 /// [`encode_srgb8`] with the table looked up once, for loops over many pixels.
 pub fn srgb8_encoder() -> impl Fn(f32) -> u8 + Copy {
     let table = srgb_table();
-    move |linear: f32| table[(linear.clamp(0.0, 1.0) * SRGB_TABLE_STEPS as f32 + 0.5) as usize]
+    move |linear: f32| {
+        slot(
+            table,
+            (linear.clamp(0.0, 1.0) * SRGB_TABLE_STEPS as f32 + 0.5) as usize,
+        )
+    }
 }
 
 /// A linear RGBA colour → sRGB bytes of R, G, B and a linear alpha byte: what
@@ -63,9 +84,9 @@ pub fn srgb8_rgba_encoder() -> impl Fn(glam::Vec4) -> [u8; 4] + Copy {
         let clamped = linear.max(glam::Vec4::ZERO).min(glam::Vec4::ONE);
         let index = truncate4(clamped * scale + glam::Vec4::splat(0.5));
         [
-            table[index[0] as usize],
-            table[index[1] as usize],
-            table[index[2] as usize],
+            slot(table, index[0] as u32 as usize),
+            slot(table, index[1] as u32 as usize),
+            slot(table, index[2] as u32 as usize),
             index[3] as u8,
         ]
     }

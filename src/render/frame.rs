@@ -6,10 +6,12 @@
 mod anaglyph;
 mod budget;
 mod channels;
+mod fast_block;
 mod pixel_work;
 mod records;
 mod samples;
 mod tile;
+mod workers;
 
 use std::any::Any;
 use std::collections::HashMap;
@@ -26,7 +28,7 @@ use crate::device::frame::Frame;
 use crate::device::memory::{self, TooBig};
 use crate::device::property::PropertyValue;
 use crate::render::interleave::lattice_size;
-use crate::render::progressive::{ColorPixels, Plan, SurfaceGuide, Throughput};
+use crate::render::progressive::{ColorPixels, DeadlineControl, Plan, SurfaceGuide, Throughput};
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
 
@@ -40,6 +42,7 @@ use channels::{
 pub use pixel_work::PLAIN_PER_PIXEL_PATH;
 use pixel_work::PixelWork;
 use tile::{TileScratch, render_tile};
+use workers::ActiveWorkers;
 
 /// Side of the square tiles the threads share out.
 pub const TILE_SIZE: u32 = 32;
@@ -63,6 +66,8 @@ pub struct RenderSetup {
     pub completion: Option<(ANARIFrameCompletionCallback, usize, usize, usize)>,
     /// Frame-time budget (`ANARI_CAVETRACE_FRAME_BUDGET`); `None` renders every pixel.
     pub budget: Option<Budget>,
+    /// When anariRenderFrame was called: a budget counts from here.
+    pub requested: Instant,
     /// Cluster hook: the tiles this rank traces of a frame shared out among MPI ranks.
     pub tile_split: Option<Arc<crate::render::cluster::TileSplit>>,
 }
@@ -91,7 +96,8 @@ struct Job {
     tile_count: usize,
     /// Interleaved stereo: the two eyes' pixel sets, each traced as a lattice of its own.
     interleave: Option<[PixelSet; 2]>,
-    workers_left: AtomicUsize,
+    /// Workers at work: the last to leave finishes the render.
+    active_workers: ActiveWorkers,
     /// Threads rendering this job.
     workers: usize,
     channels: Mutex<Vec<Channel>>,
@@ -128,6 +134,8 @@ struct Inner {
     /// Budgeted renders: how far refinement got, and how fast tracing was.
     refinement: Option<Refinement>,
     throughput: Throughput,
+    /// When timed budgeted renders stop tracing, adapted to their overruns.
+    deadline: DeadlineControl,
     /// Fraction of the pixels of the last image that were traced (not filled).
     progress: f32,
     /// Smallest and largest value of the last render's parallax channel (NaN without one or
@@ -240,7 +248,7 @@ impl FrameState {
             tiles_x,
             tile_count: (tiles_x * tiles_y * eyes) as usize,
             interleave,
-            workers_left: AtomicUsize::new(workers),
+            active_workers: ActiveWorkers::default(),
             workers,
             formats,
             channels: Mutex::new(channels),
@@ -260,6 +268,9 @@ impl FrameState {
 
     /// One worker's share: tiles until none are left, then the last worker finishes the frame.
     fn work(&self, job: &Job) {
+        if !job.active_workers.join() {
+            return;
+        }
         let eyes = prepare_eyes(&job.setup);
         let mut scratch = TileScratch::default();
         while !job.cancel.load(Ordering::Acquire) {
@@ -292,7 +303,7 @@ impl FrameState {
                 }
             }
         }
-        if job.workers_left.fetch_sub(1, Ordering::AcqRel) == 1 {
+        if job.active_workers.leave() {
             self.finish(job);
         }
     }
@@ -395,6 +406,14 @@ impl FrameState {
                 inner.running = None;
             }
             inner.callback_thread = None;
+            // How late a timed render handed its image over moves the next renders' deadline.
+            if let (Some(run), Some(budget)) = (&job.budgeted, setup.budget)
+                && budget.pixels.is_none()
+                && !cancelled
+            {
+                let elapsed = run.began.elapsed().as_secs_f64();
+                inner.deadline.record(f64::from(budget.seconds), elapsed);
+            }
         }
         self.finished.notify_all();
     }
@@ -559,7 +578,7 @@ fn fill_untraced(
     for channel in channels.iter_mut() {
         if color_pixels(&channel.format).is_none() {
             let bytes = channel.format.pixel_bytes;
-            plan.fill(width, units.0, units.1, bytes, &mut channel.bytes);
+            plan.fill(width, units, bytes, &mut channel.bytes, threads);
         }
     }
     let Some(index) = channels

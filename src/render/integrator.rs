@@ -77,17 +77,13 @@ fn shading_point<'a>(scene: &'a SceneSnapshot, ray: &Ray, hit: &SceneHit) -> Sha
         .then(|| geometry.interpolation(hit.primitive, hit.uv));
     let primitive_id = geometry.primitive_id(hit.primitive);
     // Without shading normals the hit's world normal is already the one to shade with.
-    let mut normal = match at.as_ref().filter(|_| geometry.has_shading_normals()) {
+    let normal = match at.as_ref().filter(|_| geometry.has_shading_normals()) {
         Some(at) => (instance.normal_transform * geometry.shading_normal(at, hit.object_normal))
             .try_normalize()
             .unwrap_or(hit.normal),
         None => hit.normal,
     };
-    // Shade the side the ray arrives from.
-    let back_face = normal.dot(ray.direction) > 0.0;
-    if back_face {
-        normal = -normal;
-    }
+    let (normal, back_face) = facing_ray(normal, ray.direction);
 
     let attributes: [Option<Vec4>; 5] = if let Some(at) = at.as_ref().filter(|_| uses_attributes) {
         std::array::from_fn(|slot| {
@@ -133,6 +129,14 @@ fn shading_point<'a>(scene: &'a SceneSnapshot, ray: &Ray, hit: &SceneHit) -> Sha
         geometry,
         at,
     }
+}
+
+/// `normal` turned to the side a ray along `direction` arrives from, and whether it was
+/// turned (the ray arrived on the back of the surface).
+#[inline(always)]
+fn facing_ray(normal: Vec3, direction: Vec3) -> (Vec3, bool) {
+    let back_face = normal.dot(direction) > 0.0;
+    (if back_face { -normal } else { normal }, back_face)
 }
 
 impl ShadingPoint<'_> {
@@ -1025,8 +1029,91 @@ pub fn shade_primary_at(
 /// `view`: the unit direction the light (and the viewer) looks along.
 #[inline(always)]
 fn eye_light(view: Vec3, sp: &ShadingPoint) -> Vec3 {
-    let facing = (-view).dot(sp.normal).max(0.0);
-    sp.base_color * (0.2 + 0.8 * facing) + sp.emissive
+    eye_light_of(view, sp.normal, sp.base_color, sp.emissive)
+}
+
+/// [`eye_light`] of a surface point's shading `normal`, base colour and emission.
+#[inline(always)]
+fn eye_light_of(view: Vec3, normal: Vec3, base_color: Vec3, emissive: Vec3) -> Vec3 {
+    let facing = (-view).dot(normal).max(0.0);
+    base_color * (0.2 + 0.8 * facing) + emissive
+}
+
+/// A surface the fast renderer shades alike at every point but for its normal: a constant base
+/// colour and emission, and no shading normals. Its values are looked up once for the run of
+/// a block's hits on it instead of per hit, and a hit's sample is bit for bit
+/// [`fast_surface_sample`]'s.
+#[derive(Clone, Copy)]
+pub struct UniformSurface<'a> {
+    /// The hit's instance and geometry indices, to tell whether the next hit is on it.
+    instance: u32,
+    geometry_index: u32,
+    geometry: &'a Geometry,
+    base_color: Vec3,
+    emissive: Vec3,
+    object_id: u32,
+    instance_id: u32,
+}
+
+impl<'a> UniformSurface<'a> {
+    /// The surface `hit` lies on, when it is uniform.
+    pub fn of(scene: &'a SceneSnapshot, hit: &SceneHit) -> Option<UniformSurface<'a>> {
+        let instance = scene.instances.get(hit.instance as usize)?;
+        let surface = instance.surfaces.get(hit.geometry as usize)?;
+        let material = &surface.material;
+        let (Input::Constant(base), Input::Constant(emissive)) =
+            (&material.base_color, &material.emissive)
+        else {
+            return None;
+        };
+        (!surface.geometry.has_shading_normals()).then_some(UniformSurface {
+            instance: hit.instance,
+            geometry_index: hit.geometry,
+            geometry: &surface.geometry,
+            base_color: base.truncate(),
+            emissive: emissive.truncate(),
+            object_id: surface.id,
+            instance_id: instance.id,
+        })
+    }
+
+    /// Whether `hit` lies on this surface.
+    #[inline(always)]
+    pub fn holds(&self, hit: &SceneHit) -> bool {
+        self.instance == hit.instance && self.geometry_index == hit.geometry
+    }
+
+    /// The shading normal of a hit of geometric normal `normal` seen along `direction`.
+    #[inline(always)]
+    pub fn normal(normal: Vec3, direction: Vec3) -> Vec3 {
+        facing_ray(normal, direction).0
+    }
+
+    /// The hit point of `hit` along `ray`.
+    #[inline(always)]
+    pub fn point(ray: &Ray, hit: &SceneHit) -> Vec3 {
+        ray.origin + ray.direction * hit.t
+    }
+
+    /// The colour of a hit of shading `normal` lit along `view`.
+    #[inline(always)]
+    pub fn color(&self, view: Vec3, normal: Vec3) -> Vec4 {
+        eye_light_of(view, normal, self.base_color, self.emissive).extend(1.0)
+    }
+
+    /// What the channels other than colour keep of `hit` at `point` with shading `normal`.
+    #[inline(always)]
+    pub fn primary_hit(&self, hit: &SceneHit, point: Vec3, normal: Vec3) -> PrimaryHit {
+        PrimaryHit {
+            t: hit.t,
+            point,
+            primitive_id: self.geometry.primitive_id(hit.primitive),
+            object_id: self.object_id,
+            instance_id: self.instance_id,
+            albedo: self.base_color,
+            normal,
+        }
+    }
 }
 
 /// The fast renderer's colour for a primary ray whose closest surface hit is known, when the

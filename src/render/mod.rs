@@ -237,6 +237,7 @@ fn budget(params: &crate::device::params::ParamSet) -> Option<frame::Budget> {
 
 /// anariRenderFrame: snapshots the committed scene and starts rendering on the device's threads.
 pub fn render_frame(device: &Device, frame: &Object) {
+    let requested = std::time::Instant::now();
     let Some(state) = frame
         .frame
         .clone()
@@ -332,6 +333,7 @@ pub fn render_frame(device: &Device, frame: &Object) {
         scene_version: device.commit_epoch(),
         completion,
         budget: budget(&params),
+        requested,
         tile_split: None,
     };
     // Cluster hook: a frame rendered across MPI ranks renders here, collectively.

@@ -20,8 +20,10 @@
 //! between traced neighbours of the same surface ([`interpolate`]), in bands on several
 //! threads.
 
+mod deadline;
 mod interpolate;
 
+pub use deadline::DeadlineControl;
 pub use interpolate::{ColorPixels, SurfaceGuide};
 
 use crate::camera::{EyeViewport, PixelSet};
@@ -37,6 +39,9 @@ pub(crate) const SINGLE_RAY_STRIDE: u32 = 4;
 /// Side of the units of lattices traced ray by ray (stride 4 and more): a ray there costs
 /// several times a packet's, and a unit still in flight when time is up should end soon.
 const SPARSE_UNIT_TILE: u32 = 16;
+
+/// Pixels below which a fill stays on the calling thread (a thread costs tens of µs).
+const PARALLEL_FILL_PIXELS: u64 = 1 << 16;
 
 /// The pixels `origin + stride·(s, t)` of a frame: a whole frame (stride 1), or one
 /// refinement level of a viewport (strides 8, 4, 2, 1 from the viewport's corner).
@@ -280,10 +285,10 @@ impl Plan {
     pub fn fill(
         &self,
         width: u32,
-        start: usize,
-        done: usize,
+        (start, done): (usize, usize),
         pixel_bytes: usize,
         bytes: &mut [u8],
+        threads: usize,
     ) {
         self.fill_with(
             width,
@@ -292,11 +297,11 @@ impl Plan {
             pixel_bytes,
             bytes,
             |stride, bytes| match pixel_bytes {
-                4 => self.fill_pixels::<4>(width, stride, bytes),
-                6 => self.fill_pixels::<6>(width, stride, bytes),
-                12 => self.fill_pixels::<12>(width, stride, bytes),
-                16 => self.fill_pixels::<16>(width, stride, bytes),
-                3 => self.fill_pixels::<3>(width, stride, bytes),
+                4 => self.fill_pixels::<4>(width, stride, bytes, threads),
+                6 => self.fill_pixels::<6>(width, stride, bytes, threads),
+                12 => self.fill_pixels::<12>(width, stride, bytes, threads),
+                16 => self.fill_pixels::<16>(width, stride, bytes, threads),
+                3 => self.fill_pixels::<3>(width, stride, bytes, threads),
                 _ => debug_assert!(false, "no channel has {pixel_bytes}-byte pixels"),
             },
         );
@@ -370,8 +375,16 @@ impl Plan {
             .count()
     }
 
-    /// [`Plan::fill`] for `N`-byte pixels (a fixed size makes each copy a few moves).
-    fn fill_pixels<const N: usize>(&self, width: u32, stride: u32, bytes: &mut [u8]) {
+    /// [`Plan::fill`] for `N`-byte pixels (a fixed size makes each copy a few moves). Each
+    /// lattice row is first filled along itself; every other row is then a copy of its
+    /// nearest lattice row, in bands of rows on up to `threads` threads.
+    fn fill_pixels<const N: usize>(
+        &self,
+        width: u32,
+        stride: u32,
+        bytes: &mut [u8],
+        threads: usize,
+    ) {
         let nearest = |p: u32, start: u32, extent: u32| {
             let d = (p - start) % stride;
             let lower = p - d;
@@ -381,43 +394,55 @@ impl Plan {
                 lower
             }
         };
-        let w = width as usize;
+        let row_bytes = width as usize * N;
         for v in &self.viewports {
             let columns: Vec<u32> = (v.x..v.x + v.width)
                 .map(|x| nearest(x, v.x, v.width))
                 .collect();
             let (x0, x1) = (v.x as usize * N, (v.x + v.width) as usize * N);
-            for y in v.y..v.y + v.height {
-                let lattice_row = (y - v.y).is_multiple_of(stride);
-                let source_row = nearest(y, v.y, v.height) as usize;
-                if !lattice_row {
-                    // The usual case: the whole row is copied from one traced row.
-                    let (y, s) = (y as usize, source_row);
-                    let (source, target) = if s < y {
-                        let (head, tail) = bytes.split_at_mut(y * w * N);
-                        (&head[s * w * N..(s + 1) * w * N], &mut tail[..w * N])
-                    } else {
-                        let (head, tail) = bytes.split_at_mut(s * w * N);
-                        (&tail[..w * N], &mut head[y * w * N..(y + 1) * w * N])
-                    };
-                    for (pixel, &column) in target[x0..x1].chunks_exact_mut(N).zip(&columns) {
-                        let c = column as usize * N;
-                        pixel.copy_from_slice(&source[c..c + N]);
-                    }
-                    continue;
-                }
+            // The lattice rows, filled along themselves and copied out for the bands to read.
+            let lattice_row_bytes = x1 - x0;
+            let mut lattice_rows =
+                Vec::with_capacity(v.height.div_ceil(stride) as usize * lattice_row_bytes);
+            for y in (v.y..v.y + v.height).step_by(stride as usize) {
+                let row = &mut bytes[y as usize * row_bytes..][..row_bytes];
                 for (x, &source_column) in (v.x..v.x + v.width).zip(&columns) {
-                    let k = y as usize * w + x as usize;
-                    if source_column == x {
-                        continue;
-                    }
-                    let source = (source_row * w + source_column as usize) * N;
-                    let pixel: [u8; N] = bytes[source..source + N].try_into().unwrap_or([0; N]);
-                    if let Some(target) = bytes.get_mut(k * N..(k + 1) * N) {
-                        target.copy_from_slice(&pixel);
+                    if source_column != x {
+                        let (source, target) = (source_column as usize * N, x as usize * N);
+                        row.copy_within(source..source + N, target);
                     }
                 }
+                lattice_rows.extend_from_slice(&row[x0..x1]);
             }
+            let rows = &mut bytes[v.y as usize * row_bytes..(v.y + v.height) as usize * row_bytes];
+            let pixels = u64::from(v.width) * u64::from(v.height);
+            let bands = if pixels < PARALLEL_FILL_PIXELS {
+                1
+            } else {
+                threads.clamp(1, v.height as usize)
+            };
+            let band_rows = (v.height as usize).div_ceil(bands);
+            let fill_band = |first_row: usize, band: &mut [u8]| {
+                for (k, row) in band.chunks_exact_mut(row_bytes).enumerate() {
+                    let y = v.y + (first_row + k) as u32;
+                    if !(y - v.y).is_multiple_of(stride) {
+                        let source = (nearest(y, v.y, v.height) - v.y) / stride;
+                        let source = source as usize * lattice_row_bytes;
+                        row[x0..x1].copy_from_slice(&lattice_rows[source..][..lattice_row_bytes]);
+                    }
+                }
+            };
+            let fill_band = &fill_band;
+            std::thread::scope(|scope| {
+                let mut chunks = rows.chunks_mut(band_rows * row_bytes).enumerate();
+                let first = chunks.next();
+                for (band, chunk) in chunks {
+                    scope.spawn(move || fill_band(band * band_rows, chunk));
+                }
+                if let Some((_, chunk)) = first {
+                    fill_band(0, chunk);
+                }
+            });
         }
     }
 }
@@ -484,11 +509,17 @@ impl Throughput {
         self.overhead_seconds = seconds.max(0.5 * (self.overhead_seconds + seconds));
     }
 
-    /// Pixels to trace within `budget` seconds on `threads` threads. Before any measurement
+    /// Pixels to trace within `tracing_seconds` on `threads` threads. Before any measurement
     /// the guess is from the scene's size: a primary ray through a BVH of n primitives costs
     /// about (60 + 8·log2 n) ns with the fast renderer, three times that with the default
     /// renderer (shading, shadows), on the development machine.
-    pub fn pixels_for(&self, budget: f64, primitives: usize, fast: bool, threads: usize) -> f64 {
+    pub fn pixels_for(
+        &self,
+        tracing_seconds: f64,
+        primitives: usize,
+        fast: bool,
+        threads: usize,
+    ) -> f64 {
         let rate = self.pixels_per_thread_second.unwrap_or_else(|| {
             let per_ray = (60.0 + 8.0 * ((primitives + 1) as f64).log2()) * 1e-9;
             if fast {
@@ -498,9 +529,12 @@ impl Throughput {
             }
         });
         // A margin for timing noise and the cost differences between levels.
-        (rate * threads.max(1) as f64 * (0.8 * budget - self.overhead_seconds)).max(0.0)
+        (PLANNED_SHARE * rate * threads.max(1) as f64 * tracing_seconds).max(0.0)
     }
 }
+
+/// Share of the tracing time the planned pixels fill; the deadline stops the rest.
+const PLANNED_SHARE: f64 = 0.94;
 
 #[cfg(test)]
 mod tests {
@@ -560,7 +594,7 @@ mod tests {
             let mut pixels: Vec<u8> = (0..90 * 70u32)
                 .flat_map(|k| if traced[k as usize] { k } else { u32::MAX }.to_ne_bytes())
                 .collect();
-            plan.fill(90, 0, done, 4, &mut pixels);
+            plan.fill(90, (0, done), 4, &mut pixels, 1);
             for (k, value) in pixels.chunks_exact(4).enumerate() {
                 let source = u32::from_ne_bytes(value.try_into().unwrap()) as usize;
                 assert!(source < 90 * 70 && traced[source], "pixel {k}, done {done}");
@@ -575,6 +609,64 @@ mod tests {
                 );
                 let stride = LEVELS[plan.complete_levels(done) - 1] as usize;
                 assert!(dx < stride && dy < stride, "pixel {k} from {source}");
+            }
+        }
+    }
+
+    #[test]
+    fn channels_filled_in_bands_copy_the_nearest_lattice_pixel() {
+        // Viewports above the size filled on one thread, so that three threads fill in bands.
+        for (width, height, mode) in [
+            (300, 230, StereoMode::None),
+            (600, 230, StereoMode::SideBySide),
+        ] {
+            let plan = Plan::new(&mode.viewports(width, height));
+            let (mandatory, stride_16) = (plan.mandatory_units(), plan.units_through_stride(16));
+            for done in [mandatory, stride_16 - 1, stride_16, stride_16 + 3] {
+                let mut traced = vec![false; (width * height) as usize];
+                for unit in &plan.units[..done] {
+                    for t in unit.t0..unit.t1 {
+                        for s in unit.s0..unit.s1 {
+                            let (x, y) = unit.lattice.pixel(s, t);
+                            traced[(y * width + x) as usize] = true;
+                        }
+                    }
+                }
+                let stride = LEVELS[plan.complete_levels(done) - 1];
+                let nearest = |p: u32, start: u32, extent: u32| {
+                    let d = (p - start) % stride;
+                    let upper = p - d + stride;
+                    if d > stride / 2 && upper < start + extent {
+                        upper
+                    } else {
+                        p - d
+                    }
+                };
+                let pixels: Vec<u8> = (0..width * height)
+                    .flat_map(|k| if traced[k as usize] { k } else { u32::MAX }.to_ne_bytes())
+                    .collect();
+                for threads in [1, 3] {
+                    let mut filled = pixels.clone();
+                    plan.fill(width, (0, done), 4, &mut filled, threads);
+                    for (k, value) in filled.chunks_exact(4).enumerate() {
+                        let source = u32::from_ne_bytes(value.try_into().unwrap());
+                        let (x, y) = (k as u32 % width, k as u32 / width);
+                        let v = plan
+                            .viewports
+                            .iter()
+                            .find(|v| x >= v.x && x < v.x + v.width);
+                        let v = v.unwrap();
+                        let expected = if traced[k] {
+                            k as u32
+                        } else {
+                            nearest(y, v.y, v.height) * width + nearest(x, v.x, v.width)
+                        };
+                        assert_eq!(
+                            source, expected,
+                            "{mode:?} done {done}, {threads} threads, pixel ({x}, {y})"
+                        );
+                    }
+                }
             }
         }
     }

@@ -325,7 +325,22 @@ fn sample_slot(scene: &SceneSnapshot) -> Option<(&PrimaryPass, usize)> {
 
 /// Hook of `shade_primary_at`: in a data-parallel frame's passes, records the sample or gives
 /// back its result; `None` shades as usual.
+#[inline(always)]
 pub fn primary(
+    scene: &SceneSnapshot,
+    ray: &Ray,
+    hit: Option<&SceneHit>,
+    screen: Option<Vec2>,
+    cyclopean: Option<Vec3>,
+    sampling: &LightSampling,
+) -> Option<Sample> {
+    // Every pixel of a frame asks: the answer for a frame that is no cluster pass stays inline.
+    scene.cluster.as_ref()?;
+    primary_in_pass(scene, ray, hit, screen, cyclopean, sampling)
+}
+
+#[inline(never)]
+fn primary_in_pass(
     scene: &SceneSnapshot,
     ray: &Ray,
     hit: Option<&SceneHit>,
@@ -344,7 +359,22 @@ pub fn primary(
 
 /// Hook of the fast renderer's primary sample (`fast_surface_color` and `fast_surface_sample`),
 /// as [`primary`]: `Err` holds the sample to use.
+#[inline(always)]
 pub fn fast_primary_sample<F: FnOnce() -> Vec2>(
+    scene: &SceneSnapshot,
+    ray: &Ray,
+    hit: Option<&SceneHit>,
+    screen: F,
+    cyclopean: Option<Vec3>,
+) -> Result<F, Sample> {
+    if scene.cluster.is_none() {
+        return Ok(screen);
+    }
+    fast_primary_sample_in_pass(scene, ray, hit, screen, cyclopean)
+}
+
+#[inline(never)]
+fn fast_primary_sample_in_pass<F: FnOnce() -> Vec2>(
     scene: &SceneSnapshot,
     ray: &Ray,
     hit: Option<&SceneHit>,

@@ -549,6 +549,7 @@ fn pass_of(setup: &RenderSetup) -> RenderSetup {
         scene_version: setup.scene_version,
         completion: None,
         budget: setup.budget,
+        requested: setup.requested,
         tile_split: setup.tile_split.clone(),
     }
 }

@@ -93,7 +93,7 @@ pub(super) fn budgeted_run(
     inner: &mut Inner,
     threads: usize,
 ) -> Option<BudgetedRun> {
-    let began = Instant::now();
+    let began = setup.requested;
     let budget = setup.budget?;
     let camera = setup.camera.as_ref()?;
     let plan = Plan::new(&camera.viewports(setup.width, setup.height));
@@ -110,6 +110,11 @@ pub(super) fn budgeted_run(
     if start == plan.units.len() && setup.accumulate {
         return None;
     }
+    // Tracing stops in time for the fill (as long as it took last time), the hand-over, and
+    // the margin the frame's recent overruns call for.
+    let tracing_seconds = inner
+        .deadline
+        .tracing_seconds(f64::from(budget.seconds), inner.throughput.overhead_seconds);
     let planned_pixels = match budget.pixels {
         Some(pixels) => f64::from(pixels),
         None => {
@@ -120,12 +125,9 @@ pub(super) fn budgeted_run(
                 .flat_map(|instance| &instance.surfaces)
                 .map(|surface| surface.geometry.bvh.primitive_count())
                 .sum();
-            inner.throughput.pixels_for(
-                f64::from(budget.seconds),
-                primitives,
-                setup.settings.fast,
-                threads,
-            )
+            inner
+                .throughput
+                .pixels_for(tracing_seconds, primitives, setup.settings.fast, threads)
         }
     };
     // Units after `start` until their pixels reach the plan.
@@ -135,11 +137,10 @@ pub(super) fn budgeted_run(
         pixels += plan.units[planned_end].pixel_count() as f64;
         planned_end += 1;
     }
-    // Tracing stops in time for the fill (as long as it took last time) and the rest.
-    let deadline = budget.pixels.is_none().then(|| {
-        let tracing = 0.85 * f64::from(budget.seconds) - inner.throughput.overhead_seconds;
-        began + Duration::from_secs_f64(tracing.max(0.0))
-    });
+    let deadline = budget
+        .pixels
+        .is_none()
+        .then(|| began + Duration::from_secs_f64(tracing_seconds));
     // A timed render that falls behind stops at whatever level it reached; one with a fixed
     // pixel count always traces as far as stride 16, as its captures must not depend on time.
     let mandatory = match budget.pixels {

@@ -125,9 +125,11 @@ impl ChannelFormat {
             (ChannelKind::Color, _) => {
                 self.encode_pixels(out, |k| f32_bytes::<4, 16>(color(k).to_array()))
             }
-            (ChannelKind::Depth, _) => {
-                self.encode_pixels(out, |k| float(&records.depth, k, f32::INFINITY))
-            }
+            (ChannelKind::Depth, _) => match records.depth.get(..colors.len()) {
+                // Every pixel recorded (the usual case): a plain copy.
+                Some(depths) => self.encode_pixels(out, |k| f32_bytes::<1, 4>([depths[k]])),
+                None => self.encode_pixels(out, |k| float(&records.depth, k, f32::INFINITY)),
+            },
             (ChannelKind::WindowDepth, _) => {
                 self.encode_pixels(out, |k| float(&records.window_depth, k, 1.0))
             }

@@ -66,6 +66,8 @@ pub(super) struct TileRecords {
     pub(super) instance_id: Vec<u32>,
     pub(super) albedo: Vec<Vec3>,
     pub(super) normal: Vec<Vec3>,
+    /// No channel but depth is wanted (what a VR application asks for beside colour).
+    depth_only: bool,
 }
 
 /// Resets `values` to `pixels` copies of `nothing` when `wanted`, else leaves it empty.
@@ -92,30 +94,41 @@ impl TileRecords {
         reset(&mut self.instance_id, wanted.instance_id, pixels, u32::MAX);
         reset(&mut self.albedo, wanted.albedo, pixels, Vec3::ZERO);
         reset(&mut self.normal, wanted.normal, pixels, Vec3::ZERO);
+        self.depth_only = wanted.any()
+            && !HitChannels {
+                depth: false,
+                ..*wanted
+            }
+            .any();
     }
 
-    /// Records pixel `k`'s first hit seen along `ray` of `eye` (a channel not wanted has no
-    /// values to set). A pixel is recorded at most once after [`TileRecords::reset`], so a miss
-    /// leaves the "nothing" values in place.
+    /// Records pixel `k`'s first hit seen along the camera ray `ray()` of `eye` (a channel
+    /// not wanted has no values to set; the ray is made only for the channels that read it),
+    /// `depth(t)` being [`EyeRays::depth`] of the hit. A pixel is recorded at most once after
+    /// [`TileRecords::reset`], so a miss leaves the "nothing" values in place.
     #[inline(always)]
     pub(super) fn record(
         &mut self,
         k: usize,
         hit: Option<&PrimaryHit>,
-        ray: &CameraRay,
+        ray: impl Fn() -> CameraRay,
+        depth: impl FnOnce(f32) -> f32,
         eye: &EyeRays,
     ) {
         let Some(hit) = hit else {
             return;
         };
         if let Some(slot) = self.depth.get_mut(k) {
-            *slot = eye.depth(ray, hit.t);
+            *slot = depth(hit.t);
+        }
+        if self.depth_only {
+            return;
         }
         if let Some(slot) = self.window_depth.get_mut(k) {
-            *slot = eye.window_depth(ray, hit.point);
+            *slot = eye.window_depth(&ray(), hit.point);
         }
         if let Some(slot) = self.parallax.get_mut(k) {
-            *slot = eye.parallax(ray, hit.point);
+            *slot = eye.parallax(&ray(), hit.point);
         }
         if let Some(slot) = self.primitive_id.get_mut(k) {
             *slot = hit.primitive_id;

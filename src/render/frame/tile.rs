@@ -13,6 +13,7 @@ use crate::render::progressive::{FrameTile, SINGLE_RAY_STRIDE, TileMap};
 use crate::scene::light::LightSampling;
 
 use super::anaglyph::{anaglyph, anaglyph_eyes};
+use super::fast_block::FastBlock;
 use super::records::TileRecords;
 use super::samples::{jitter, lens_sample};
 use super::{Job, TILE_SIZE, lock};
@@ -84,6 +85,19 @@ pub(super) fn traced(camera_ray: &CameraRay) -> Ray {
         direction: camera_ray.direction,
         t_min: camera_ray.t_min,
         t_max: camera_ray.t_max,
+    }
+}
+
+/// The ray to trace for lane `lane` of a block: [`traced`] of its camera ray, read straight
+/// from the block's arrays.
+#[inline(always)]
+fn traced_lane(block: &BlockRays, lane: usize) -> Ray {
+    let at = |v: &[[f32; BLOCK_RAYS]; 3]| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
+    Ray {
+        origin: at(&block.origin),
+        direction: at(&block.direction),
+        t_min: block.t_min[lane],
+        t_max: block.t_max[lane],
     }
 }
 
@@ -199,7 +213,12 @@ pub(super) fn render_tile(
     // Walked row by row: a division per pixel for its lattice point cost a tenth of this loop.
     let (s0, s1) = (area.s0, area.s1);
     let lattice_points = (area.t0..area.t1).flat_map(|sy| (s0..s1).map(move |sx| (sx, sy)));
-    for (k, (color, (sx, sy))) in colors[..pixel_count]
+    // One sample of every pixel, not accumulated: the sums are the colours already.
+    let final_already = samples == 1
+        && color_sum.is_none()
+        && covered[..pixel_count].iter().all(|covered| *covered);
+    let pixels_to_finish = if final_already { 0 } else { pixel_count };
+    for (k, (color, (sx, sy))) in colors[..pixels_to_finish]
         .iter_mut()
         .zip(lattice_points)
         .enumerate()
@@ -278,6 +297,9 @@ pub(super) fn trace_blocks(
     let clustered = setup.scene.cluster.is_some();
     let (width, height) = (setup.width as usize, setup.height as usize);
     let records = &mut scratch.records;
+    // The tile's points are a plain rectangle of pixels (none skipped; a point's column and
+    // row give its pixel's).
+    let rectangle = map.rectangle_origin().is_some();
     let mut rays = [NO_RAY; 64];
     // Viewport coordinates of a block's rays, for cameras that make them four at a time.
     let mut batch: [Option<(f32, f32)>; 64] = [None; 64];
@@ -315,21 +337,45 @@ pub(super) fn trace_blocks(
                     let (width, height) = (viewport.width as f32, viewport.height as f32);
                     let mut s_lanes = [0.0; BLOCK_RAYS];
                     let mut t_lanes = [0.0; BLOCK_RAYS];
-                    for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
-                        let (sx, sy) = (bx + dx, by + dy);
-                        if map.skips(sx, sy) {
-                            return None;
+                    // As below, ray by ray.
+                    let s_of = |x: u32| ((x - viewport.x) as f32 + offset.x) / width;
+                    let t_of = |y: u32| ((y - viewport.y) as f32 + offset.y) / height;
+                    if rectangle {
+                        // A pixel's s depends on its column only and t on its row: 16
+                        // divisions for the block's 64 rays.
+                        let columns: [f32; PACKET_SIDE as usize] =
+                            std::array::from_fn(|dx| s_of(map.pixel(bx + dx as u32, by).0));
+                        let rows: [f32; PACKET_SIDE as usize] =
+                            std::array::from_fn(|dy| t_of(map.pixel(bx, by + dy as u32).1));
+                        // Quad by quad (PACKET_ORDER's 2×2 quads of consecutive lanes).
+                        let quads = s_lanes.chunks_exact_mut(4).zip(t_lanes.chunks_exact_mut(4));
+                        for (quad, (s4, t4)) in quads.enumerate() {
+                            let (c, r) = PACKET_ORDER[4 * quad];
+                            let (c, r) = (c as usize, r as usize);
+                            s4.copy_from_slice(&[
+                                columns[c],
+                                columns[c + 1],
+                                columns[c],
+                                columns[c + 1],
+                            ]);
+                            t4.copy_from_slice(&[rows[r], rows[r], rows[r + 1], rows[r + 1]]);
                         }
-                        // As below, ray by ray.
-                        let (x, y) = map.pixel(sx, sy);
-                        s_lanes[lane] = ((x - viewport.x) as f32 + offset.x) / width;
-                        t_lanes[lane] = ((y - viewport.y) as f32 + offset.y) / height;
+                    } else {
+                        for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
+                            let (sx, sy) = (bx + dx, by + dy);
+                            if map.skips(sx, sy) {
+                                return None;
+                            }
+                            let (x, y) = map.pixel(sx, sy);
+                            s_lanes[lane] = s_of(x);
+                            t_lanes[lane] = t_of(y);
+                        }
                     }
                     if !eye_rays.block_rays(&s_lanes, &t_lanes, &mut block) {
                         return None;
                     }
                     for (lane, ray) in rays.iter_mut().enumerate() {
-                        *ray = traced(&block.ray(lane));
+                        *ray = traced_lane(&block, lane);
                     }
                     Some(eye_rays)
                 });
@@ -422,6 +468,30 @@ pub(super) fn trace_blocks(
                         },
                     );
                 }
+                if let Some(eye_rays) = block_rays.filter(|_| work.fast_surfaces && !clustered) {
+                    // A whole block from one eye: shaded from the block's arrays.
+                    let fast = FastBlock {
+                        scene: &setup.scene,
+                        settings: &setup.settings,
+                        rays: &rays,
+                        hits: &hits,
+                        block: &block,
+                        eye: eye_rays,
+                        first: ((by - ty) * tile_width + bx - tx) as usize,
+                        row_stride: tile_width as usize,
+                    };
+                    let screen = |lane: usize| {
+                        let (dx, dy) = PACKET_ORDER[lane];
+                        let (x, y) = map.pixel(bx + dx, by + dy);
+                        Vec2::new(
+                            (x as f32 + offset.x) / setup.width as f32,
+                            (y as f32 + offset.y) / setup.height as f32,
+                        )
+                    };
+                    let records = (s == 0 && keeps_hits).then_some(&mut *records);
+                    fast.shade(screen, colors, covered, records);
+                    continue;
+                }
                 for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
                     let camera = match block_rays {
                         Some(eye_rays) => Some((block.ray(lane), eye_rays)),
@@ -459,7 +529,8 @@ pub(super) fn trace_blocks(
                                 camera_ray.cyclopean,
                             );
                             colors[k] += sample.color;
-                            records.record(k, sample.hit.as_ref(), &camera_ray, eye_rays);
+                            let depth = |t| eye_rays.depth(&camera_ray, t);
+                            records.record(k, sample.hit.as_ref(), || camera_ray, depth, eye_rays);
                         } else {
                             colors[k] += fast_surface_color(
                                 scene,
@@ -490,7 +561,8 @@ pub(super) fn trace_blocks(
                     };
                     colors[k] += sample.color;
                     if s == 0 && keeps_hits {
-                        records.record(k, sample.hit.as_ref(), &camera_ray, eye_rays);
+                        let depth = |t| eye_rays.depth(&camera_ray, t);
+                        records.record(k, sample.hit.as_ref(), || camera_ray, depth, eye_rays);
                     }
                 }
             }
@@ -501,6 +573,19 @@ pub(super) fn trace_blocks(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn packet_lanes_are_2x2_quads_of_consecutive_lanes() {
+        // The block's viewport coordinates are filled quad by quad on this layout.
+        for (lane, &(x, y)) in PACKET_ORDER.iter().enumerate() {
+            let (x0, y0) = PACKET_ORDER[lane & !3];
+            assert_eq!(
+                (x, y),
+                (x0 + lane as u32 % 2, y0 + lane as u32 / 2 % 2),
+                "{lane}"
+            );
+        }
+    }
 
     #[test]
     fn packet_quadrants_are_4x4_pixel_blocks() {

@@ -4,6 +4,7 @@
 //! stay sharp. The other channels keep the nearest traced pixel's values (values that exist in
 //! the scene).
 
+use super::PARALLEL_FILL_PIXELS;
 use crate::camera::EyeViewport;
 
 /// What tells surfaces apart at the traced pixels: the frame's channels, where requested.
@@ -192,9 +193,6 @@ pub fn fill_viewport(
         ColorPixels::Float32 => fill::<Float32>(v, width, stride, bytes, guide, threads),
     }
 }
-
-/// Pixels below which a fill stays on the calling thread (a thread costs tens of µs).
-const PARALLEL_FILL_PIXELS: u64 = 1 << 16;
 
 /// A viewport's lattice of one stride: where it lies, and its points' values copied out
 /// (bands read them while writing the rows between).

@@ -1,0 +1,258 @@
+//! The fast renderer's samples of a block whose rays were made together (one eye, a whole 8×8
+//! block; no cluster pass): shaded straight from the block's arrays, with what does not change
+//! between lanes (where the view looks from, the background, the surface hit) decided once.
+//! Where every hit of the block lies on one uniform surface and the view looks along the rays,
+//! the colours are computed over lane arrays (several lanes per instruction); otherwise lane by
+//! lane. Every lane's sample is bit for bit the per-ray path's.
+
+use glam::{Vec2, Vec3, Vec4};
+
+use crate::accel::{Ray, SceneHit};
+use crate::camera::{BLOCK_RAYS, BlockRays, EyeRays};
+use crate::render::integrator::{UniformSurface, fast_surface_color, fast_surface_sample};
+use crate::render::renderer::RendererSettings;
+use crate::scene::world::SceneSnapshot;
+
+use super::records::TileRecords;
+use super::tile::{PACKET_ORDER, PACKET_SIDE};
+
+/// One sample of a traced block to shade.
+pub(super) struct FastBlock<'a> {
+    pub(super) scene: &'a SceneSnapshot,
+    pub(super) settings: &'a RendererSettings,
+    pub(super) rays: &'a [Ray; BLOCK_RAYS],
+    pub(super) hits: &'a [Option<SceneHit>; BLOCK_RAYS],
+    pub(super) block: &'a BlockRays,
+    pub(super) eye: &'a EyeRays,
+    /// The tile index of the block's first pixel, and of a pixel's upper neighbour less its
+    /// own (the tile's width).
+    pub(super) first: usize,
+    pub(super) row_stride: usize,
+}
+
+/// A block's hits on its one surface, lane by lane (lanes without a hit hold zeros).
+struct LaneHits {
+    hit: [bool; BLOCK_RAYS],
+    normal: [[f32; BLOCK_RAYS]; 3],
+}
+
+impl FastBlock<'_> {
+    /// Adds each lane's colour to its pixel's in `colors` and marks the pixel `covered`; with
+    /// `records`, records each lane's hit there. `screen(lane)`: the sample's position in the
+    /// frame, which places a background image.
+    #[inline(always)]
+    pub(super) fn shade(
+        &self,
+        screen: impl Fn(usize) -> Vec2,
+        colors: &mut [Vec4],
+        covered: &mut [bool],
+        records: Option<&mut TileRecords>,
+    ) {
+        let pixel = |lane: usize| {
+            let (dx, dy) = PACKET_ORDER[lane];
+            self.first + dy as usize * self.row_stride + dx as usize
+        };
+        if let Some(background) = self.background()
+            && self.hits.iter().all(Option::is_none)
+        {
+            // Only background (sky): row by row.
+            for row in 0..PACKET_SIDE as usize {
+                let start = self.first + row * self.row_stride;
+                let pixels = start..start + PACKET_SIDE as usize;
+                covered[pixels.clone()].fill(true);
+                for color in &mut colors[pixels] {
+                    *color += background;
+                }
+            }
+            return;
+        }
+        let cyclopean_view = self.settings.cyclopean_lighting && self.block.cyclopean.is_some();
+        match self.one_surface().filter(|_| !cyclopean_view) {
+            Some((surface, lanes)) => {
+                self.shade_arrays(surface, &lanes, pixel, screen, colors, covered, records)
+            }
+            None => self.shade_lanes(pixel, screen, colors, covered, records),
+        }
+    }
+
+    /// The uniform surface every hit of the block lies on, with the hits' normals; `None` when
+    /// the hits lie on several surfaces or one that is not uniform (or nothing is hit).
+    #[inline(always)]
+    fn one_surface(&self) -> Option<(UniformSurface<'_>, LaneHits)> {
+        let mut surface: Option<UniformSurface> = None;
+        let mut lanes = LaneHits {
+            hit: [false; BLOCK_RAYS],
+            normal: [[0.0; BLOCK_RAYS]; 3],
+        };
+        for (lane, hit) in self.hits.iter().enumerate() {
+            let Some(hit) = hit else {
+                continue;
+            };
+            match surface {
+                Some(s) if s.holds(hit) => {}
+                Some(_) => return None,
+                None => surface = Some(UniformSurface::of(self.scene, hit)?),
+            }
+            lanes.hit[lane] = true;
+            for (axis, value) in hit.normal.to_array().into_iter().enumerate() {
+                lanes.normal[axis][lane] = value;
+            }
+        }
+        Some((surface?, lanes))
+    }
+
+    /// [`Self::shade`] for hits on one uniform surface `surface`, the view along the rays: the
+    /// shading normals and colours over lane arrays, then each lane's pixel.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn shade_arrays(
+        &self,
+        surface: UniformSurface,
+        lanes: &LaneHits,
+        pixel: impl Fn(usize) -> usize,
+        screen: impl Fn(usize) -> Vec2,
+        colors: &mut [Vec4],
+        covered: &mut [bool],
+        mut records: Option<&mut TileRecords>,
+    ) {
+        let direction = &self.block.direction;
+        let mut normal = [[0.0; BLOCK_RAYS]; 3];
+        let mut color = [[0.0; BLOCK_RAYS]; 3];
+        // The rays' directions are the block's, as traced.
+        for lane in 0..BLOCK_RAYS {
+            let view = Vec3::new(direction[0][lane], direction[1][lane], direction[2][lane]);
+            let geometric = Vec3::new(
+                lanes.normal[0][lane],
+                lanes.normal[1][lane],
+                lanes.normal[2][lane],
+            );
+            let shading = UniformSurface::normal(geometric, view);
+            let rgb = surface.color(view, shading);
+            for axis in 0..3 {
+                normal[axis][lane] = shading[axis];
+                color[axis][lane] = rgb[axis];
+            }
+        }
+        let background = self.background();
+        let depth_is_t = self.eye.depth_is_ray_parameter();
+        for lane in 0..BLOCK_RAYS {
+            let k = pixel(lane);
+            covered[k] = true;
+            let Some(hit) = self.hits[lane].as_ref().filter(|_| lanes.hit[lane]) else {
+                colors[k] +=
+                    background.unwrap_or_else(|| self.settings.background_at(screen(lane)));
+                continue;
+            };
+            colors[k] += Vec4::new(color[0][lane], color[1][lane], color[2][lane], 1.0);
+            if let Some(records) = records.as_deref_mut() {
+                let shading = Vec3::new(normal[0][lane], normal[1][lane], normal[2][lane]);
+                let point = UniformSurface::point(&self.rays[lane], hit);
+                let primary = surface.primary_hit(hit, point, shading);
+                let depth = |t| self.depth(lane, t, depth_is_t);
+                records.record(k, Some(&primary), || self.block.ray(lane), depth, self.eye);
+            }
+        }
+    }
+
+    /// channel.depth of lane `lane`'s hit at `t`, which is `t` where `depth_is_t` (the eye's
+    /// [`EyeRays::depth_is_ray_parameter`], asked once per block).
+    #[inline(always)]
+    fn depth(&self, lane: usize, t: f32, depth_is_t: bool) -> f32 {
+        if depth_is_t {
+            t
+        } else {
+            self.eye.depth(&self.block.ray(lane), t)
+        }
+    }
+
+    /// The background every miss of the block sees, unless an image places it per sample.
+    #[inline(always)]
+    fn background(&self) -> Option<Vec4> {
+        let settings = self.settings;
+        settings
+            .background_image
+            .is_none()
+            .then_some(settings.background)
+    }
+
+    /// [`Self::shade`] lane by lane.
+    #[inline(always)]
+    fn shade_lanes(
+        &self,
+        pixel: impl Fn(usize) -> usize,
+        screen: impl Fn(usize) -> Vec2,
+        colors: &mut [Vec4],
+        covered: &mut [bool],
+        mut records: Option<&mut TileRecords>,
+    ) {
+        let (scene, settings, block) = (self.scene, self.settings, self.block);
+        let cyclopean = |lane: usize| {
+            block
+                .cyclopean
+                .as_ref()
+                .map(|c| Vec3::new(c[0][lane], c[1][lane], c[2][lane]))
+        };
+        // The view looks along the ray unless a stereo eye's shading looks from its cyclopean
+        // point.
+        let cyclopean_view = settings.cyclopean_lighting && block.cyclopean.is_some();
+        let background = self.background();
+        let depth_is_t = self.eye.depth_is_ray_parameter();
+        let mut surface: Option<UniformSurface> = None;
+        for lane in 0..BLOCK_RAYS {
+            let k = pixel(lane);
+            covered[k] = true;
+            let ray = &self.rays[lane];
+            let Some(hit) = &self.hits[lane] else {
+                colors[k] += background.unwrap_or_else(|| settings.background_at(screen(lane)));
+                continue;
+            };
+            if !surface.is_some_and(|s| s.holds(hit)) {
+                surface = UniformSurface::of(scene, hit);
+            }
+            let Some(uniform) = surface else {
+                // Attributes or shading normals: the per-ray shading.
+                let screen = || screen(lane);
+                match records.as_deref_mut() {
+                    Some(records) => {
+                        let sample = fast_surface_sample(
+                            scene,
+                            settings,
+                            ray,
+                            Some(hit),
+                            screen,
+                            cyclopean(lane),
+                        );
+                        colors[k] += sample.color;
+                        let depth = |t| self.depth(lane, t, depth_is_t);
+                        let camera_ray = || block.ray(lane);
+                        records.record(k, sample.hit.as_ref(), camera_ray, depth, self.eye);
+                    }
+                    None => {
+                        colors[k] += fast_surface_color(
+                            scene,
+                            settings,
+                            ray,
+                            Some(hit),
+                            screen,
+                            cyclopean(lane),
+                        );
+                    }
+                }
+                continue;
+            };
+            let normal = UniformSurface::normal(hit.normal, ray.direction);
+            let point = UniformSurface::point(ray, hit);
+            let view = if cyclopean_view {
+                settings.view_direction(ray, point, cyclopean(lane))
+            } else {
+                ray.direction
+            };
+            colors[k] += uniform.color(view, normal);
+            if let Some(records) = records.as_deref_mut() {
+                let primary = uniform.primary_hit(hit, point, normal);
+                let depth = |t| self.depth(lane, t, depth_is_t);
+                records.record(k, Some(&primary), || block.ray(lane), depth, self.eye);
+            }
+        }
+    }
+}
