@@ -1,23 +1,26 @@
 //! Bottom-level BVH: one wide BVH over the primitives of one geometry.
 
 use crate::accel::packet::{
-    FRUSTUM_RAYS, FrustumPacket, LANES, RayPacket, traverse_frustum, traverse_packet,
-    triangle_packet,
+    FRUSTUM_RAYS, FrustumPacket, LANES, RayPacket, group_packet, traverse_frustum, traverse_packet,
 };
 use crate::accel::primitives::{
-    PackedSphere, PackedTriangle, is_usable_box, sphere_surface, sphere_t, triangle_t,
-    triangle_t_uv,
+    GROUP_LANES, PackedSphere, PackedTriangle, TriangleGroup, group_closest, is_usable_box,
+    sphere_surface, sphere_t, triangle_t_uv,
 };
 use crate::accel::procedural::{ProceduralPrimitives, ProceduralSlots};
+use crate::accel::single_ray;
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
 use crate::accel::wide_bvh::{
-    LeafSizing, TraversalRay, WideBvh, build_wide_bvh, prefetch, traverse,
+    LeafAlignment, LeafSizing, MAX_PRIMITIVES, PADDING, TraversalRay, WideBvh, WideNode,
+    build_wide_bvh, group_leaf, leaf_range, prefetch, traverse,
 };
 use crate::accel::{GeometryPrims, PrimHit, Ray};
 use glam::{Vec2, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
-use obvhs::cwbvh::node::CwBvhNode;
-use rayon::iter::{IntoParallelIterator, IntoParallelRefIterator, ParallelIterator};
+use rayon::iter::{
+    IndexedParallelIterator, IntoParallelIterator, IntoParallelRefIterator, ParallelIterator,
+};
+use rayon::slice::ParallelSlice;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
@@ -37,10 +40,11 @@ pub fn geometry_build_count() -> u64 {
 /// Marks, in a quad geometry's primitive ids, the second triangle `(v0, v2, v3)` of a quad.
 const QUAD_SECOND_HALF: u32 = 1 << 31;
 
-/// Primitive data in BVH slot order.
+/// Primitive data in BVH slot order: triangles (and quads' halves) in groups of four slots, one
+/// group per leaf; spheres and tubes one per slot, each tested by its own intersector.
 enum PrimitiveData {
-    Triangles(Vec<PackedTriangle>),
-    Quads(Vec<PackedTriangle>),
+    Triangles(Vec<TriangleGroup>),
+    Quads(Vec<TriangleGroup>),
     Spheres(Vec<PackedSphere>),
     Tubes(Vec<PackedTube>),
     Procedural(ProceduralSlots),
@@ -48,9 +52,10 @@ enum PrimitiveData {
 
 /// A BVH over the primitives of one geometry, in object space.
 pub struct GeometryBvh {
-    nodes: Vec<CwBvhNode>,
+    nodes: Vec<WideNode>,
     primitives: PrimitiveData,
-    /// Per BVH slot, the index of the source primitive (quads: plus `QUAD_SECOND_HALF`).
+    /// Per BVH slot, the index of the source primitive (quads: plus `QUAD_SECOND_HALF`);
+    /// padding slots of a triangle group repeat the group's first.
     source_ids: Vec<u32>,
     bounds: (Vec3, Vec3),
     primitive_count: usize,
@@ -62,6 +67,24 @@ impl GeometryBvh {
     /// Number of leaves in the BVH.
     pub(crate) fn leaf_count(&self) -> usize {
         crate::accel::wide_bvh::leaf_count(&self.nodes)
+    }
+
+    /// For triangles and quads: the closest hit's slot and `t` and the any-hit answer of the
+    /// single-ray walks with an inline stack of eight entries (restarting on the heap).
+    pub(crate) fn walks_with_small_stack(&self, ray: &TraversalRay) -> (Option<(u32, f32)>, bool) {
+        let (PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups)) = &self.primitives
+        else {
+            panic!("only triangle and quad BVHs have these walks");
+        };
+        // SAFETY: checked at build (`checked`).
+        unsafe { single_ray::test_paths::with_small_stack(&self.nodes, groups, ray) }
+    }
+
+    /// Closest hit's slot and `t` of the single-ray walk ([`Self::closest_slot`]).
+    pub(crate) fn closest_slot_and_t(&self, ray: &TraversalRay) -> Option<(u32, f32)> {
+        let mut ray = *ray;
+        self.closest_slot(&mut ray)
+            .map(|(slot, _)| (slot, ray.t_max))
     }
 }
 
@@ -141,12 +164,37 @@ fn usable_boxes(
     (usable, Some(source_ids))
 }
 
+/// `value(index)` for every slot of a BVH's primitive `order`; padding slots take the value
+/// of their group's first slot (which every leaf fills).
+fn in_slot_order<T: Send>(order: &[u32], value: impl Fn(u32) -> T + Send + Sync) -> Vec<T> {
+    order
+        .par_iter()
+        .enumerate()
+        .map(|(slot, &index)| {
+            let index = if index == PADDING {
+                order[slot - slot % GROUP_LANES]
+            } else {
+                index
+            };
+            value(index)
+        })
+        .collect()
+}
+
+/// Triangles in slot order as groups of four.
+fn triangle_groups(triangles: &[PackedTriangle]) -> Vec<TriangleGroup> {
+    triangles
+        .par_chunks(GROUP_LANES)
+        .map(TriangleGroup::new)
+        .collect()
+}
+
 /// Builds the BVH over the collected primitives, stores them in BVH slot order (wrapped by
 /// `wrap`) and counts `input_count - accepted` primitives as skipped.
 fn bvh_over_collected<P: Copy + Send + Sync>(
     collected: Collected<P>,
     bounds_of: impl Fn(&P) -> Aabb + Send + Sync,
-    sizing: LeafSizing,
+    (sizing, alignment): (LeafSizing, LeafAlignment),
     wrap: impl FnOnce(Vec<P>) -> PrimitiveData,
     (accepted, input_count): (usize, usize),
 ) -> GeometryBvh {
@@ -155,16 +203,10 @@ fn bvh_over_collected<P: Copy + Send + Sync>(
         nodes,
         order,
         bounds,
-    } = build_wide_bvh(&boxes, sizing);
+    } = build_wide_bvh(&boxes, sizing, alignment);
     drop(boxes);
-    let primitives = order
-        .par_iter()
-        .map(|&i| collected.primitives[i as usize])
-        .collect();
-    let source_ids = order
-        .par_iter()
-        .map(|&i| collected.source_ids[i as usize])
-        .collect();
+    let primitives = in_slot_order(&order, |i| collected.primitives[i as usize]);
+    let source_ids = in_slot_order(&order, |i| collected.source_ids[i as usize]);
     GeometryBvh {
         nodes,
         primitives: wrap(primitives),
@@ -186,7 +228,7 @@ impl GeometryBvh {
         match prims {
             GeometryPrims::Triangles { positions, indices } => {
                 let input_count = indices.len();
-                let candidates = &indices[..input_count.min(u32::MAX as usize)];
+                let candidates = &indices[..input_count.min(MAX_PRIMITIVES)];
                 // Only boxes are gathered before the build; the triangles are packed once, in
                 // BVH slot order, straight from the mesh.
                 let (boxes, usable_ids) = usable_boxes(candidates.len(), |id| {
@@ -197,13 +239,13 @@ impl GeometryBvh {
                     nodes,
                     order,
                     bounds,
-                } = build_wide_bvh(&boxes, LeafSizing::Whole);
+                } = build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group);
                 drop(boxes);
                 let source_ids = match usable_ids {
-                    None => order,
-                    Some(ids) => order.par_iter().map(|&i| ids[i as usize]).collect(),
+                    None => in_slot_order(&order, |i| i),
+                    Some(ids) => in_slot_order(&order, |i| ids[i as usize]),
                 };
-                let triangles = source_ids
+                let triangles: Vec<PackedTriangle> = source_ids
                     .par_iter()
                     .map(|&id| {
                         let [v0, v1, v2] = candidates[id as usize]
@@ -214,17 +256,18 @@ impl GeometryBvh {
                     .collect();
                 GeometryBvh {
                     nodes,
-                    primitives: PrimitiveData::Triangles(triangles),
+                    primitives: PrimitiveData::Triangles(triangle_groups(&triangles)),
                     source_ids,
                     bounds,
                     primitive_count: accepted,
                     skipped_primitive_count: input_count - accepted,
                 }
+                .checked()
             }
             GeometryPrims::Quads { positions, indices } => {
                 let mut collected = Collected::with_capacity(indices.len() * 2);
                 let mut accepted = 0;
-                for (id, quad) in indices.iter().enumerate().take(QUAD_SECOND_HALF as usize) {
+                for (id, quad) in indices.iter().enumerate().take(MAX_PRIMITIVES / 2) {
                     let first = triangle_from(&positions, [quad.x, quad.y, quad.z]);
                     let second = triangle_from(&positions, [quad.x, quad.z, quad.w]);
                     accepted += usize::from(first.is_some() || second.is_some());
@@ -238,14 +281,15 @@ impl GeometryBvh {
                 bvh_over_collected(
                     collected,
                     PackedTriangle::bounds,
-                    LeafSizing::Whole,
-                    PrimitiveData::Quads,
+                    (LeafSizing::Whole, LeafAlignment::Group),
+                    |triangles| PrimitiveData::Quads(triangle_groups(&triangles)),
                     (accepted, indices.len()),
                 )
+                .checked()
             }
             GeometryPrims::Spheres { centers, radii } => {
                 let mut collected = Collected::with_capacity(centers.len());
-                for (id, center) in centers.iter().enumerate().take(u32::MAX as usize) {
+                for (id, center) in centers.iter().enumerate().take(MAX_PRIMITIVES) {
                     let sphere = radii
                         .get(id)
                         .and_then(|&radius| PackedSphere::new(*center, radius));
@@ -257,7 +301,7 @@ impl GeometryBvh {
                 bvh_over_collected(
                     collected,
                     PackedSphere::bounds,
-                    LeafSizing::Split,
+                    (LeafSizing::Split, LeafAlignment::Packed),
                     PrimitiveData::Spheres,
                     (accepted, centers.len()),
                 )
@@ -273,7 +317,7 @@ impl GeometryBvh {
         BUILDS_ON_THIS_THREAD.with(|count| count.set(count.get() + 1));
 
         let mut collected = Collected::with_capacity(segments.len());
-        for (id, segment) in segments.iter().enumerate().take(u32::MAX as usize) {
+        for (id, segment) in segments.iter().enumerate().take(MAX_PRIMITIVES) {
             if let Some(tube) = PackedTube::new(segment) {
                 collected.push(tube, id as u32);
             }
@@ -282,7 +326,7 @@ impl GeometryBvh {
         bvh_over_collected(
             collected,
             PackedTube::bounds,
-            LeafSizing::Split,
+            (LeafSizing::Split, LeafAlignment::Packed),
             PrimitiveData::Tubes,
             (accepted, segments.len()),
         )
@@ -309,7 +353,7 @@ impl GeometryBvh {
         bvh_over_collected(
             collected,
             |&id| boxes[id as usize],
-            LeafSizing::Split,
+            (LeafSizing::Split, LeafAlignment::Packed),
             |indices| {
                 PrimitiveData::Procedural(ProceduralSlots {
                     primitives,
@@ -386,16 +430,25 @@ impl GeometryBvh {
     pub fn memory_bytes(&self) -> usize {
         use std::mem::size_of;
         let primitive_bytes = match &self.primitives {
-            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
-                triangles.capacity() * size_of::<PackedTriangle>()
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                groups.capacity() * size_of::<TriangleGroup>()
             }
             PrimitiveData::Spheres(spheres) => spheres.capacity() * size_of::<PackedSphere>(),
             PrimitiveData::Tubes(tubes) => tubes.capacity() * size_of::<PackedTube>(),
             PrimitiveData::Procedural(slots) => slots.memory_bytes(),
         };
-        self.nodes.capacity() * size_of::<CwBvhNode>()
+        self.nodes.capacity() * size_of::<WideNode>()
             + self.source_ids.capacity() * size_of::<u32>()
             + primitive_bytes
+    }
+
+    /// Asserts that a triangle or quad BVH's codes are in range, which the single-ray walks
+    /// rely on instead of bounds checks.
+    fn checked(self) -> GeometryBvh {
+        if let PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) = &self.primitives {
+            assert!(single_ray::codes_in_range(&self.nodes, groups.len()));
+        }
+        self
     }
 
     pub(crate) fn is_empty(&self) -> bool {
@@ -404,49 +457,64 @@ impl GeometryBvh {
 
     /// Closest hit; shrinks `ray.t_max` to it and returns its BVH slot with, for triangles
     /// and quads, the barycentrics `(b1, b2)` of the hit (zero for other kinds).
-    #[inline]
+    #[inline(always)]
     pub(crate) fn closest_slot(&self, ray: &mut TraversalRay) -> Option<(u32, Vec2)> {
+        match &self.primitives {
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                closest_triangle_slot(&self.nodes, groups, ray)
+            }
+            _ => self.closest_other_slot(ray),
+        }
+    }
+
+    /// [`Self::closest_slot`] for spheres, tubes and procedural primitives.
+    #[inline(never)]
+    fn closest_other_slot(&self, ray: &mut TraversalRay) -> Option<(u32, Vec2)> {
         let mut closest = None;
         match &self.primitives {
-            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
-                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
-                    let hit = triangle_t_uv(&triangles[slot as usize], ray);
-                    if let Some((t, bary)) = hit {
-                        ray.t_max = t;
-                        closest = Some((slot, bary));
-                    }
-                    hit.is_some()
-                });
-                return closest;
+            PrimitiveData::Triangles(_) | PrimitiveData::Quads(_) => {
+                unreachable!("triangle walks are taken by closest_slot")
             }
             PrimitiveData::Spheres(spheres) => {
-                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
-                    let hit = sphere_t(&spheres[slot as usize], ray);
-                    if let Some(t) = hit {
-                        ray.t_max = t;
-                        closest = Some((slot, Vec2::ZERO));
+                traverse::<false, _>(&self.nodes, ray, |code, ray| {
+                    let (first, count) = leaf_range(code);
+                    let mut found = false;
+                    for slot in first..first + count {
+                        if let Some(t) = sphere_t(&spheres[slot as usize], ray) {
+                            ray.t_max = t;
+                            closest = Some((slot, Vec2::ZERO));
+                            found = true;
+                        }
                     }
-                    hit.is_some()
+                    found
                 });
             }
             PrimitiveData::Tubes(tubes) => {
-                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
-                    let hit = tube_hit(&tubes[slot as usize], ray);
-                    if let Some((t, _)) = hit {
-                        ray.t_max = t;
-                        closest = Some((slot, Vec2::ZERO));
+                traverse::<false, _>(&self.nodes, ray, |code, ray| {
+                    let (first, count) = leaf_range(code);
+                    let mut found = false;
+                    for slot in first..first + count {
+                        if let Some((t, _)) = tube_hit(&tubes[slot as usize], ray) {
+                            ray.t_max = t;
+                            closest = Some((slot, Vec2::ZERO));
+                            found = true;
+                        }
                     }
-                    hit.is_some()
+                    found
                 });
             }
             PrimitiveData::Procedural(slots) => {
-                traverse::<false, _>(&self.nodes, ray, |slot, ray| {
-                    let hit = slots.hit(slot, ray);
-                    if let Some(hit) = hit {
-                        ray.t_max = hit.t;
-                        closest = Some((slot, Vec2::ZERO));
+                traverse::<false, _>(&self.nodes, ray, |code, ray| {
+                    let (first, count) = leaf_range(code);
+                    let mut found = false;
+                    for slot in first..first + count {
+                        if let Some(hit) = slots.hit(slot, ray) {
+                            ray.t_max = hit.t;
+                            closest = Some((slot, Vec2::ZERO));
+                            found = true;
+                        }
                     }
-                    hit.is_some()
+                    found
                 });
             }
         }
@@ -462,13 +530,31 @@ impl GeometryBvh {
         active: &[u32; FRUSTUM_RAYS / LANES],
         closest: &mut [Option<u32>; FRUSTUM_RAYS],
     ) {
-        let prefetch_primitive = |slot: u32| self.prefetch_primitive(slot);
-        traverse_frustum(
+        #[cfg(target_arch = "x86_64")]
+        if crate::isa::avx2_selected() {
+            // SAFETY: the AVX2 path is selected only on CPUs that have AVX2 (`crate::isa`).
+            unsafe { avx2_walks::closest_slots_frustum(self, frustum, active, closest) };
+            return;
+        }
+        self.closest_slots_frustum_on::<false>(frustum, active, closest);
+    }
+
+    /// [`Self::closest_slots_frustum`]; `AVX2`: a node's eight child boxes culled in one
+    /// vector (only inside an AVX2 function).
+    #[inline(always)]
+    fn closest_slots_frustum_on<const AVX2: bool>(
+        &self,
+        frustum: &mut FrustumPacket,
+        active: &[u32; FRUSTUM_RAYS / LANES],
+        closest: &mut [Option<u32>; FRUSTUM_RAYS],
+    ) {
+        let prefetch_leaf = |code: u32| self.prefetch_leaf(code);
+        traverse_frustum::<AVX2, _, _>(
             &self.nodes,
             frustum,
             active,
-            prefetch_primitive,
-            |first, count, lanes, frustum| {
+            prefetch_leaf,
+            |code, lanes, frustum| {
                 // Usually one or two of the sixteen groups reach a leaf: visit just those.
                 let mut groups = 0u32;
                 for (group, lanes) in lanes.iter().enumerate() {
@@ -479,8 +565,7 @@ impl GeometryBvh {
                     let group = groups.trailing_zeros() as usize;
                     groups &= groups - 1;
                     self.test_leaf_packet(
-                        first,
-                        count,
+                        code,
                         &mut frustum.groups[group],
                         lanes[group],
                         &mut closest_by_group[group],
@@ -499,27 +584,31 @@ impl GeometryBvh {
         lanes: u32,
         closest: &mut [Option<u32>; LANES],
     ) {
-        traverse_packet(&self.nodes, packet, lanes, |first, count, lanes, packet| {
-            self.test_leaf_packet(first, count, packet, lanes, closest);
+        traverse_packet(&self.nodes, packet, lanes, |code, lanes, packet| {
+            self.test_leaf_packet(code, packet, lanes, closest);
         });
     }
 
+    /// Starts loading the primitives of a leaf.
     #[inline(always)]
-    fn prefetch_primitive(&self, slot: u32) {
-        let slot = slot as usize;
+    fn prefetch_leaf(&self, code: u32) {
+        let (first, _) = leaf_range(code);
+        let first = first as usize;
         match &self.primitives {
-            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
-                if let Some(triangle) = triangles.get(slot) {
-                    prefetch(triangle);
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                if let Some(group) = groups.get(group_leaf(code).0) {
+                    prefetch(group);
+                    prefetch(&group.vertices[1]);
+                    prefetch(&group.vertices[2][2]);
                 }
             }
             PrimitiveData::Spheres(spheres) => {
-                if let Some(sphere) = spheres.get(slot) {
+                if let Some(sphere) = spheres.get(first) {
                     prefetch(sphere);
                 }
             }
             PrimitiveData::Tubes(tubes) => {
-                if let Some(tube) = tubes.get(slot) {
+                if let Some(tube) = tubes.get(first) {
                     prefetch(tube);
                 }
             }
@@ -527,18 +616,20 @@ impl GeometryBvh {
         }
     }
 
-    /// Tests the primitive slots `first..first + count` against the packet's `lanes`; lanes
-    /// that hit get their `t_max` shrunk and their slot written to `closest`. Spheres and
-    /// tubes are tested lane by lane with the single-ray routines.
+    /// Tests a leaf's primitives against the packet's `lanes`; lanes that hit get their
+    /// `t_max` shrunk and their slot written to `closest`. Triangles: with fewer rays than the
+    /// leaf has triangles each ray tests the leaf's lanes of the group at once, else each
+    /// triangle the four rays, in slot order (the same hits either way); spheres and tubes
+    /// lane by lane with the single-ray routines.
     #[inline(always)]
     fn test_leaf_packet(
         &self,
-        first: u32,
-        count: u32,
+        code: u32,
         packet: &mut RayPacket,
         lanes: u32,
         closest: &mut [Option<u32>; LANES],
     ) {
+        let (first, count) = leaf_range(code);
         let per_lane = |packet: &mut RayPacket,
                         closest: &mut [Option<u32>; LANES],
                         slot: u32,
@@ -553,28 +644,60 @@ impl GeometryBvh {
                 }
             }
         };
-        for slot in first..first + count {
-            match &self.primitives {
-                PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
-                    let mut hits = triangle_packet(&triangles[slot as usize], packet, lanes);
-                    while hits != 0 {
-                        closest[hits.trailing_zeros() as usize] = Some(slot);
-                        hits &= hits - 1;
+        match &self.primitives {
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                let (group_index, leaf_lanes) = group_leaf(code);
+                let group = &groups[group_index];
+                let base = group_index as u32 * GROUP_LANES as u32;
+                let triangles = leaf_lanes;
+                if lanes.count_ones() < triangles.count_ones() {
+                    // Fewer rays than triangles: each ray takes the whole group in one pass
+                    // (lanes = triangles), the single-ray test with the same hits.
+                    let mut remaining = lanes;
+                    while remaining != 0 {
+                        let lane = remaining.trailing_zeros() as usize;
+                        remaining &= remaining - 1;
+                        if let Some((hit_lane, t, bary)) =
+                            group_closest(group, leaf_lanes, &packet.ray(lane))
+                        {
+                            packet.record_hit(lane, t, bary, group.triangle(hit_lane).normal());
+                            closest[lane] = Some(base + hit_lane as u32);
+                        }
                     }
+                    return;
                 }
-                PrimitiveData::Spheres(spheres) => {
+                group_packet(
+                    group,
+                    triangles,
+                    packet,
+                    lanes,
+                    |triangle_lane, mut hits| {
+                        let slot = base + triangle_lane as u32;
+                        while hits != 0 {
+                            closest[hits.trailing_zeros() as usize] = Some(slot);
+                            hits &= hits - 1;
+                        }
+                    },
+                );
+            }
+            PrimitiveData::Spheres(spheres) => {
+                for slot in first..first + count {
                     let sphere = &spheres[slot as usize];
                     per_lane(packet, closest, slot, &|ray| sphere_t(sphere, ray));
                 }
-                PrimitiveData::Tubes(tubes) => {
+            }
+            PrimitiveData::Tubes(tubes) => {
+                for slot in first..first + count {
                     let tube = &tubes[slot as usize];
                     per_lane(packet, closest, slot, &|ray| {
                         tube_hit(tube, ray).map(|hit| hit.0)
                     });
                 }
-                PrimitiveData::Procedural(slots) => {
+            }
+            PrimitiveData::Procedural(slots) => {
+                for slot in first..first + count {
                     per_lane(packet, closest, slot, &|ray| {
-                        slots.hit(slot, ray).map(|h| h.t)
+                        slots.hit(slot, ray).map(|hit| hit.t)
                     });
                 }
             }
@@ -585,23 +708,34 @@ impl GeometryBvh {
     #[inline]
     pub(crate) fn any_hit(&self, ray: &mut TraversalRay) -> bool {
         match &self.primitives {
-            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
-                traverse::<true, _>(&self.nodes, ray, |slot, ray| {
-                    triangle_t(&triangles[slot as usize], ray).is_some()
-                })
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                any_triangle_hit(&self.nodes, groups, ray)
             }
             PrimitiveData::Spheres(spheres) => {
-                traverse::<true, _>(&self.nodes, ray, |slot, ray| {
-                    sphere_t(&spheres[slot as usize], ray).is_some()
+                traverse::<true, _>(&self.nodes, ray, |code, ray| {
+                    let (first, count) = leaf_range(code);
+                    (first..first + count)
+                        .any(|slot| sphere_t(&spheres[slot as usize], ray).is_some())
                 })
             }
-            PrimitiveData::Tubes(tubes) => traverse::<true, _>(&self.nodes, ray, |slot, ray| {
-                tube_hit(&tubes[slot as usize], ray).is_some()
+            PrimitiveData::Tubes(tubes) => traverse::<true, _>(&self.nodes, ray, |code, ray| {
+                let (first, count) = leaf_range(code);
+                (first..first + count).any(|slot| tube_hit(&tubes[slot as usize], ray).is_some())
             }),
             PrimitiveData::Procedural(slots) => {
-                traverse::<true, _>(&self.nodes, ray, |slot, ray| slots.hit(slot, ray).is_some())
+                traverse::<true, _>(&self.nodes, ray, |code, ray| {
+                    let (first, count) = leaf_range(code);
+                    (first..first + count).any(|slot| slots.hit(slot, ray).is_some())
+                })
             }
         }
+    }
+
+    /// The triangle in a triangle or quad slot.
+    #[inline]
+    fn triangle(groups: &[TriangleGroup], slot: u32) -> PackedTriangle {
+        let lanes = GROUP_LANES as u32;
+        groups[(slot / lanes) as usize].triangle((slot % lanes) as usize)
     }
 
     /// Full hit record for the primitive in `slot`, found for `lane` of a packet.
@@ -626,8 +760,9 @@ impl GeometryBvh {
     /// The unit normal of the triangle in a triangle or quad slot; zero for other primitives.
     pub(crate) fn triangle_normal(&self, slot: u32) -> Vec3 {
         match &self.primitives {
-            PrimitiveData::Triangles(triangles) | PrimitiveData::Quads(triangles) => {
-                triangles[slot as usize].normal()
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                let lanes = GROUP_LANES as u32;
+                groups[(slot / lanes) as usize].normal((slot % lanes) as usize)
             }
             PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) | PrimitiveData::Procedural(_) => {
                 Vec3::ZERO
@@ -678,8 +813,8 @@ impl GeometryBvh {
             normal: Vec3::Z,
         };
         match &self.primitives {
-            PrimitiveData::Triangles(triangles) => {
-                let triangle = &triangles[slot];
+            PrimitiveData::Triangles(groups) => {
+                let triangle = &Self::triangle(groups, slot as u32);
                 let Some((t, uv)) = triangle_t_uv(triangle, ray) else {
                     return miss();
                 };
@@ -690,8 +825,8 @@ impl GeometryBvh {
                     normal: triangle.normal(),
                 }
             }
-            PrimitiveData::Quads(triangles) => {
-                let triangle = &triangles[slot];
+            PrimitiveData::Quads(groups) => {
+                let triangle = &Self::triangle(groups, slot as u32);
                 let Some((t, bary)) = triangle_t_uv(triangle, ray) else {
                     return miss();
                 };
@@ -738,6 +873,42 @@ impl GeometryBvh {
                 }
             }
         }
+    }
+}
+
+/// [`GeometryBvh::closest_slot`] over triangle groups (see `single_ray`).
+#[inline]
+fn closest_triangle_slot(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &mut TraversalRay,
+) -> Option<(u32, Vec2)> {
+    // SAFETY: triangle and quad BVHs are checked with `codes_in_range` when built
+    // (`GeometryBvh::checked`) and never change afterwards.
+    unsafe { single_ray::closest_triangle_slot(nodes, groups, ray) }
+}
+
+/// [`GeometryBvh::any_hit`] over triangle groups (see `single_ray`).
+#[inline]
+fn any_triangle_hit(nodes: &[WideNode], groups: &[TriangleGroup], ray: &TraversalRay) -> bool {
+    // SAFETY: as in `closest_triangle_slot`.
+    unsafe { single_ray::any_triangle_hit(nodes, groups, ray) }
+}
+
+/// The frustum walk compiled for AVX2: a node's eight child boxes culled per frustum in one
+/// vector (the same operations per lane as the four-wide test).
+#[cfg(target_arch = "x86_64")]
+mod avx2_walks {
+    use super::*;
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn closest_slots_frustum(
+        bvh: &GeometryBvh,
+        frustum: &mut FrustumPacket,
+        active: &[u32; FRUSTUM_RAYS / LANES],
+        closest: &mut [Option<u32>; FRUSTUM_RAYS],
+    ) {
+        bvh.closest_slots_frustum_on::<true>(frustum, active, closest);
     }
 }
 

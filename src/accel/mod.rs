@@ -1,5 +1,6 @@
-//! Ray-tracing acceleration structures: one obvhs compressed wide BVH (CWBVH) per geometry
-//! ([`GeometryBvh`]) and a top-level BVH over instanced geometries ([`SceneBvh`]).
+//! Ray-tracing acceleration structures: one wide BVH per geometry ([`GeometryBvh`]) and a
+//! top-level BVH over instanced geometries ([`SceneBvh`]), built by obvhs and laid out for the
+//! CPU (eight float child boxes per node, triangles four to a leaf group; see `wide_bvh`).
 //!
 //! # Conventions callers must follow
 //!
@@ -46,6 +47,7 @@ mod packet;
 mod primitives;
 mod procedural;
 mod scene;
+mod single_ray;
 mod tube;
 mod wide_bvh;
 

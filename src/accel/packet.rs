@@ -6,8 +6,8 @@
 //! * [`FrustumPacket`]: up to sixteen such groups (an 8x8 tile). Inner nodes are culled once
 //!   for the whole tile with interval arithmetic over the rays' inverse directions and origins
 //!   (one shared eye point, or each ray its own: several viewers, a matrix camera's near
-//!   plane), leaf boxes once per quadrant of four groups the same way; only then are leaf
-//!   boxes and primitives tested per group, each lane with its own origin.
+//!   plane), inner nodes and leaf boxes also per quadrant of four groups the same way; only
+//!   then are leaf boxes tested per group, each lane with its own origin.
 //!
 //! Triangles are tested against four rays with the same watertight arithmetic as the
 //! single-ray path, lane by lane in the same operation order, so every ray gets a
@@ -15,14 +15,13 @@
 //! ray by ray by the callers.
 
 use crate::accel::geometry::prepare as prepare_one;
-use crate::accel::primitives::{PackedTriangle, triangle_t_uv};
+use crate::accel::primitives::{TriangleGroup, triangle_t_uv};
 use crate::accel::wide_bvh::{
-    GroupStack, MAX_INV_DIRECTION, MAX_QUANTIZED, NodeGroup, SLAB_ERROR, TraversalRay,
-    entry_exit_planes, prefetch, quantization_step, unpack_planes,
+    BoxRay, LEAF_BIT, MAX_INV_DIRECTION, ORDER, SLAB_ERROR, TraversalRay, TraversalStack, WideNode,
+    child_hits, prefetch,
 };
 use crate::accel::{MAX_COORDINATE, Ray};
 use glam::{BVec4A, Vec3A, Vec4};
-use obvhs::cwbvh::node::CwBvhNode;
 
 /// Number of rays in a packet.
 pub(crate) const LANES: usize = 4;
@@ -278,45 +277,38 @@ impl RayPacket {
     }
 }
 
-/// A node's child boxes decoded once for all the ray groups that test them: per axis the
-/// quantized entry and exit planes (in the traversal octant's order) as floats.
-struct DecodedNode {
-    step: Vec3A,
-    corner: Vec3A,
-    entry: [[Vec4; 2]; 3],
-    exit: [[Vec4; 2]; 3],
+/// Per axis, the plane rows (`WideNode::planes`) through which rays of the octant enter and
+/// leave children.
+#[derive(Clone, Copy)]
+struct PlaneRows {
+    entry: [usize; 3],
+    exit: [usize; 3],
 }
 
-impl DecodedNode {
+impl PlaneRows {
     #[inline(always)]
-    fn new(node: &CwBvhNode, octant_inv: u32) -> DecodedNode {
-        let planes = entry_exit_planes(node, octant_inv);
-        DecodedNode {
-            step: quantization_step(node),
-            corner: Vec3A::from(node.p),
-            entry: [0, 1, 2].map(|axis| unpack_planes(planes[axis].0)),
-            exit: [0, 1, 2].map(|axis| unpack_planes(planes[axis].1)),
+    fn new(octant_inv: u32) -> PlaneRows {
+        let negative = [4, 2, 1].map(|bit| usize::from(octant_inv & bit == 0));
+        PlaneRows {
+            entry: [0, 1, 2].map(|axis| 2 * axis + negative[axis]),
+            exit: [0, 1, 2].map(|axis| 2 * axis + 1 - negative[axis]),
         }
     }
 }
 
 /// Per child slot, a 4-bit mask of the packet lanes whose `[t_min, t_max]` overlaps the child
-/// box (child `c` in bits `4c..4c+4`), restricted to `lanes` and to the slots in `children`
-/// (which must be occupied).
+/// box (child `c` in bits `4c..4c+4`), restricted to `lanes` and to the slots in `children`.
+/// Lane by lane the operations of the single-ray box test, so a lane reaches exactly the
+/// children its ray would alone.
 #[inline(always)]
-fn child_lane_masks(node: &DecodedNode, packet: &RayPacket, lanes: u32, children: u32) -> u32 {
-    // Slab parameters per axis and lane, as `slab_parameters` computes them for single rays.
-    let mut step = [Vec4::ZERO; 3];
-    let mut entry_offset = [Vec4::ZERO; 3];
-    let mut exit_offset = [Vec4::ZERO; 3];
-    for axis in 0..3 {
-        step[axis] = Vec4::splat(node.step[axis]) * packet.inv_direction[axis];
-        let offset =
-            (Vec4::splat(node.corner[axis]) - packet.origin[axis]) * packet.inv_direction[axis];
-        let error = (offset.abs() + step[axis].abs() * MAX_QUANTIZED) * SLAB_ERROR;
-        entry_offset[axis] = offset - error;
-        exit_offset[axis] = offset + error;
-    }
+fn child_lane_masks(
+    node: &WideNode,
+    rows: &PlaneRows,
+    packet: &RayPacket,
+    lanes: u32,
+    children: u32,
+) -> u32 {
+    let error = Vec4::splat(SLAB_ERROR);
     let mut masks = 0;
     let mut present = children;
     while present != 0 {
@@ -325,11 +317,13 @@ fn child_lane_masks(node: &DecodedNode, packet: &RayPacket, lanes: u32, children
         let mut near = packet.t_min;
         let mut far = packet.t_max;
         for axis in 0..3 {
-            let q_entry = Vec4::splat(node.entry[axis][child / 4][child % 4]);
-            let q_exit = Vec4::splat(node.exit[axis][child / 4][child % 4]);
-            near = near.max(q_entry * step[axis] + entry_offset[axis]);
-            far = far.min(q_exit * step[axis] + exit_offset[axis]);
+            let entry = Vec4::splat(node.planes[rows.entry[axis]][child]);
+            let exit = Vec4::splat(node.planes[rows.exit[axis]][child]);
+            near = near.max((entry - packet.origin[axis]) * packet.inv_direction[axis]);
+            far = far.min((exit - packet.origin[axis]) * packet.inv_direction[axis]);
         }
+        let near = near - near.abs() * error;
+        let far = far + far.abs() * error;
         let hit = near.cmple(far).bitmask() & lanes;
         masks |= hit << (4 * child);
     }
@@ -338,113 +332,160 @@ fn child_lane_masks(node: &DecodedNode, packet: &RayPacket, lanes: u32, children
 
 /// Bit `c` set for every occupied child slot `c`.
 #[inline(always)]
-fn non_empty_children(node: &CwBvhNode) -> u32 {
-    let mut mask = 0;
-    for (slot, meta) in node.child_meta.iter().enumerate() {
-        mask |= u32::from(*meta != 0) << slot;
-    }
-    mask
+fn occupied_children(node: &WideNode) -> u32 {
+    let low = Vec4::from_slice(&node.planes[0][..4]).cmple(Vec4::from_slice(&node.planes[1][..4]));
+    let high = Vec4::from_slice(&node.planes[0][4..]).cmple(Vec4::from_slice(&node.planes[1][4..]));
+    low.bitmask() | (high.bitmask() << 4)
 }
 
-/// Groups of a node's children still to visit, with the lanes each child holds.
-#[derive(Clone, Copy, Default)]
-pub(crate) struct PacketGroup {
-    group: NodeGroup,
-    /// 4 bits per child slot.
-    child_lanes: u32,
-}
-
-/// Walks the BVH with the packet's `lanes`. `test_leaf(first_slot, count, lanes, packet)` is
-/// called for every leaf some lane reaches, with the lanes that reach it; it tests the leaf's
-/// primitive slots `first_slot..first_slot + count` and shrinks `packet.t_max` of lanes that hit.
+/// Walks the BVH with the packet's `lanes`. `test_leaf(leaf_code, lanes, packet)` is called
+/// for every leaf some lane reaches, with the lanes that reach it (see
+/// [`crate::accel::wide_bvh::leaf_range`]); it tests the leaf's primitives and shrinks
+/// `packet.t_max` of lanes that hit. Children are visited nearest-first for the octant. A
+/// subtree only one lane reaches is walked by that lane alone, with the single-ray box test
+/// (hybrid traversal): the same boxes its lane mask would give, at an eighth of the work.
 #[inline(always)]
 pub(crate) fn traverse_packet<F>(
-    nodes: &[CwBvhNode],
+    nodes: &[WideNode],
     packet: &mut RayPacket,
     lanes: u32,
     mut test_leaf: F,
 ) where
-    F: FnMut(u32, u32, u32, &mut RayPacket),
+    F: FnMut(u32, u32, &mut RayPacket),
 {
     let lanes = lanes & packet.lanes;
     if nodes.is_empty() || lanes == 0 {
         return;
     }
-    let octant_inv = packet.octant_inv;
-    let mut stack: GroupStack<PacketGroup> = GroupStack::new();
-    let mut current = PacketGroup {
-        group: NodeGroup {
-            first_child: 0,
-            bits: 1 << 31,
-        },
-        child_lanes: lanes << (4 * (7 ^ octant_inv)),
-    };
-    loop {
-        if current.group.bits & 0xff00_0000 == 0 {
-            match stack.pop() {
-                Some(next) => current = next,
-                None => break,
-            }
+    let rows = PlaneRows::new(packet.octant_inv);
+    let order = (7 ^ packet.octant_inv) as usize;
+    let mut stack: TraversalStack<(u32, u32)> = TraversalStack::new();
+    stack.push((0, lanes));
+    while let Some((index, lanes)) = stack.pop() {
+        if lanes.count_ones() == 1 {
+            walk_lane(
+                nodes,
+                index,
+                packet,
+                lanes.trailing_zeros() as usize,
+                &mut test_leaf,
+            );
+            continue;
         }
-        let bit = 31 - current.group.bits.leading_zeros();
-        current.group.bits &= !(1 << bit);
-        let slot = (bit - 24) ^ octant_inv;
-        let inner_before_slot = current.group.bits & 0xff & ((1 << slot) - 1);
-        let node_index = current.group.first_child + inner_before_slot.count_ones();
-        let lanes = (current.child_lanes >> (4 * slot)) & 0xf;
-        if current.group.bits & 0xff00_0000 != 0 {
-            stack.push(current);
+        let node = &nodes[index as usize];
+        let masks = child_lane_masks(node, &rows, packet, lanes, occupied_children(node));
+        let mut hit = 0u32;
+        for child in 0..8 {
+            hit |= u32::from((masks >> (4 * child)) & 0xf != 0) << child;
         }
-        let node = &nodes[node_index as usize];
-        let masks = child_lane_masks(
-            &DecodedNode::new(node, octant_inv),
-            packet,
-            lanes,
-            non_empty_children(node),
-        );
-
-        let mut inner = 0;
-        let mut child_lanes = 0;
-        let mut hit_children = masks;
-        while hit_children != 0 {
-            let child = hit_children.trailing_zeros() / 4;
-            let child_mask = (masks >> (4 * child)) & 0xf;
-            hit_children &= !(0xf << (4 * child));
-            if node.imask & (1 << child) != 0 {
-                inner |= 1 << (24 + (child ^ octant_inv));
-                child_lanes |= child_mask << (4 * child);
+        let ordered = u32::from(ORDER[order][hit as usize]);
+        let mut inner = 0u32;
+        let mut remaining = ordered;
+        while remaining != 0 {
+            let i = remaining.trailing_zeros();
+            remaining &= remaining - 1;
+            let slot = i as usize ^ order;
+            let code = node.children[slot];
+            let child_lanes = (masks >> (4 * slot)) & 0xf;
+            if code & LEAF_BIT != 0 {
+                test_leaf(code, child_lanes, packet);
             } else {
-                let meta = node.child_meta[child as usize] as u32;
-                let first = node.primitive_base_idx + (meta & 31);
-                let count = (meta >> 5).count_ones();
-                test_leaf(first, count, child_mask, packet);
+                inner |= 1 << i;
             }
         }
-        current = PacketGroup {
-            group: NodeGroup {
-                first_child: node.child_base_idx,
-                bits: inner | node.imask as u32,
-            },
-            child_lanes,
-        };
+        while inner != 0 {
+            let i = 31 - inner.leading_zeros();
+            inner &= !(1 << i);
+            let slot = i as usize ^ order;
+            stack.push((node.children[slot], (masks >> (4 * slot)) & 0xf));
+        }
     }
 }
 
-/// Watertight test of one triangle against the `lanes` of a packet; lanes that hit get their
-/// `t_max` shrunk and their bit set in the returned mask.
+/// The subtree at node `root` for one lane of a packet, nearest-first, with that lane's
+/// shrinking `t_max`: [`traverse_packet`]'s hybrid part.
 #[inline(always)]
-pub(crate) fn triangle_packet(
-    triangle: &PackedTriangle,
+fn walk_lane<F>(
+    nodes: &[WideNode],
+    root: u32,
+    packet: &mut RayPacket,
+    lane: usize,
+    test_leaf: &mut F,
+) where
+    F: FnMut(u32, u32, &mut RayPacket),
+{
+    let ray = packet.ray(lane);
+    let box_ray = BoxRay::new(&ray);
+    let order = box_ray.order;
+    let mut stack: TraversalStack<(u32, f32)> = TraversalStack::new();
+    stack.push((root, f32::NEG_INFINITY));
+    while let Some((code, near)) = stack.pop() {
+        if near > packet.t_max[lane] {
+            continue;
+        }
+        if code & LEAF_BIT != 0 {
+            test_leaf(code, 1 << lane, packet);
+            continue;
+        }
+        let node = &nodes[code as usize];
+        let (mask, nears) = child_hits(node, &box_ray, ray.t_min, packet.t_max[lane]);
+        let mut remaining = u32::from(ORDER[order][mask as usize]);
+        while remaining != 0 {
+            let i = 31 - remaining.leading_zeros();
+            remaining &= !(1 << i);
+            let slot = i as usize ^ order;
+            stack.push((node.children[slot], nears[slot]));
+        }
+    }
+}
+
+/// A triangle group's vertex coordinates in a packet's sheared axis order (`kx`, `ky`, `kz`):
+/// `coordinates[vertex][axis]`, one lane per triangle, loaded once per (packet, leaf).
+#[derive(Clone, Copy)]
+pub(crate) struct PermutedGroup {
+    coordinates: [[Vec4; 3]; 3],
+}
+
+impl PermutedGroup {
+    #[inline(always)]
+    pub fn new(group: &TriangleGroup, packet: &RayPacket) -> PermutedGroup {
+        let [kx, ky, kz] = packet.shear_axes;
+        PermutedGroup {
+            coordinates: group
+                .vertices
+                .map(|vertex| [vertex[kx], vertex[ky], vertex[kz]]),
+        }
+    }
+}
+
+/// Lane `L` of `values` in every lane (a constant shuffle, no load).
+#[inline(always)]
+fn broadcast<const L: usize>(values: Vec4) -> Vec4 {
+    match L {
+        0 => Vec4::splat(values.x),
+        1 => Vec4::splat(values.y),
+        2 => Vec4::splat(values.z),
+        _ => Vec4::splat(values.w),
+    }
+}
+
+/// Watertight test of the triangle in lane `L` of `group` (`permuted`: its coordinates for
+/// this packet) against the `lanes` of a packet; lanes that hit get their `t_max` shrunk and
+/// their bit set in the returned mask. Lane by lane the single-ray test's arithmetic.
+#[inline(always)]
+pub(crate) fn triangle_packet<const L: usize>(
+    group: &TriangleGroup,
+    permuted: &PermutedGroup,
     packet: &mut RayPacket,
     lanes: u32,
 ) -> u32 {
-    let [kx, ky, kz] = packet.shear_axes;
     let [shear_x, shear_y, shear_z] = packet.shear;
     let [origin_x, origin_y, origin_z] = packet.permuted_origin;
     let vertex = |i: usize| {
-        let z = Vec4::splat(triangle.rows[kz][i]) - origin_z;
-        let x = (Vec4::splat(triangle.rows[kx][i]) - origin_x) - shear_x * z;
-        let y = (Vec4::splat(triangle.rows[ky][i]) - origin_y) - shear_y * z;
+        let [px, py, pz] = permuted.coordinates[i];
+        let z = broadcast::<L>(pz) - origin_z;
+        let x = (broadcast::<L>(px) - origin_x) - shear_x * z;
+        let y = (broadcast::<L>(py) - origin_y) - shear_y * z;
         (x, y, z)
     };
     let (x0, y0, z0) = vertex(0);
@@ -456,19 +497,23 @@ pub(crate) fn triangle_packet(
     let w = x1 * y0 - y1 * x0;
     let zero = Vec4::ZERO;
     let on_edge = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & lanes;
-    let negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
-    let positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
-    let inside = !(negative & positive);
-    let determinant = u + v + w;
-    let candidates = inside & determinant.cmpne(zero);
+    // Off the edges (u, v, w all nonzero) the single-ray test's "no two signs differ and the
+    // determinant is nonzero" is "u, v and w have one sign bit": a sum of nonzero values of
+    // one sign is never zero. (A NaN lane fails the `t` comparisons either way.)
+    let (sign_u, sign_v, sign_w) = (
+        u.is_negative_bitmask(),
+        v.is_negative_bitmask(),
+        w.is_negative_bitmask(),
+    );
+    let candidates = !((sign_u ^ sign_v) | (sign_u ^ sign_w)) & lanes & !on_edge;
+    let mut hits = 0;
     // Most groups miss most triangles of a leaf they reach: skip the division for them.
-    let mut hits = if candidates.bitmask() & lanes & !on_edge == 0 {
-        0
-    } else {
+    if candidates != 0 {
+        let determinant = u + v + w;
         let scaled_t = u * (z0 * shear_z) + v * (z1 * shear_z) + w * (z2 * shear_z);
         let t = scaled_t / determinant;
-        let accepted: BVec4A = candidates & t.cmpge(packet.t_min) & t.cmple(packet.t_max);
-        let hits = accepted.bitmask() & lanes & !on_edge;
+        let accepted = t.cmpge(packet.t_min) & t.cmple(packet.t_max);
+        hits = accepted.bitmask() & candidates;
         if hits != 0 {
             let hit = lane_mask(hits);
             packet.t_max = Vec4::select(hit, t, packet.t_max);
@@ -476,24 +521,66 @@ pub(crate) fn triangle_packet(
             let inv = Vec4::ONE / determinant;
             packet.hit_uv[0] = Vec4::select(hit, v * inv, packet.hit_uv[0]);
             packet.hit_uv[1] = Vec4::select(hit, w * inv, packet.hit_uv[1]);
-            for (axis, row) in triangle.rows.iter().enumerate() {
+            let normal = group.triangle(L).normal();
+            for axis in 0..3 {
                 packet.hit_normal[axis] =
-                    Vec4::select(hit, Vec4::splat(row.w), packet.hit_normal[axis]);
+                    Vec4::select(hit, Vec4::splat(normal[axis]), packet.hit_normal[axis]);
             }
         }
-        hits
-    };
-    // Rays through an edge or vertex take the single-ray path with its f64 edge functions.
+    }
+    if on_edge != 0 {
+        hits |= triangle_on_edges(group, L, packet, on_edge);
+    }
+    hits
+}
+
+/// Rays through an edge or vertex of the triangle in lane `triangle` take the single-ray path
+/// with its f64 edge functions; returns the lanes among `on_edge` that hit.
+#[cold]
+#[inline(never)]
+fn triangle_on_edges(
+    group: &TriangleGroup,
+    triangle: usize,
+    packet: &mut RayPacket,
+    on_edge: u32,
+) -> u32 {
+    let triangle = group.triangle(triangle);
+    let mut hits = 0;
     let mut remaining = on_edge;
     while remaining != 0 {
         let lane = remaining.trailing_zeros() as usize;
         remaining &= remaining - 1;
-        if let Some((t, uv)) = triangle_t_uv(triangle, &packet.ray(lane)) {
+        if let Some((t, uv)) = triangle_t_uv(&triangle, &packet.ray(lane)) {
             packet.record_hit(lane, t, uv, triangle.normal());
             hits |= 1 << lane;
         }
     }
     hits
+}
+
+/// Tests the triangles of `group` in `triangles` (bit per lane), in lane order, against the
+/// `lanes` of a packet, calling `hit(lane, rays)` with the rays that hit each.
+#[inline(always)]
+pub(crate) fn group_packet(
+    group: &TriangleGroup,
+    triangles: u32,
+    packet: &mut RayPacket,
+    lanes: u32,
+    mut hit: impl FnMut(usize, u32),
+) {
+    let permuted = PermutedGroup::new(group, packet);
+    if triangles & 1 != 0 {
+        hit(0, triangle_packet::<0>(group, &permuted, packet, lanes));
+    }
+    if triangles & 2 != 0 {
+        hit(1, triangle_packet::<1>(group, &permuted, packet, lanes));
+    }
+    if triangles & 4 != 0 {
+        hit(2, triangle_packet::<2>(group, &permuted, packet, lanes));
+    }
+    if triangles & 8 != 0 {
+        hit(3, triangle_packet::<3>(group, &permuted, packet, lanes));
+    }
 }
 
 /// Most rays in a frustum packet (an 8x8 block of primary rays).
@@ -606,8 +693,8 @@ fn bounds_into(
             if let Some(packet) = groups.get(group)
                 && packet.lanes & active[group] != 0
             {
-                let bounds = RayBounds::of_group(packet, active[group], shared_origin);
-                *quadrant = quadrant.union(bounds);
+                *quadrant =
+                    quadrant.union(RayBounds::of_group(packet, active[group], shared_origin));
             }
         }
         *whole = whole.union(*quadrant);
@@ -650,6 +737,23 @@ impl SharedOrigin {
     fn shared(&self) -> Option<Vec3A> {
         self.first.filter(|_| !self.differ)
     }
+}
+
+/// Bit `c` of `bits` (c < 8) moved to bit `4c`.
+#[inline(always)]
+fn spread_bits(bits: u32) -> u32 {
+    let bits = (bits | (bits << 12)) & 0x000f_000f;
+    let bits = (bits | (bits << 6)) & 0x0303_0303;
+    (bits | (bits << 3)) & 0x1111_1111
+}
+
+/// Bit `4c` of `bits` moved to bit `c` (`spread_bits` undone); other bits are ignored.
+#[inline(always)]
+fn gather_bits(bits: u32) -> u32 {
+    let bits = bits & 0x1111_1111;
+    let bits = (bits | (bits >> 3)) & 0x0303_0303;
+    let bits = (bits | (bits >> 6)) & 0x000f_000f;
+    (bits | (bits >> 12)) & 0xff
 }
 
 /// Lanes of a 4-bit mask as a SIMD mask.
@@ -878,43 +982,168 @@ impl FrustumPacket {
 /// `[bounds.t_min_low, t_max_high]`. Conservative: a ray's slab distance
 /// `(plane − origin)·inv` is linear in its inverse direction component, so for the centre of
 /// the origins it lies between the values at the two ends of the inverse direction range, and
-/// another origin within `r` of that centre moves it by at most `r·|inv|`. The error widening is
-/// the single-ray test's, taken at the larger end, plus that much.
-/// `SPREAD` false: every ray starts at `bounds.origin_centre` (no widening to add).
+/// another origin within `r` of that centre moves it by at most `r·|inv|` (the widening).
+/// Each end is widened by twice the single-ray test's relative error of its magnitude plus
+/// the widening, and the result like the single-ray test's, so every child any of the rays
+/// reaches on its own is kept. `SPREAD` false: every ray starts at `bounds.origin_centre`.
+/// `AVX2`: all eight children in one vector, the same operations per lane (only inside an
+/// AVX2 function).
 #[inline(always)]
-fn frustum_child_hits<const SPREAD: bool>(
-    node: &DecodedNode,
+fn frustum_child_hits<const SPREAD: bool, const AVX2: bool>(
+    node: &WideNode,
+    rows: &PlaneRows,
     bounds: &RayBounds,
     t_max_high: f32,
 ) -> u32 {
-    let mut near = [Vec4::splat(bounds.t_min_low); 2];
-    let mut far = [Vec4::splat(t_max_high); 2];
-    for axis in 0..3 {
-        let inv = [bounds.inv_low[axis], bounds.inv_high[axis]];
-        let step = inv.map(|inv| node.step[axis] * inv);
-        let to_node = node.corner[axis] - bounds.origin_centre[axis];
-        let offset = inv.map(|inv| to_node * inv);
-        let mut error = SLAB_ERROR
-            * (offset[0].abs().max(offset[1].abs())
-                + MAX_QUANTIZED * step[0].abs().max(step[1].abs()));
-        if SPREAD {
-            error += bounds.widening[axis];
-        }
-        let error = Vec4::splat(error);
-        let (step_low, step_high) = (Vec4::splat(step[0]), Vec4::splat(step[1]));
-        let (offset_low, offset_high) = (Vec4::splat(offset[0]), Vec4::splat(offset[1]));
-        for half in 0..2 {
-            let entry = node.entry[axis][half];
-            let exit = node.exit[axis][half];
-            let entry_low = entry * step_low + offset_low;
-            let entry_high = entry * step_high + offset_high;
-            near[half] = near[half].max(entry_low.min(entry_high) - error);
-            let exit_low = exit * step_low + offset_low;
-            let exit_high = exit * step_high + offset_high;
-            far[half] = far[half].min(exit_low.max(exit_high) + error);
-        }
+    #[cfg(target_arch = "x86_64")]
+    if AVX2 {
+        // SAFETY: `AVX2` is set only by walks compiled for AVX2, entered only on CPUs with it.
+        return unsafe { avx2::frustum_child_hits::<SPREAD>(node, rows, bounds, t_max_high) };
     }
-    near[0].cmple(far[0]).bitmask() | (near[1].cmple(far[1]).bitmask() << 4)
+    let widening = if SPREAD { bounds.widening } else { Vec3A::ZERO };
+    let mut mask = 0;
+    for half in 0..2 {
+        let lanes = 4 * half..4 * half + 4;
+        let plane = |row: usize| Vec4::from_slice(&node.planes[row][lanes.clone()]);
+        let entry = rows.entry.map(plane);
+        let exit = rows.exit.map(plane);
+        let reached = frustum_box_hits::<SPREAD>(
+            &entry,
+            &exit,
+            bounds,
+            widening,
+            bounds.t_min_low,
+            t_max_high,
+        );
+        mask |= reached << (4 * half);
+    }
+    mask
+}
+
+/// [`frustum_child_hits`] for four boxes given by their entry and exit planes per axis, with
+/// `widening` for the spread of the origins (zero when they all start at the centre).
+#[inline(always)]
+fn frustum_box_hits<const SPREAD: bool>(
+    entry: &[Vec4; 3],
+    exit: &[Vec4; 3],
+    bounds: &RayBounds,
+    widening: Vec3A,
+    t_low: f32,
+    t_high: f32,
+) -> u32 {
+    let mut near = Vec4::splat(t_low);
+    let mut far = Vec4::splat(t_high);
+    let error = Vec4::splat(SLAB_ERROR);
+    let twice_error = Vec4::splat(2.0 * SLAB_ERROR);
+    for axis in 0..3 {
+        let (inv_low, inv_high) = (
+            Vec4::splat(bounds.inv_low[axis]),
+            Vec4::splat(bounds.inv_high[axis]),
+        );
+        let origin = Vec4::splat(bounds.origin_centre[axis]);
+        let widening = Vec4::splat(widening[axis]);
+        let entry = entry[axis] - origin;
+        let exit = exit[axis] - origin;
+        let (entry_low, entry_high) = (entry * inv_low, entry * inv_high);
+        let (exit_low, exit_high) = (exit * inv_low, exit * inv_high);
+        let (entry_margin, exit_margin) = if SPREAD {
+            (
+                (entry_low.abs().max(entry_high.abs()) + widening) * twice_error + widening,
+                (exit_low.abs().max(exit_high.abs()) + widening) * twice_error + widening,
+            )
+        } else {
+            // The same values with a zero widening, without adding it.
+            (
+                entry_low.abs().max(entry_high.abs()) * twice_error,
+                exit_low.abs().max(exit_high.abs()) * twice_error,
+            )
+        };
+        near = near.max(entry_low.min(entry_high) - entry_margin);
+        far = far.min(exit_low.max(exit_high) + exit_margin);
+    }
+    let near = near - near.abs() * error;
+    let far = far + far.abs() * error;
+    near.cmple(far).bitmask()
+}
+
+/// [`frustum_child_hits`] with AVX2.
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{PlaneRows, RayBounds};
+    use crate::accel::wide_bvh::{SLAB_ERROR, WideNode};
+    use std::arch::x86_64::*;
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn abs(values: __m256) -> __m256 {
+        _mm256_andnot_ps(_mm256_set1_ps(-0.0), values)
+    }
+
+    /// The operations of `frustum_box_hits`, in the same order, on eight children.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn frustum_child_hits<const SPREAD: bool>(
+        node: &WideNode,
+        rows: &PlaneRows,
+        bounds: &RayBounds,
+        t_max_high: f32,
+    ) -> u32 {
+        let mut near = _mm256_set1_ps(bounds.t_min_low);
+        let mut far = _mm256_set1_ps(t_max_high);
+        let twice_error = _mm256_set1_ps(2.0 * SLAB_ERROR);
+        for axis in 0..3 {
+            let inv_low = _mm256_set1_ps(bounds.inv_low[axis]);
+            let inv_high = _mm256_set1_ps(bounds.inv_high[axis]);
+            let origin = _mm256_set1_ps(bounds.origin_centre[axis]);
+            // SAFETY: every plane row is eight floats, 32-byte aligned (`WideNode` is).
+            let (entry, exit) = unsafe {
+                (
+                    _mm256_load_ps(node.planes[rows.entry[axis]].as_ptr()),
+                    _mm256_load_ps(node.planes[rows.exit[axis]].as_ptr()),
+                )
+            };
+            let entry = _mm256_sub_ps(entry, origin);
+            let exit = _mm256_sub_ps(exit, origin);
+            let (entry_low, entry_high) = (
+                _mm256_mul_ps(entry, inv_low),
+                _mm256_mul_ps(entry, inv_high),
+            );
+            let (exit_low, exit_high) =
+                (_mm256_mul_ps(exit, inv_low), _mm256_mul_ps(exit, inv_high));
+            let entry_abs = _mm256_max_ps(abs(entry_low), abs(entry_high));
+            let exit_abs = _mm256_max_ps(abs(exit_low), abs(exit_high));
+            let (entry_margin, exit_margin) = if SPREAD {
+                let widening = _mm256_set1_ps(bounds.widening[axis]);
+                (
+                    _mm256_add_ps(
+                        _mm256_mul_ps(_mm256_add_ps(entry_abs, widening), twice_error),
+                        widening,
+                    ),
+                    _mm256_add_ps(
+                        _mm256_mul_ps(_mm256_add_ps(exit_abs, widening), twice_error),
+                        widening,
+                    ),
+                )
+            } else {
+                (
+                    _mm256_mul_ps(entry_abs, twice_error),
+                    _mm256_mul_ps(exit_abs, twice_error),
+                )
+            };
+            near = _mm256_max_ps(
+                near,
+                _mm256_sub_ps(_mm256_min_ps(entry_low, entry_high), entry_margin),
+            );
+            far = _mm256_min_ps(
+                far,
+                _mm256_add_ps(_mm256_max_ps(exit_low, exit_high), exit_margin),
+            );
+        }
+        let error = _mm256_set1_ps(SLAB_ERROR);
+        let near = _mm256_sub_ps(near, _mm256_mul_ps(abs(near), error));
+        let far = _mm256_add_ps(far, _mm256_mul_ps(abs(far), error));
+        _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32
+    }
 }
 
 /// Most distinct ray origins a frustum packet is split into before it is traced as one frustum
@@ -922,18 +1151,18 @@ fn frustum_child_hits<const SPREAD: bool>(
 const MAX_ORIGINS: usize = 4;
 
 /// Walks the BVH with a frustum packet. `active[g]` are the lanes of group `g` taking part.
-/// For every leaf some ray reaches, `test_leaf(first_slot, count, lanes, frustum)` is called
+/// For every leaf some ray reaches, `test_leaf(leaf_code, lanes, frustum)` is called
 /// with, per group, the lanes whose own box test reaches the leaf; it must shrink the `t_max`
 /// of lanes that hit. Lanes from a few distinct origins are walked one origin at a time.
 #[inline(always)]
-pub(crate) fn traverse_frustum<F, P>(
-    nodes: &[CwBvhNode],
+pub(crate) fn traverse_frustum<const AVX2: bool, F, P>(
+    nodes: &[WideNode],
     frustum: &mut FrustumPacket,
     active: &[u32; FRUSTUM_GROUPS],
-    prefetch_primitive: P,
+    prefetch_leaf: P,
     mut test_leaf: F,
 ) where
-    F: FnMut(u32, u32, &[u32; FRUSTUM_GROUPS], &mut FrustumPacket),
+    F: FnMut(u32, &[u32; FRUSTUM_GROUPS], &mut FrustumPacket),
     P: Fn(u32),
 {
     if nodes.is_empty() || active.iter().all(|lanes| *lanes == 0) {
@@ -947,34 +1176,34 @@ pub(crate) fn traverse_frustum<F, P>(
     };
     let Some((subsets, count)) = split else {
         if frustum.whole.shared_origin() {
-            walk_frustum::<false, _, _>(
+            walk_frustum::<false, AVX2, _, _>(
                 nodes,
                 frustum,
                 active,
                 None,
-                &prefetch_primitive,
+                &prefetch_leaf,
                 &mut test_leaf,
             );
             return;
         }
-        walk_frustum::<true, _, _>(
+        walk_frustum::<true, AVX2, _, _>(
             nodes,
             frustum,
             active,
             None,
-            &prefetch_primitive,
+            &prefetch_leaf,
             &mut test_leaf,
         );
         return;
     };
     for subset in &subsets[..count] {
         let (quadrants, whole) = frustum.bounds(subset);
-        walk_frustum::<false, _, _>(
+        walk_frustum::<false, AVX2, _, _>(
             nodes,
             frustum,
             subset,
             Some((&quadrants, &whole)),
-            &prefetch_primitive,
+            &prefetch_leaf,
             &mut test_leaf,
         );
     }
@@ -983,81 +1212,85 @@ pub(crate) fn traverse_frustum<F, P>(
 /// [`traverse_frustum`] with the ray bounds (per quadrant, whole) of the `active` lanes: its own,
 /// or, with `None`, the packet's (read in place: they are too large to copy per packet).
 #[inline(always)]
-fn walk_frustum<const SPREAD: bool, F, P>(
-    nodes: &[CwBvhNode],
+fn walk_frustum<const SPREAD: bool, const AVX2: bool, F, P>(
+    nodes: &[WideNode],
     frustum: &mut FrustumPacket,
     active: &[u32; FRUSTUM_GROUPS],
     own_bounds: Option<(&[RayBounds; QUADRANTS], &RayBounds)>,
-    prefetch_primitive: &P,
+    prefetch_leaf: &P,
     test_leaf: &mut F,
 ) where
-    F: FnMut(u32, u32, &[u32; FRUSTUM_GROUPS], &mut FrustumPacket),
+    F: FnMut(u32, &[u32; FRUSTUM_GROUPS], &mut FrustumPacket),
     P: Fn(u32),
 {
-    let octant_inv = frustum.octant_inv;
-    let mut stack: GroupStack<NodeGroup> = GroupStack::new();
-    let mut current = NodeGroup {
-        first_child: 0,
-        bits: 1 << 31,
-    };
-    let quadrant_active = QUADRANT_GROUPS.map(|groups| {
-        groups
+    let rows = PlaneRows::new(frustum.octant_inv);
+    let order = (7 ^ frustum.octant_inv) as usize;
+    let quadrant_bounds = *own_bounds.map_or(&frustum.quadrants, |bounds| bounds.0);
+    let mut active_quadrants = 0u32;
+    for (quadrant, groups) in QUADRANT_GROUPS.iter().enumerate() {
+        if groups
             .iter()
             .any(|group| *group < frustum.group_count && active[*group] != 0)
-    });
+        {
+            active_quadrants |= 1 << quadrant;
+        }
+    }
+    // Nodes with the quadrants whose frustum reaches them: a subtree only some quadrants
+    // reach is culled with their (narrower) frusta alone.
+    let mut stack: TraversalStack<(u32, u32)> = TraversalStack::new();
+    stack.push((0, active_quadrants));
     let mut t_max_high = frustum.t_max_high(active);
-    loop {
-        if current.bits & 0xff00_0000 == 0 {
-            match stack.pop() {
-                Some(next) => current = next,
-                None => break,
+    while let Some((index, quadrants)) = stack.pop() {
+        let node = &nodes[index as usize];
+        // Per child slot (4 bits each, as `child_lane_masks`), the quadrants reaching it.
+        let mut quadrant_masks = 0u32;
+        if quadrants.count_ones() > 1 {
+            let whole_high = t_max_high.into_iter().fold(f32::NEG_INFINITY, f32::max);
+            let whole = own_bounds.map_or(&frustum.whole, |bounds| bounds.1);
+            if frustum_child_hits::<SPREAD, AVX2>(node, &rows, whole, whole_high) == 0 {
+                continue;
             }
         }
-        let bit = 31 - current.bits.leading_zeros();
-        current.bits &= !(1 << bit);
-        let slot = (bit - 24) ^ octant_inv;
-        let inner_before_slot = current.bits & 0xff & ((1 << slot) - 1);
-        let node = &nodes[(current.first_child + inner_before_slot.count_ones()) as usize];
-        if current.bits & 0xff00_0000 != 0 {
-            stack.push(current);
-        }
-        let decoded = DecodedNode::new(node, octant_inv);
-        let whole_high = t_max_high.into_iter().fold(f32::NEG_INFINITY, f32::max);
-        let whole = own_bounds.map_or(&frustum.whole, |bounds| bounds.1);
-        let hits =
-            frustum_child_hits::<SPREAD>(&decoded, whole, whole_high) & non_empty_children(node);
-        let leaves = hits & !(node.imask as u32);
-        // Start loading inner children and leaf primitives while the leaf boxes are tested.
-        if hits & node.imask as u32 != 0 {
-            prefetch(&nodes[node.child_base_idx as usize]);
-        }
-        let mut remaining = leaves;
+        let mut hits = 0u32;
+        let mut remaining = quadrants;
         while remaining != 0 {
-            let child = remaining.trailing_zeros();
+            let quadrant = remaining.trailing_zeros() as usize;
             remaining &= remaining - 1;
-            let meta = node.child_meta[child as usize] as u32;
-            prefetch_primitive(node.primitive_base_idx + (meta & 31));
+            let reached = frustum_child_hits::<SPREAD, AVX2>(
+                node,
+                &rows,
+                &quadrant_bounds[quadrant],
+                t_max_high[quadrant],
+            );
+            hits |= reached;
+            quadrant_masks |= spread_bits(reached) << quadrant;
+        }
+        let mut leaves = 0u32;
+        let mut inner = 0u32;
+        let mut remaining = hits;
+        while remaining != 0 {
+            let slot = remaining.trailing_zeros();
+            remaining &= remaining - 1;
+            if node.children[slot as usize] & LEAF_BIT != 0 {
+                leaves |= 1 << slot;
+                prefetch_leaf(node.children[slot as usize]);
+            } else {
+                inner |= 1 << slot;
+                prefetch(&nodes[node.children[slot as usize] as usize]);
+            }
         }
         if leaves != 0 {
             let mut masks = [0u32; FRUSTUM_GROUPS];
             for (quadrant, groups) in QUADRANT_GROUPS.iter().enumerate() {
-                if !quadrant_active[quadrant] {
-                    continue;
-                }
-                let quadrant_leaves = leaves
-                    & frustum_child_hits::<SPREAD>(
-                        &decoded,
-                        own_bounds
-                            .map_or(&frustum.quadrants[quadrant], |bounds| &bounds.0[quadrant]),
-                        t_max_high[quadrant],
-                    );
+                let quadrant_leaves = leaves & gather_bits(quadrant_masks >> quadrant);
                 if quadrant_leaves == 0 {
                     continue;
                 }
                 for &group in groups {
                     if group < frustum.group_count && active[group] != 0 {
                         masks[group] = child_lane_masks(
-                            &decoded,
+                            node,
+                            &rows,
                             &frustum.groups[group],
                             active[group],
                             quadrant_leaves,
@@ -1065,29 +1298,24 @@ fn walk_frustum<const SPREAD: bool, F, P>(
                     }
                 }
             }
-            let mut remaining = leaves;
+            let mut remaining = u32::from(ORDER[order][leaves as usize]);
             while remaining != 0 {
-                let child = remaining.trailing_zeros();
+                let i = remaining.trailing_zeros();
                 remaining &= remaining - 1;
-                let lanes = masks.map(|mask| (mask >> (4 * child)) & 0xf);
+                let slot = i as usize ^ order;
+                let lanes = masks.map(|mask| (mask >> (4 * slot)) & 0xf);
                 if lanes.iter().fold(0, |any, lanes| any | lanes) != 0 {
-                    let meta = node.child_meta[child as usize] as u32;
-                    let first = node.primitive_base_idx + (meta & 31);
-                    test_leaf(first, (meta >> 5).count_ones(), &lanes, frustum);
+                    test_leaf(node.children[slot], &lanes, frustum);
                 }
             }
             t_max_high = frustum.t_max_high(active);
         }
-        let mut inner = 0;
-        let mut remaining = hits & node.imask as u32;
+        let mut remaining = u32::from(ORDER[order][inner as usize]);
         while remaining != 0 {
-            let child = remaining.trailing_zeros();
-            remaining &= remaining - 1;
-            inner |= 1 << (24 + (child ^ octant_inv));
+            let i = 31 - remaining.leading_zeros();
+            remaining &= !(1 << i);
+            let slot = i as usize ^ order;
+            stack.push((node.children[slot], (quadrant_masks >> (4 * slot)) & 0xf));
         }
-        current = NodeGroup {
-            first_child: node.child_base_idx,
-            bits: inner | node.imask as u32,
-        };
     }
 }

@@ -29,10 +29,8 @@ pub(crate) fn is_usable_box(aabb: &Aabb) -> bool {
         && aabb.max.abs().max_element() <= MAX_COORDINATE
 }
 
-/// A triangle stored per axis: `rows[axis] = (v0[axis], v1[axis], v2[axis], normal[axis])`, so
-/// that the three vertices are sheared with a few four-wide operations. The unit normal fills
-/// the lane that would be padding: packet tests record it with each hit, so that hit records
-/// need not load the triangle again.
+/// One triangle stored per axis: `rows[axis] = (v0[axis], v1[axis], v2[axis], 0)`, so that the
+/// three vertices are sheared with a few four-wide operations.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct PackedTriangle {
     pub rows: [Vec4; 3],
@@ -54,12 +52,11 @@ impl PackedTriangle {
 
     /// Packs vertices that [`Self::new`] has already accepted, without checking them again.
     pub fn from_usable(v0: Vec3, v1: Vec3, v2: Vec3) -> PackedTriangle {
-        let normal = (v1 - v0).cross(v2 - v0).normalize_or_zero();
         PackedTriangle {
             rows: [
-                Vec4::new(v0.x, v1.x, v2.x, normal.x),
-                Vec4::new(v0.y, v1.y, v2.y, normal.y),
-                Vec4::new(v0.z, v1.z, v2.z, normal.z),
+                Vec4::new(v0.x, v1.x, v2.x, 0.0),
+                Vec4::new(v0.y, v1.y, v2.y, 0.0),
+                Vec4::new(v0.z, v1.z, v2.z, 0.0),
             ],
         }
     }
@@ -81,9 +78,221 @@ impl PackedTriangle {
     /// Unit normal `(v1 - v0) x (v2 - v0)`; non-zero for every constructed triangle.
     #[inline]
     pub fn normal(&self) -> Vec3 {
-        let [x, y, z] = self.rows;
-        Vec3::new(x.w, y.w, z.w)
+        unit_normal(self.vertices())
     }
+}
+
+/// Unit normal `(v1 - v0) x (v2 - v0)` of a triangle's vertices (zero for a degenerate one).
+#[inline(always)]
+fn unit_normal([v0, v1, v2]: [Vec3; 3]) -> Vec3 {
+    (v1 - v0).cross(v2 - v0).normalize_or_zero()
+}
+
+/// Triangles in a group: a leaf's triangles tested together against one ray.
+pub(crate) const GROUP_LANES: usize = 4;
+
+/// Up to four triangles in SIMD lanes: `vertices[i][axis]` holds coordinate `axis` of vertex
+/// `i` of every lane's triangle (what the watertight test reads, nothing to gather). Lanes
+/// beyond a leaf's count repeat lane 0 and are masked off.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TriangleGroup {
+    pub vertices: [[Vec4; 3]; 3],
+}
+
+impl TriangleGroup {
+    /// Packs up to four triangles (at least one); missing lanes repeat the first.
+    pub fn new(triangles: &[PackedTriangle]) -> TriangleGroup {
+        let mut vertices = [[Vec4::ZERO; 3]; 3];
+        for lane in 0..GROUP_LANES {
+            let triangle = triangles.get(lane).unwrap_or(&triangles[0]);
+            for (axis, row) in triangle.rows.iter().enumerate() {
+                for (vertex, coordinates) in vertices.iter_mut().enumerate() {
+                    coordinates[axis][lane] = row[vertex];
+                }
+            }
+        }
+        TriangleGroup { vertices }
+    }
+
+    /// [`PackedTriangle::normal`] of the triangle in `lane`, read straight from the lanes.
+    #[inline]
+    pub fn normal(&self, lane: usize) -> Vec3 {
+        unit_normal(
+            self.vertices
+                .map(|[x, y, z]| Vec3::new(x[lane], y[lane], z[lane])),
+        )
+    }
+
+    /// The triangle in `lane`.
+    #[inline(always)]
+    pub fn triangle(&self, lane: usize) -> PackedTriangle {
+        let row = |axis: usize| {
+            Vec4::new(
+                self.vertices[0][axis][lane],
+                self.vertices[1][axis][lane],
+                self.vertices[2][axis][lane],
+                0.0,
+            )
+        };
+        PackedTriangle {
+            rows: [row(0), row(1), row(2)],
+        }
+    }
+}
+
+/// What a group's watertight test needs of one ray, set up once per ray: the permuted axes,
+/// and the permuted origin, the shear and `t_min` splat across the lanes.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct GroupRay {
+    axes: [usize; 3],
+    origin: [Vec4; 3],
+    shear: [Vec4; 3],
+    t_min: Vec4,
+}
+
+impl GroupRay {
+    #[inline(always)]
+    pub fn new(ray: &TraversalRay) -> GroupRay {
+        let axes = ray.shear_axes;
+        // `hits` indexes vertex rows by these without bounds checks.
+        assert!(axes.iter().all(|&axis| axis < 3));
+        let origin = ray.permuted_origin;
+        GroupRay {
+            axes,
+            origin: [origin.x, origin.y, origin.z].map(Vec4::splat),
+            shear: [ray.shear.x, ray.shear.y, ray.shear.z].map(Vec4::splat),
+            t_min: Vec4::splat(ray.t_min),
+        }
+    }
+
+    /// A group's watertight test, lane by lane the arithmetic of [`triangle_t_uv`] (the same
+    /// `t` and barycentrics), with `t` accepted in `[t_min, t_max]`: the hit lanes among
+    /// `lanes` (bit per lane), their `t`, and the edge functions `V`, `W` with the determinant
+    /// `U + V + W`.
+    #[inline(always)]
+    pub fn hits(&self, group: &TriangleGroup, lanes: u32, t_max: f32) -> (u32, Vec4, [Vec4; 3]) {
+        self.hits_with::<false>(group, lanes, t_max)
+    }
+
+    /// [`Self::hits`] for a group where some lane's edge function came out exactly zero: the
+    /// whole test again, those lanes' edge functions redone in f64. Out of line, so that the
+    /// common path keeps no sheared coordinates around for it.
+    #[cold]
+    #[inline(never)]
+    fn hits_on_edges(
+        &self,
+        group: &TriangleGroup,
+        lanes: u32,
+        t_max: f32,
+    ) -> (u32, Vec4, [Vec4; 3]) {
+        self.hits_with::<true>(group, lanes, t_max)
+    }
+
+    #[inline(always)]
+    fn hits_with<const ON_EDGES: bool>(
+        &self,
+        group: &TriangleGroup,
+        lanes: u32,
+        t_max: f32,
+    ) -> (u32, Vec4, [Vec4; 3]) {
+        let [kx, ky, kz] = self.axes;
+        let [origin_x, origin_y, origin_z] = self.origin;
+        let [shear_x, shear_y, shear_z] = self.shear;
+        let sheared = |vertex: &[Vec4; 3]| {
+            // SAFETY: `new` checked that every axis is below 3.
+            let row = |axis: usize| unsafe { *vertex.get_unchecked(axis) };
+            let z = row(kz) - origin_z;
+            let x = (row(kx) - origin_x) - shear_x * z;
+            let y = (row(ky) - origin_y) - shear_y * z;
+            (x, y, z)
+        };
+        let (x0, y0, z0) = sheared(&group.vertices[0]);
+        let (x1, y1, z1) = sheared(&group.vertices[1]);
+        let (x2, y2, z2) = sheared(&group.vertices[2]);
+        let mut u = x2 * y1 - y2 * x1;
+        let mut v = x0 * y2 - y0 * x2;
+        let mut w = x1 * y0 - y1 * x0;
+        let zero = Vec4::ZERO;
+        let mut on_edge = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & lanes;
+        if !ON_EDGES && on_edge != 0 {
+            return self.hits_on_edges(group, lanes, t_max);
+        }
+        while on_edge != 0 {
+            let lane = on_edge.trailing_zeros() as usize;
+            on_edge &= on_edge - 1;
+            let exact = edge_functions_f64(
+                Vec4::new(x0[lane], x1[lane], x2[lane], 0.0),
+                Vec4::new(y0[lane], y1[lane], y2[lane], 0.0),
+            );
+            (u[lane], v[lane], w[lane]) = (exact.x, exact.y, exact.z);
+        }
+        let negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
+        let positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
+        let determinant = u + v + w;
+        let candidates = (!(negative & positive) & determinant.cmpne(zero)).bitmask() & lanes;
+        if candidates == 0 {
+            return (0, zero, [v, w, determinant]);
+        }
+        let scaled_t = u * (z0 * shear_z) + v * (z1 * shear_z) + w * (z2 * shear_z);
+        let t = scaled_t / determinant;
+        let inside = t.cmpge(self.t_min) & t.cmple(Vec4::splat(t_max));
+        (inside.bitmask() & candidates, t, [v, w, determinant])
+    }
+}
+
+/// [`GroupRay::hits`] for a ray used once.
+#[inline(always)]
+fn group_hits(group: &TriangleGroup, lanes: u32, ray: &TraversalRay) -> (u32, Vec4, [Vec4; 3]) {
+    GroupRay::new(ray).hits(group, lanes, ray.t_max)
+}
+
+/// `MISSED[hits]`: per lane `-inf` where bit `lane` of `hits` is set, else `+inf` (the max of a
+/// lane's `t` with it keeps the hits and puts the rest beyond them).
+static MISSED: [Vec4; 16] = {
+    let mut table = [Vec4::ZERO; 16];
+    let mut hits = 0;
+    while hits < 16 {
+        let mut lanes = [f32::INFINITY; 4];
+        let mut lane = 0;
+        while lane < 4 {
+            if hits & (1 << lane) != 0 {
+                lanes[lane] = f32::NEG_INFINITY;
+            }
+            lane += 1;
+        }
+        table[hits] = Vec4::from_array(lanes);
+        hits += 1;
+    }
+    table
+};
+
+/// Among the hit lanes (`hits`, bit per lane, not empty) the one with the smallest `t`; among
+/// lanes hit at the same `t` the last one, as when the triangles are tested one after another.
+/// Returns the lane and its `t`.
+#[inline(always)]
+pub(crate) fn closest_lane(hits: u32, t: Vec4) -> (usize, f32) {
+    let candidates = t.max(MISSED[(hits & 15) as usize]);
+    let nearest_t = candidates.min_element();
+    let nearest = candidates.cmpeq(Vec4::splat(nearest_t)).bitmask() & hits;
+    ((31 - nearest.leading_zeros()) as usize, nearest_t)
+}
+
+/// Closest hit among a group's triangles in `lanes` (bit per lane): `(lane, t, b1, b2)`. Among
+/// lanes hit at the same `t` the last one wins, as when the triangles are tested one after
+/// another.
+#[inline(always)]
+pub(crate) fn group_closest(
+    group: &TriangleGroup,
+    lanes: u32,
+    ray: &TraversalRay,
+) -> Option<(usize, f32, Vec2)> {
+    let (hits, t, [v, w, determinant]) = group_hits(group, lanes, ray);
+    if hits == 0 {
+        return None;
+    }
+    let (lane, t) = closest_lane(hits, t);
+    let inv = 1.0 / determinant[lane];
+    Some((lane, t, Vec2::new(v[lane] * inv, w[lane] * inv)))
 }
 
 /// Edge functions recomputed in f64 for the rare rays that pass exactly through an edge.
@@ -140,7 +349,7 @@ fn triangle_hit<const WITH_UV: bool>(
 }
 
 /// Hit distance of a triangle, `None` on a miss.
-#[inline(always)]
+#[cfg(test)]
 pub(crate) fn triangle_t(triangle: &PackedTriangle, ray: &TraversalRay) -> Option<f32> {
     triangle_hit::<false>(triangle, ray).map(|hit| hit.0)
 }

@@ -9,11 +9,13 @@ use crate::accel::geometry::{GeometryBvh, prepare};
 use crate::accel::packet::{
     FRUSTUM_RAYS, FrustumPacket, LANES, PacketScratch, RayPacket, traverse_frustum, traverse_packet,
 };
-use crate::accel::wide_bvh::{LeafSizing, TraversalRay, WideBvh, build_wide_bvh, traverse};
+use crate::accel::wide_bvh::{
+    LeafAlignment, LeafSizing, MAX_PRIMITIVES, TraversalRay, WideBvh, WideNode, build_wide_bvh,
+    leaf_range, traverse,
+};
 use crate::accel::{EMPTY_BOUNDS, InstanceDesc, PrimHit, Ray, SceneHit, bounds_are_empty};
 use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
-use obvhs::cwbvh::node::CwBvhNode;
 use std::sync::Arc;
 
 /// One geometry of one instance.
@@ -45,7 +47,7 @@ impl Placement {
 
 /// A BVH over instance placements; cheap to rebuild, never rebuilds geometry BVHs.
 pub struct SceneBvh {
-    nodes: Vec<CwBvhNode>,
+    nodes: Vec<WideNode>,
     /// In top-level BVH slot order.
     placements: Vec<Placement>,
     bounds: (Vec3, Vec3),
@@ -98,7 +100,10 @@ impl SceneBvh {
             let identity = instance.transform == Affine3A::IDENTITY;
             let normal_to_world = instance.transform.matrix3.inverse().transpose();
             for (geometry_index, geometry) in instance.geometries.into_iter().enumerate() {
-                if geometry.is_empty() || bounds_are_empty(geometry.bounds()) {
+                if geometry.is_empty()
+                    || bounds_are_empty(geometry.bounds())
+                    || placements.len() == MAX_PRIMITIVES
+                {
                     continue;
                 }
                 let world = transform_box(&instance.transform, geometry.bounds());
@@ -119,7 +124,7 @@ impl SceneBvh {
             nodes,
             order,
             bounds,
-        } = build_wide_bvh(&boxes, LeafSizing::Split);
+        } = build_wide_bvh(&boxes, LeafSizing::Split, LeafAlignment::Packed);
         let mut slots: Vec<Option<Placement>> = placements.into_iter().map(Some).collect();
         let placements = order
             .iter()
@@ -140,22 +145,38 @@ impl SceneBvh {
         if let [placement] = self.placements.as_slice() {
             // A single placement needs no top level: its box test culls no more than the
             // geometry's own root node does.
-            let mut object = placement.object_ray(&world)?;
-            let (primitive_slot, bary) = placement.geometry.closest_slot(&mut object)?;
-            world.t_max = object.t_max;
-            closest = Some((0, primitive_slot, bary));
+            // Without a transform the world ray is the object ray (no copy).
+            let mut transformed;
+            let object = match placement.world_to_object {
+                None => &mut world,
+                Some(_) => {
+                    transformed = placement.object_ray(&world)?;
+                    &mut transformed
+                }
+            };
+            let (primitive_slot, bary) = placement.geometry.closest_slot(object)?;
+            let hit = placement
+                .geometry
+                .hit_with_barycentrics(primitive_slot, bary, object);
+            return Some(self.scene_hit(placement, hit));
         }
-        traverse::<false, _>(self.top_level_nodes(), &mut world, |slot, world| {
-            let placement = &self.placements[slot as usize];
-            let Some(mut object) = placement.object_ray(world) else {
-                return false;
-            };
-            let Some((primitive_slot, bary)) = placement.geometry.closest_slot(&mut object) else {
-                return false;
-            };
-            world.t_max = object.t_max;
-            closest = Some((slot, primitive_slot, bary));
-            true
+        traverse::<false, _>(self.top_level_nodes(), &mut world, |code, world| {
+            let (first, count) = leaf_range(code);
+            let mut found = false;
+            for slot in first..first + count {
+                let placement = &self.placements[slot as usize];
+                let Some(mut object) = placement.object_ray(world) else {
+                    continue;
+                };
+                let Some((primitive_slot, bary)) = placement.geometry.closest_slot(&mut object)
+                else {
+                    continue;
+                };
+                world.t_max = object.t_max;
+                closest = Some((slot, primitive_slot, bary));
+                found = true;
+            }
+            found
         });
         let (slot, primitive_slot, bary) = closest?;
         let placement = &self.placements[slot as usize];
@@ -263,12 +284,13 @@ impl SceneBvh {
             visit(0, &active, frustum);
         } else {
             let no_prefetch = |_| {};
-            traverse_frustum(
+            traverse_frustum::<false, _, _>(
                 &self.nodes,
                 frustum,
                 &active,
                 no_prefetch,
-                |first, count, lanes, frustum| {
+                |code, lanes, frustum| {
+                    let (first, count) = leaf_range(code);
                     for slot in first..first + count {
                         visit(slot, lanes, frustum);
                     }
@@ -344,7 +366,8 @@ impl SceneBvh {
             // As in `intersect`: a single placement is visited without a top level.
             visit(0, lanes, packet);
         } else {
-            traverse_packet(&self.nodes, packet, lanes, |first, count, lanes, packet| {
+            traverse_packet(&self.nodes, packet, lanes, |code, lanes, packet| {
+                let (first, count) = leaf_range(code);
                 for slot in first..first + count {
                     visit(slot, lanes, packet);
                 }
@@ -402,11 +425,14 @@ impl SceneBvh {
                 .object_ray(&world)
                 .is_some_and(|mut object| placement.geometry.any_hit(&mut object));
         }
-        traverse::<true, _>(&self.nodes, &mut world, |slot, world| {
-            let placement = &self.placements[slot as usize];
-            placement
-                .object_ray(world)
-                .is_some_and(|mut object| placement.geometry.any_hit(&mut object))
+        traverse::<true, _>(&self.nodes, &mut world, |code, world| {
+            let (first, count) = leaf_range(code);
+            (first..first + count).any(|slot| {
+                let placement = &self.placements[slot as usize];
+                placement
+                    .object_ray(world)
+                    .is_some_and(|mut object| placement.geometry.any_hit(&mut object))
+            })
         })
     }
 
@@ -416,7 +442,7 @@ impl SceneBvh {
     }
 
     /// The top-level nodes to traverse; none when a single placement is visited directly.
-    fn top_level_nodes(&self) -> &[CwBvhNode] {
+    fn top_level_nodes(&self) -> &[WideNode] {
         if self.placements.len() == 1 {
             &[]
         } else {

@@ -3,7 +3,7 @@
 use crate::accel::geometry::BUILDS_ON_THIS_THREAD;
 use crate::accel::primitives::{PackedSphere, PackedTriangle, sphere_t, triangle_t};
 use crate::accel::tube::{PackedTube, tube_hit};
-use crate::accel::wide_bvh::{LeafSizing, TraversalRay};
+use crate::accel::wide_bvh::{LeafAlignment, LeafSizing, TraversalRay};
 use crate::accel::*;
 use glam::{Affine3A, Quat, UVec3, UVec4, Vec3, Vec3A, vec3};
 use std::sync::Arc;
@@ -1527,10 +1527,9 @@ fn memory_stays_within_budget_for_a_grid() {
     );
 }
 
-#[cfg(target_arch = "x86_64")]
 #[test]
-fn sse2_box_test_matches_portable_version() {
-    use crate::accel::wide_bvh::{child_box_hits, child_box_hits_portable};
+fn every_box_test_path_matches_the_scalar_reference() {
+    use crate::accel::wide_bvh::{BoxRay, child_hits, child_hits_four_wide, child_hits_scalar};
     let mut rng = Rng::new(17);
     let prims = random_triangles(&mut rng, 4000, 10.0, 1.0);
     // Reach into a real BVH for realistic nodes.
@@ -1544,17 +1543,63 @@ fn sse2_box_test_matches_portable_version() {
             obvhs::aabb::Aabb::new(a.min(b).min(d).into(), a.max(b).max(d).into())
         })
         .collect();
-    let nodes = crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole).nodes;
+    let nodes =
+        crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group)
+            .nodes;
     let mut mismatches = 0;
+    let mut hits = 0;
     for test_ray in random_rays(&mut rng, 500, 10.0) {
         let prepared = traversal_ray(&test_ray);
+        let box_ray = BoxRay::new(&prepared);
         for node in &nodes {
-            if child_box_hits(node, &prepared) != child_box_hits_portable(node, &prepared) {
-                mismatches += 1;
+            let (t_min, t_max) = (prepared.t_min, prepared.t_max);
+            let reference = child_hits_scalar(node, &box_ray, t_min, t_max);
+            hits += reference.0.count_ones();
+            // Entry distances compared as values (+0 and -0 may differ).
+            let same = |other: (u32, [f32; 8])| other == reference;
+            let mut paths = vec![
+                child_hits_four_wide(node, &box_ray, t_min, t_max),
+                child_hits(node, &box_ray, t_min, t_max),
+            ];
+            #[cfg(target_arch = "x86_64")]
+            if isa::Isa::Avx2.supported() {
+                // SAFETY: the CPU has AVX2.
+                paths.push(unsafe {
+                    crate::accel::wide_bvh::avx2::child_hits(node, &box_ray, t_min, t_max)
+                });
             }
+            mismatches += paths.into_iter().filter(|path| !same(*path)).count();
+            // The single-ray walks' tests (`(origin - plane) * -inverse`, per octant).
+            mismatches += crate::accel::single_ray::test_paths::child_hits(node, &prepared)
+                .into_iter()
+                .filter(|path| !same(*path))
+                .count();
         }
     }
+    assert!(hits > 1000, "{hits}");
     assert_eq!(mismatches, 0);
+}
+
+#[test]
+fn single_ray_walks_restart_with_a_larger_stack_and_find_the_same_hits() {
+    // Eight inline entries overflow on most rays through a few thousand triangles; the walks
+    // then restart on the heap and must still give the answers of the inline-stack walk.
+    let mut rng = Rng::new(23);
+    let geometries = [
+        GeometryBvh::build(random_triangles(&mut rng, 3000, 6.0, 1.5)),
+        GeometryBvh::build(random_quads(&mut rng, 1500, 6.0, 1.5)),
+    ];
+    let mut hits = 0;
+    for geometry in &geometries {
+        for test_ray in random_rays(&mut rng, 2000, 6.0) {
+            let ray = traversal_ray(&test_ray);
+            let (closest, any) = geometry.walks_with_small_stack(&ray);
+            assert_eq!(closest, geometry.closest_slot_and_t(&ray), "{test_ray:?}");
+            assert_eq!(any, geometry.occluded(&test_ray), "{test_ray:?}");
+            hits += usize::from(closest.is_some());
+        }
+    }
+    assert!(hits > 1000, "{hits}");
 }
 
 #[test]
@@ -1722,64 +1767,6 @@ fn packet_with_invalid_and_missing_lanes() {
     assert_eq!(hits[3].map(|hit| hit.t), Some(2.0));
     assert_eq!(hits[4].map(|hit| hit.t), Some(1.0));
     assert!(hits[5].is_none());
-}
-
-#[test]
-fn wide_bvh_contains_every_primitive_once_inside_its_quantized_boxes() {
-    use obvhs::aabb::Aabb;
-    let mut rng = Rng::new(41);
-    for count in [1usize, 2, 3, 4, 9, 25, 700, 5000] {
-        let boxes: Vec<Aabb> = (0..count)
-            .map(|_| {
-                let low = rng.point(-50.0, 50.0);
-                Aabb::new(low.into(), (low + rng.point(0.0, 3.0)).into())
-            })
-            .collect();
-        let crate::accel::wide_bvh::WideBvh { nodes, order, .. } =
-            crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole);
-        let mut seen = vec![0; count];
-        for &index in &order {
-            seen[index as usize] += 1;
-        }
-        assert!(seen.iter().all(|&n| n == 1), "{count}: {seen:?}");
-        // Walk every node: decoded child boxes (exact, in f64) contain their primitives and
-        // inner children's boxes contain the child node's own box.
-        for node in &nodes {
-            for slot in 0..8 {
-                let meta = node.child_meta[slot];
-                if meta == 0 {
-                    continue;
-                }
-                let step = node.e.map(|e| f32::from_bits((e as u32) << 23) as f64);
-                let decode = |q: u8, axis: usize| node.p[axis] as f64 + q as f64 * step[axis];
-                let low = [
-                    decode(node.child_min_x[slot], 0),
-                    decode(node.child_min_y[slot], 1),
-                    decode(node.child_min_z[slot], 2),
-                ];
-                let high = [
-                    decode(node.child_max_x[slot], 0),
-                    decode(node.child_max_y[slot], 1),
-                    decode(node.child_max_z[slot], 2),
-                ];
-                let inside = |aabb: &Aabb| {
-                    (0..3).all(|axis| {
-                        low[axis] <= aabb.min[axis] as f64 && aabb.max[axis] as f64 <= high[axis]
-                    })
-                };
-                if node.imask & (1 << slot) != 0 {
-                    let child = &nodes[node.child_node_index(slot) as usize];
-                    assert!(inside(&Aabb::new(child.p.into(), child.p.into())));
-                } else {
-                    let (first, primitives) = node.child_primitives(slot);
-                    assert!((1..=3).contains(&primitives));
-                    for i in first..first + primitives {
-                        assert!(inside(&boxes[order[i as usize] as usize]));
-                    }
-                }
-            }
-        }
-    }
 }
 
 /// Primary rays of a pinhole camera in 8x8 tiles, each tile as 2x2 blocks (the order
@@ -2309,68 +2296,89 @@ mod packet_and_structure {
         }
     }
 
-    /// Walks the CWBVH from the root and checks its invariants.
+    /// Walks the wide BVH from the root and checks its invariants.
     fn check_structure(boxes: &[Aabb]) {
         for sizing in [LeafSizing::Whole, LeafSizing::Split] {
-            check_structure_with(boxes, sizing);
+            for alignment in [LeafAlignment::Packed, LeafAlignment::Group] {
+                check_structure_with(boxes, sizing, alignment);
+            }
         }
     }
 
-    fn check_structure_with(boxes: &[Aabb], sizing: LeafSizing) {
-        let crate::accel::wide_bvh::WideBvh { nodes, order, .. } = build_wide_bvh(boxes, sizing);
+    fn check_structure_with(boxes: &[Aabb], sizing: LeafSizing, alignment: LeafAlignment) {
+        use crate::accel::wide_bvh::{LEAF_BIT, PADDING, leaf_range, occupied};
+        let crate::accel::wide_bvh::WideBvh { nodes, order, .. } =
+            build_wide_bvh(boxes, sizing, alignment);
         let n = boxes.len();
         if n == 0 {
             assert!(nodes.is_empty() && order.is_empty());
             return;
         }
-        let mut slot_seen = vec![0u32; n];
+        let mut slot_seen = vec![0u32; order.len()];
         let mut node_seen = vec![0u32; nodes.len()];
         let mut stack = vec![0usize];
-        let mut leaves_per_node = Vec::new();
         while let Some(index) = stack.pop() {
             node_seen[index] += 1;
             let node = &nodes[index];
-            let mut inner_rank = 0;
-            let mut leaf_next = 0u32;
             let mut children = 0;
             for slot in 0..8 {
-                let meta = node.child_meta[slot];
-                if meta == 0 {
-                    assert_eq!(node.imask & (1 << slot), 0);
+                if !occupied(node, slot) {
                     continue;
                 }
                 children += 1;
-                if node.imask & (1 << slot) != 0 {
-                    assert_eq!(meta & 0b1_1111, 24 + slot as u8, "inner meta");
-                    let child = node.child_base_idx as usize + inner_rank;
-                    assert_eq!(child, node.child_node_index(slot) as usize);
-                    inner_rank += 1;
-                    stack.push(child);
+                let code = node.children[slot];
+                // Child boxes contain what is below them.
+                let inside = |aabb: &Aabb| {
+                    (0..3).all(|axis| {
+                        node.planes[2 * axis][slot] <= aabb.min[axis]
+                            && aabb.max[axis] <= node.planes[2 * axis + 1][slot]
+                    })
+                };
+                if code & LEAF_BIT == 0 {
+                    let child = &nodes[code as usize];
+                    for child_slot in (0..8).filter(|&s| occupied(child, s)) {
+                        let low = [0, 2, 4].map(|row| child.planes[row][child_slot]);
+                        let high = [1, 3, 5].map(|row| child.planes[row][child_slot]);
+                        assert!(inside(&Aabb::new(low.into(), high.into())));
+                    }
+                    stack.push(code as usize);
                 } else {
-                    let offset = (meta & 31) as u32;
-                    let count = (meta >> 5).count_ones();
-                    assert!(meta >> 5 == (1 << count) - 1, "count bits contiguous");
-                    assert!((1..=3).contains(&count));
-                    assert_eq!(offset, leaf_next, "leaves contiguous in slot order");
-                    leaf_next += count;
-                    for i in 0..count {
-                        slot_seen[(node.primitive_base_idx + offset + i) as usize] += 1;
+                    let (first, count) = leaf_range(code);
+                    assert!((1..=4).contains(&count));
+                    let first = first as usize;
+                    if alignment == LeafAlignment::Group {
+                        assert!(first % 4 + count as usize <= 4, "a leaf within one group");
+                    }
+                    for i in first..first + count as usize {
+                        slot_seen[i] += 1;
+                        assert_ne!(order[i], PADDING);
+                        assert!(inside(&boxes[order[i] as usize]));
                     }
                 }
             }
-            assert!(leaf_next <= 24);
             assert!((1..=8).contains(&children));
             if index != 0 {
                 assert!(children >= 2, "non-root wide node with {children} children");
             }
-            leaves_per_node.push(leaf_next);
         }
         assert!(
             node_seen.iter().all(|&c| c == 1),
             "{n}: nodes {node_seen:?}"
         );
+        if alignment == LeafAlignment::Group {
+            assert_eq!(order.len() % 4, 0, "whole groups");
+            for group in order.chunks(4) {
+                assert_ne!(group[0], PADDING, "padding repeats a real first lane");
+            }
+        }
+        // Padding slots belong to no leaf.
+        for (seen, &index) in slot_seen.iter_mut().zip(&order) {
+            if index == PADDING {
+                *seen += 1;
+            }
+        }
         assert!(slot_seen.iter().all(|&c| c == 1), "{n}: slots");
-        let mut ids = order.clone();
+        let mut ids: Vec<u32> = order.iter().copied().filter(|&i| i != PADDING).collect();
         ids.sort();
         assert_eq!(ids, (0..n as u32).collect::<Vec<_>>());
     }
@@ -2470,7 +2478,7 @@ mod packet_and_structure {
 }
 
 #[test]
-fn triangle_leaves_stay_whole_and_sphere_and_tube_leaves_split() {
+fn whole_leaves_split_only_within_shared_groups_and_sphere_and_tube_leaves_split() {
     use crate::accel::wide_bvh::{build_wide_bvh, leaf_count};
     let mut rng = Rng::new(61);
     let boxes: Vec<obvhs::aabb::Aabb> = (0..3000)
@@ -2479,17 +2487,22 @@ fn triangle_leaves_stay_whole_and_sphere_and_tube_leaves_split() {
             obvhs::aabb::Aabb::new(low.into(), (low + rng.point(0.0, 1.0)).into())
         })
         .collect();
-    let whole = leaf_count(&build_wide_bvh(&boxes, LeafSizing::Whole).nodes);
-    let split = leaf_count(&build_wide_bvh(&boxes, LeafSizing::Split).nodes);
-    // Whole: leaves of up to three boxes; split: spare slots break them up.
-    assert!(whole * 3 >= 3000 && whole < 1500, "{whole}");
+    let leaves = |sizing| leaf_count(&build_wide_bvh(&boxes, sizing, LeafAlignment::Packed).nodes);
+    let (whole, split) = (leaves(LeafSizing::Whole), leaves(LeafSizing::Split));
+    // Whole: leaves of up to four boxes; split: spare slots break them up.
+    assert!(whole * 4 >= 3000 && whole < 1500, "{whole}");
     assert!(split > 2 * whole, "{split} vs {whole}");
+    // Whole leaves in groups of four: spare slots split them too, but the node's leaves share
+    // their groups, so the slots (groups of four, padding included) stay as few.
+    let whole_grouped = build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group);
+    let grouped_leaves = leaf_count(&whole_grouped.nodes);
+    let slots = whole_grouped.order.len();
+    assert!(grouped_leaves > 2 * whole, "{grouped_leaves} vs {whole}");
+    assert!(slots * 10 < 3000 * 13, "{slots} slots for 3000 boxes");
     // Geometries choose by the cost of their primitive test.
     let per_leaf = |bvh: &GeometryBvh| bvh.primitive_count() as f64 / bvh.leaf_count() as f64;
-    let triangles = GeometryBvh::build(random_triangles(&mut rng, 3000, 20.0, 1.0));
     let spheres = GeometryBvh::build(random_spheres(&mut rng, 3000, 20.0, 0.5));
     let tubes = random_tubes(&mut rng, 3000, 20.0, 1.0).build();
-    assert!(per_leaf(&triangles) > 2.0, "{}", per_leaf(&triangles));
     assert!(per_leaf(&spheres) < 1.3, "{}", per_leaf(&spheres));
     assert!(per_leaf(&tubes) < 1.3, "{}", per_leaf(&tubes));
 }
@@ -2790,4 +2803,295 @@ fn the_avx2_box_test_finds_the_hits_of_the_baseline() {
         // Bit for bit: t, ids, barycentrics and normals.
         assert_eq!(format!("{a:?}"), format!("{b:?}"), "ray {i}: {:?}", rays[i]);
     }
+}
+
+#[test]
+fn frustum_packets_find_the_same_hits_on_every_path() {
+    use crate::accel::isa::{self, Isa};
+    if !Isa::Avx2.supported() {
+        eprintln!("this CPU has no AVX2 and FMA: only the baseline path exists here");
+        return;
+    }
+    // A height field (leaves of one or two quads, split into spare slots) and random
+    // triangles, seen by pinhole tiles from several sides.
+    let mut rng = Rng::new(23);
+    let grid_views = [
+        (vec3(-10.0, -8.0, 15.0), vec3(24.0, 24.0, 0.0)),
+        (vec3(30.0, 20.0, 20.0), vec3(20.0, 25.0, 0.0)),
+        (vec3(24.0, 23.0, 40.0), vec3(24.0, 24.0, 0.0)),
+    ];
+    let random_views = [
+        (vec3(-9.0, -7.0, 6.0), Vec3::ZERO),
+        (vec3(2.0, 3.0, 12.0), vec3(0.5, -0.5, 0.0)),
+        (vec3(8.0, -0.5, 1.0), vec3(-1.0, 0.5, 0.0)),
+    ];
+    let geometries = [
+        (GeometryBvh::build(bumpy_grid(48).1), grid_views),
+        (
+            GeometryBvh::build(random_triangles(&mut rng, 3000, 6.0, 0.8)),
+            random_views,
+        ),
+    ];
+    for (bvh, views) in &geometries {
+        for &(eye, target) in views {
+            let rays = camera_tiles(&mut rng, eye, target, 64);
+            let trace = |isa: Isa| {
+                assert_eq!(isa::select(isa), isa);
+                let mut hits = vec![None; rays.len()];
+                bvh.intersect_packet(&rays, &mut hits);
+                hits
+            };
+            let baseline = trace(Isa::Baseline);
+            let avx2 = trace(Isa::Avx2);
+            isa::select(Isa::from_environment());
+            let hit_count = baseline.iter().flatten().count();
+            assert!(hit_count > rays.len() / 4, "{hit_count} hits from {eye}");
+            for (i, (a, b)) in baseline.iter().zip(&avx2).enumerate() {
+                // Bit for bit: t, ids, barycentrics and normals.
+                assert_eq!(format!("{a:?}"), format!("{b:?}"), "ray {i}: {:?}", rays[i]);
+                assert_eq!(
+                    a.map(|hit| hit.t),
+                    bvh.intersect(&rays[i]).map(|hit| hit.t),
+                    "ray {i}: {:?}",
+                    rays[i]
+                );
+            }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Watertightness of closed meshes
+
+/// An icosphere of radius 1 (the icosahedron's faces split four-fold `levels` times), with
+/// vertices shared between faces.
+fn icosphere(levels: u32) -> (Vec<Vec3>, Vec<UVec3>) {
+    let g = (1.0 + 5f32.sqrt()) / 2.0;
+    let mut positions: Vec<Vec3> = [
+        (-1.0, g, 0.0),
+        (1.0, g, 0.0),
+        (-1.0, -g, 0.0),
+        (1.0, -g, 0.0),
+        (0.0, -1.0, g),
+        (0.0, 1.0, g),
+        (0.0, -1.0, -g),
+        (0.0, 1.0, -g),
+        (g, 0.0, -1.0),
+        (g, 0.0, 1.0),
+        (-g, 0.0, -1.0),
+        (-g, 0.0, 1.0),
+    ]
+    .map(|(x, y, z)| vec3(x, y, z).normalize())
+    .to_vec();
+    let mut faces: Vec<UVec3> = [
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ]
+    .map(UVec3::from_array)
+    .to_vec();
+    for _ in 0..levels {
+        let mut midpoints = std::collections::HashMap::new();
+        let mut midpoint = |a: u32, b: u32, positions: &mut Vec<Vec3>| {
+            *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                let p = (positions[a as usize] + positions[b as usize]).normalize();
+                positions.push(p);
+                positions.len() as u32 - 1
+            })
+        };
+        let mut next = Vec::new();
+        for face in &faces {
+            let [a, b, c] = face.to_array();
+            let ab = midpoint(a, b, &mut positions);
+            let bc = midpoint(b, c, &mut positions);
+            let ca = midpoint(c, a, &mut positions);
+            next.extend(
+                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]].map(UVec3::from_array),
+            );
+        }
+        faces = next;
+    }
+    (positions, faces)
+}
+
+/// A cube over [-1, 1]³ of `n`×`n` quads per face, vertices shared along its edges; every
+/// coordinate is a multiple of 2 / n, so the midpoint of any edge is exact.
+fn cube_of_quads(n: u32) -> (Vec<Vec3>, Vec<UVec4>) {
+    let mut positions = Vec::new();
+    let mut index = std::collections::HashMap::new();
+    let mut vertex = |p: [i32; 3], positions: &mut Vec<Vec3>| {
+        *index.entry(p).or_insert_with(|| {
+            let scale = 2.0 / n as f32;
+            positions.push(Vec3::from_array(p.map(|c| c as f32 * scale - 1.0)));
+            positions.len() as u32 - 1
+        })
+    };
+    let n = n as i32;
+    let mut quads = Vec::new();
+    for axis in 0..3 {
+        for side in [0, n] {
+            for i in 0..n {
+                for j in 0..n {
+                    let corner = |di: i32, dj: i32| {
+                        let mut p = [0; 3];
+                        p[axis] = side;
+                        p[(axis + 1) % 3] = i + di;
+                        p[(axis + 2) % 3] = j + dj;
+                        p
+                    };
+                    let corners = [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)];
+                    let ids = corners.map(|c| vertex(c, &mut positions));
+                    quads.push(UVec4::from_array(ids));
+                }
+            }
+        }
+    }
+    (positions, quads)
+}
+
+/// Points on every vertex and (as exactly as floats allow) on every edge of the mesh.
+fn vertices_and_edge_points(positions: &[Vec3], faces: &[Vec<u32>]) -> Vec<Vec3> {
+    let mut points = positions.to_vec();
+    for face in faces {
+        for (k, &a) in face.iter().enumerate() {
+            let b = face[(k + 1) % face.len()];
+            let (pa, pb) = (positions[a as usize], positions[b as usize]);
+            points.extend([0.5, 0.25, 0.125].map(|w| pa + (pb - pa) * w));
+        }
+        // The diagonal along which a quad is split.
+        if face.len() == 4 {
+            let (pa, pc) = (positions[face[0] as usize], positions[face[2] as usize]);
+            points.push(pa + (pc - pa) * 0.5);
+        }
+    }
+    points
+}
+
+/// Plain Möller–Trumbore in f32 (not watertight): shows that the rays below do probe the gaps
+/// a non-watertight test leaves.
+fn moller_trumbore(origin: Vec3, direction: Vec3, [v0, v1, v2]: [Vec3; 3]) -> bool {
+    let (e1, e2) = (v1 - v0, v2 - v0);
+    let p = direction.cross(e2);
+    let determinant = e1.dot(p);
+    if determinant == 0.0 {
+        return false;
+    }
+    let inv = 1.0 / determinant;
+    let s = origin - v0;
+    let u = s.dot(p) * inv;
+    let q = s.cross(e1);
+    let v = direction.dot(q) * inv;
+    u >= 0.0 && v >= 0.0 && u + v <= 1.0 && e2.dot(q) * inv > 0.0
+}
+
+#[test]
+fn rays_through_shared_edges_and_vertices_of_closed_meshes_never_leak() {
+    let (sphere_positions, sphere_faces) = icosphere(3);
+    let (cube_positions, cube_quads) = cube_of_quads(6);
+    let meshes = [
+        (
+            GeometryPrims::Triangles {
+                positions: sphere_positions.clone(),
+                indices: sphere_faces.clone(),
+            },
+            vertices_and_edge_points(
+                &sphere_positions,
+                &sphere_faces
+                    .iter()
+                    .map(|f| f.to_array().to_vec())
+                    .collect::<Vec<_>>(),
+            ),
+            sphere_faces
+                .iter()
+                .map(|f| f.to_array().map(|i| sphere_positions[i as usize]))
+                .collect::<Vec<_>>(),
+        ),
+        (
+            GeometryPrims::Quads {
+                positions: cube_positions.clone(),
+                indices: cube_quads.clone(),
+            },
+            vertices_and_edge_points(
+                &cube_positions,
+                &cube_quads
+                    .iter()
+                    .map(|q| q.to_array().to_vec())
+                    .collect::<Vec<_>>(),
+            ),
+            cube_quads
+                .iter()
+                .flat_map(|q| {
+                    let [a, b, c, d] = q.to_array().map(|i| cube_positions[i as usize]);
+                    [[a, b, c], [a, c, d]]
+                })
+                .collect::<Vec<_>>(),
+        ),
+    ];
+    let mut rng = Rng::new(23);
+    let mut naive_leaks = 0;
+    for (prims, targets, triangles) in meshes {
+        let geometry = Arc::new(GeometryBvh::build(prims));
+        let scene = SceneBvh::build(vec![identity_instance(vec![geometry.clone()])]);
+        // From the centre (the direction is the target itself, so the ray passes exactly
+        // through it), from points inside, and from outside towards the target.
+        let mut rays = Vec::new();
+        for &target in &targets {
+            rays.push(Ray::new(Vec3::ZERO, target, 0.0, f32::INFINITY));
+            let inside = rng.point(-0.3, 0.3);
+            rays.push(Ray::new(inside, target - inside, 0.0, f32::INFINITY));
+            let outside = target * 3.0 + rng.point(-0.5, 0.5);
+            rays.push(Ray::new(outside, target - outside, 0.0, f32::INFINITY));
+        }
+        // Packets form from rays sharing octant and dominant axis: group them so.
+        let key = |ray: &Ray| {
+            let d = ray.direction;
+            let octant = (d.x < 0.0) as u32 * 4 + (d.y < 0.0) as u32 * 2 + (d.z < 0.0) as u32;
+            let a = d.abs();
+            let dominant = if a.x >= a.y && a.x >= a.z {
+                0
+            } else if a.y >= a.z {
+                1
+            } else {
+                2
+            };
+            octant * 3 + dominant
+        };
+        rays.sort_by_key(key);
+        let mut packet_hits = vec![None; rays.len()];
+        scene.intersect_packet(&rays, &mut packet_hits);
+        for (ray, packet_hit) in rays.iter().zip(&packet_hits) {
+            let hit = geometry.intersect(ray);
+            let t = hit.map(|hit| hit.t);
+            assert!(t.is_some(), "{ray:?} leaked through the mesh");
+            assert!(geometry.occluded(ray), "{ray:?} leaked for any-hit");
+            assert_eq!(scene.intersect(ray).map(|hit| hit.t), t, "{ray:?}");
+            assert_eq!(packet_hit.map(|hit| hit.t), t, "{ray:?} in a packet");
+            let naive_hit = triangles
+                .iter()
+                .any(|&triangle| moller_trumbore(ray.origin, ray.direction, triangle));
+            naive_leaks += usize::from(!naive_hit);
+        }
+    }
+    assert!(
+        naive_leaks > 0,
+        "the rays should find the gaps of a non-watertight test"
+    );
+    eprintln!("Möller–Trumbore leaked {naive_leaks} of the rays");
 }

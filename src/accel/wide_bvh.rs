@@ -1,19 +1,28 @@
-//! Building obvhs compressed wide BVHs (8 children per node, quantized child boxes, up to three
-//! primitives per leaf) and our own single-ray traversal of them.
+//! The CPU layout of the BVH and its single-ray traversal.
 //!
-//! The traversal follows the CWBVH node format: a node's children are visited nearest-first by
-//! pairing a slot ordering chosen at build time with the ray's direction octant. It differs from
-//! obvhs' own traversal in that the box test honours the ray's `t_min` (obvhs uses a fixed
-//! 1e-4) and widens every slab by a bound on its rounding error, so that hits close to the
-//! origin or exactly on box faces, edges and corners are never culled, also for rays running
-//! almost parallel to an axis.
+//! obvhs builds a binary BVH (PLOC plus reinsertion); [`collapse_to_wide`] lays it out as
+//! [`WideNode`]s: eight children per node with their boxes as plain floats, structure of arrays
+//! (per axis the eight minima, then the eight maxima), so that one vector instruction tests one
+//! plane of all children with nothing to decode. Children are placed in slots so that a ray
+//! visits them nearest-first by taking slot `i ^ octant` for `i = 0..8`, where `octant` has a
+//! bit set for each negative direction component. Leaves hold at most four primitives; with
+//! [`LeafAlignment::Group`] a leaf is a run of lanes within one group of four slots, the
+//! leaves of a node sharing groups (so spare child slots split them at no memory cost), and a
+//! triangle leaf is tested as one SIMD group (see `primitives::TriangleGroup`).
+//!
+//! The box test computes each slab distance as `(plane - origin) * inverse_direction`: two
+//! roundings of a value, so its relative error is bounded (three half-ulps with the rounded
+//! inverse), and widening a child's entry and exit distances by [`SLAB_ERROR`] of their own
+//! magnitude keeps every box that holds a primitive hit in `[t_min, t_max]`, also for rays
+//! that meet it exactly on a face, edge or corner or run almost parallel to an axis. Every
+//! instruction-set path performs the same operations in the same order (no fused
+//! multiply-adds), so each finds the same children, in the same order, and the same hits.
 
-use glam::{Vec3, Vec3A, Vec4};
+use glam::{Vec3, Vec3A, Vec3Swizzles, Vec4};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
-use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::ploc::{PlocBuilder, SortPrecision};
 
 use crate::accel::{EMPTY_BOUNDS, MAX_COORDINATE};
@@ -22,36 +31,119 @@ use rayon::iter::{
 };
 use rayon::slice::ParallelSlice;
 
-/// CWBVH leaves hold at most three primitives.
-const MAX_PRIMS_PER_LEAF: u32 = 3;
+/// Leaves hold at most four primitives (one SIMD group of triangles).
+pub(crate) const MAX_PRIMS_PER_LEAF: u32 = 4;
+
+/// Runs of neighbouring primitives that start the binary build are at most this long.
+const MAX_RUN: u32 = 3;
 
 /// How far PLOC looks for a node's nearest neighbour (obvhs' `PlocSearchDistance::VeryLow`).
 const PLOC_SEARCH_DISTANCE: usize = 2;
 
+/// A node's children can be at most this many.
+pub(crate) const WIDTH: usize = 8;
+
+/// Set in a child code for a leaf; the code of an inner child is its node index.
+pub(crate) const LEAF_BIT: u32 = 1 << 31;
+/// Leaf codes keep `count - 1` in the two bits below [`LEAF_BIT`].
+const LEAF_COUNT_SHIFT: u32 = 29;
+/// Leaf codes keep the first primitive slot (its group with [`LeafAlignment::Group`]) in the
+/// low 29 bits.
+const LEAF_FIRST_MASK: u32 = (1 << LEAF_COUNT_SHIFT) - 1;
+/// Geometries and scenes address at most this many primitives; the rest are skipped.
+pub(crate) const MAX_PRIMITIVES: usize = 1 << LEAF_COUNT_SHIFT;
+
+/// Planes of an empty child slot: a box beyond every ray origin whose entry and exit distances
+/// have opposite signs for every ray, so it is never hit, and whose slab distances stay finite.
+const EMPTY_PLANE: f32 = 1.0e20;
+
+/// Marks a padding slot in a grouped primitive order.
+pub(crate) const PADDING: u32 = u32::MAX;
+
+/// Eight children: their boxes per axis as minima then maxima (`planes[2 * axis]`,
+/// `planes[2 * axis + 1]`), and their codes (inner: node index; leaf: [`LEAF_BIT`], count,
+/// first slot). 224 bytes.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+pub(crate) struct WideNode {
+    pub planes: [[f32; WIDTH]; 6],
+    pub children: [u32; WIDTH],
+}
+
+impl Default for WideNode {
+    fn default() -> WideNode {
+        let mut planes = [[EMPTY_PLANE; WIDTH]; 6];
+        for axis in 0..3 {
+            planes[2 * axis + 1] = [-EMPTY_PLANE; WIDTH];
+        }
+        WideNode {
+            planes,
+            children: [0; WIDTH],
+        }
+    }
+}
+
+/// A leaf's primitives: `count` slots from `first` (with [`LeafAlignment::Group`] they lie
+/// within one group of four: `first / 4` is the group, `first % 4` the first lane).
+#[inline(always)]
+pub(crate) fn leaf_range(code: u32) -> (u32, u32) {
+    (code & LEAF_FIRST_MASK, ((code >> LEAF_COUNT_SHIFT) & 3) + 1)
+}
+
+/// A [`LeafAlignment::Group`] leaf: its group and its lanes in the group (bit per lane).
+#[inline(always)]
+pub(crate) fn group_leaf(code: u32) -> (usize, u32) {
+    let (first, count) = leaf_range(code);
+    let lanes = MAX_PRIMS_PER_LEAF;
+    (
+        (first / lanes) as usize,
+        ((1 << count) - 1) << (first % lanes),
+    )
+}
+
+fn leaf_code(first: u32, count: u32) -> u32 {
+    debug_assert!((1..=MAX_PRIMS_PER_LEAF).contains(&count) && first <= LEAF_FIRST_MASK);
+    LEAF_BIT | ((count - 1) << LEAF_COUNT_SHIFT) | first
+}
+
+/// Whether child `slot` of `node` is occupied.
+#[inline(always)]
+pub(crate) fn occupied(node: &WideNode, slot: usize) -> bool {
+    node.planes[0][slot] <= node.planes[1][slot]
+}
+
 /// A wide BVH built over boxes.
 pub(crate) struct WideBvh {
-    pub nodes: Vec<CwBvhNode>,
-    /// For every primitive slot the leaves refer to, the index into the boxes it stands for
-    /// (callers reorder their primitives by it).
+    pub nodes: Vec<WideNode>,
+    /// For every primitive slot the leaves refer to, the index into the boxes it stands for,
+    /// or [`PADDING`] (callers reorder their primitives by it).
     pub order: Vec<u32>,
     /// The union of the boxes ([`EMPTY_BOUNDS`] for none).
     pub bounds: (Vec3, Vec3),
+}
+
+/// How leaves are laid out in the primitive order.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(crate) enum LeafAlignment {
+    /// Leaves follow one another.
+    Packed,
+    /// Every leaf starts a group of four slots, padded with [`PADDING`].
+    Group,
 }
 
 /// Builds a wide BVH over `boxes`, which must be finite; an empty input gives no nodes.
 ///
 /// obvhs builds the binary BVH (PLOC with search distance 2 plus 1% reinsertion, parallel
 /// through rayon with obvhs' `parallel` feature), for whole leaves starting from the runs of
-/// [`neighbour_clusters`]; [`collapse_to_wide`] then packs it into
-/// obvhs' CWBVH node format. obvhs' own converter optimizes the collapse by dynamic
-/// programming and costs about as much as obvhs' binary build (~300 ms for 1M triangles,
-/// single threaded); the greedy collapse runs in parallel and takes a fraction of that, for a
-/// BVH that traces single rays a few percent slower. Measured on a 1M-triangle mesh (2 cores,
-/// before the runs, when the whole build took ~300 ms): the 1% reinsertion cost 15 ms and
-/// gained 4% on the default renderer's shadow rays (none on packets of primary rays), so it
-/// stays; search distance 6 or 5% reinsertion cost another 40-50 ms for at most 2%, search
-/// distance 1 lost 2%.
-pub(crate) fn build_wide_bvh(boxes: &[Aabb], sizing: LeafSizing) -> WideBvh {
+/// [`neighbour_clusters`]; [`collapse_to_wide`] then lays it out as [`WideNode`]s, greedily
+/// and in parallel. Measured on a 1M-triangle mesh (2 cores, when the whole build took
+/// ~300 ms): the 1% reinsertion cost 15 ms and gained 4% on the default renderer's shadow rays,
+/// so it stays; search distance 6 or 5% reinsertion cost another 40-50 ms for at most 2%.
+pub(crate) fn build_wide_bvh(
+    boxes: &[Aabb],
+    sizing: LeafSizing,
+    alignment: LeafAlignment,
+) -> WideBvh {
     if boxes.is_empty() {
         return WideBvh {
             nodes: Vec::new(),
@@ -87,7 +179,7 @@ pub(crate) fn build_wide_bvh(boxes: &[Aabb], sizing: LeafSizing) -> WideBvh {
         1,
     );
     ReinsertionOptimizer::default().run(&mut bvh2, 0.01, None);
-    let (nodes, order) = collapse_to_wide(&bvh2, sizing);
+    let (nodes, order) = collapse_to_wide(&bvh2, sizing, alignment);
     WideBvh {
         nodes,
         order,
@@ -95,7 +187,7 @@ pub(crate) fn build_wide_bvh(boxes: &[Aabb], sizing: LeafSizing) -> WideBvh {
     }
 }
 
-/// Binary leaves for a build over `boxes`: runs of up to three consecutive primitives whose
+/// Binary leaves for a build over `boxes`: runs of up to [`MAX_RUN`] consecutive primitives whose
 /// boxes touch one after the other and stay compact together (in a mesh: neighbouring
 /// triangles, such as the two halves of a quad), else single primitives. Meshes list
 /// neighbours next to each other, so the binary build starts from about half as many leaves.
@@ -123,7 +215,7 @@ pub(crate) fn neighbour_clusters(boxes: &[Aabb]) -> Vec<Bvh2Node> {
             let mut cluster = boxes[0];
             for i in 1..=boxes.len() {
                 if i < boxes.len()
-                    && i - first < MAX_PRIMS_PER_LEAF as usize
+                    && i - first < MAX_RUN as usize
                     && joins(&cluster, &boxes[i - 1], &boxes[i])
                 {
                     cluster.extend(boxes[i].min);
@@ -146,14 +238,15 @@ pub(crate) fn neighbour_clusters(boxes: &[Aabb]) -> Vec<Bvh2Node> {
     chunks.concat()
 }
 
-/// Number of leaves (occupied child slots that are not inner nodes) in `nodes`.
+/// Number of leaves in `nodes`.
 #[cfg(test)]
-pub(crate) fn leaf_count(nodes: &[CwBvhNode]) -> usize {
+pub(crate) fn leaf_count(nodes: &[WideNode]) -> usize {
     nodes
         .iter()
         .map(|node| {
-            (node.child_meta.iter().filter(|meta| **meta != 0).count())
-                - node.imask.count_ones() as usize
+            (0..WIDTH)
+                .filter(|&slot| occupied(node, slot) && node.children[slot] & LEAF_BIT != 0)
+                .count()
         })
         .sum()
 }
@@ -161,18 +254,17 @@ pub(crate) fn leaf_count(nodes: &[CwBvhNode]) -> usize {
 /// Whether spare child slots of a wide node split subtrees that would fit one leaf.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub(crate) enum LeafSizing {
-    /// Subtrees of up to three primitives stay one leaf: for cheap primitive tests
-    /// (triangles), fewer box tests win. Measured on a 1M-triangle mesh: primary-ray packets
-    /// 10 % faster, the default renderer 2 %.
+    /// Subtrees of up to four primitives stay one leaf: for cheap primitive tests
+    /// (triangles, tested four at a time), fewer box tests win. With
+    /// [`LeafAlignment::Group`] spare slots still split them: the node's leaves share their
+    /// groups, so a split costs no memory, and a packet's group of rays then tests only the
+    /// triangles under the smaller boxes it reaches (frustum packets 5 % faster at 968 and
+    /// 100k triangles, single rays unchanged).
     Whole,
     /// Spare slots split small subtrees into smaller leaves: for costly primitive tests
-    /// (spheres and tubes in f64, instances), tighter boxes win. Measured: 100k spheres 5 %
-    /// faster, the CAVE demo's sphere cloud with shadows and a mirror 15-20 %.
+    /// (spheres and tubes in f64, instances), tighter boxes win.
     Split,
 }
-
-/// A wide node's children can be at most this many.
-const WIDTH: usize = 8;
 
 /// Marks an empty slot in [`assign_slots`]' result.
 const EMPTY_SLOT: u8 = u8::MAX;
@@ -183,8 +275,25 @@ struct Candidate {
     /// Index into the binary BVH's nodes.
     index: u32,
     half_area: f32,
-    /// Number of primitives below, if small enough for one leaf.
+    /// Number of primitives below, if small enough for one leaf (with the partners').
     leaf_count: Option<u32>,
+    /// The box (with the partners').
+    aabb: Aabb,
+    /// Binary subtrees sharing its leaf (see [`pair_small_leaves`]).
+    partners: Partners,
+}
+
+impl Candidate {
+    fn of(bvh2: &Bvh2, index: usize, leaf_count: Option<u32>) -> Candidate {
+        let aabb = *bvh2.nodes[index].aabb();
+        Candidate {
+            index: index as u32,
+            half_area: aabb.half_area(),
+            leaf_count,
+            aabb,
+            partners: Partners::default(),
+        }
+    }
 }
 
 /// Up to eight values (a wide node's children) without heap allocation.
@@ -214,55 +323,57 @@ impl<T: Copy> WideList<T> {
 /// Binary descendants chosen as the children of one wide node.
 type Candidates = WideList<Candidate>;
 
-/// Binary indices of a wide node's inner children, in slot order.
-type InnerChildren = WideList<u32>;
+/// (slot, binary index) of a wide node's inner children.
+type InnerChildren = WideList<(u8, u32)>;
 
-/// The collapsed form of one binary subtree: its wide root at node 0, node indices and
-/// primitive bases relative to this subtree.
+/// The collapsed form of one binary subtree: its wide root at node 0, inner child codes
+/// relative to this subtree, leaf codes relative to its primitives.
 struct Subtree {
-    nodes: Vec<CwBvhNode>,
+    nodes: Vec<WideNode>,
     primitives: Vec<u32>,
 }
 
-/// Packs a binary BVH (leaves of at most three primitives) into CWBVH nodes: each wide node
-/// takes its binary node's two children and keeps opening the largest child (by surface area)
-/// that is too big for a leaf until it has eight or none is left (then, with
-/// `LeafSizing::Split`, the largest that fits a leaf); subtrees of at most three primitives
-/// become leaves. The subtrees below the root are collapsed in parallel on the current rayon
-/// pool.
-pub(crate) fn collapse_to_wide(bvh2: &Bvh2, sizing: LeafSizing) -> (Vec<CwBvhNode>, Vec<u32>) {
+/// Lays a binary BVH (leaves of at most four primitives) out as wide nodes: each takes its
+/// binary node's two children and keeps opening the largest child (by surface area) that is
+/// too big for a leaf until it has eight or none is left (then, with `LeafSizing::Split`, the
+/// largest that fits a leaf); subtrees of at most four primitives become leaves. The subtrees
+/// below the root are collapsed in parallel on the current rayon pool.
+pub(crate) fn collapse_to_wide(
+    bvh2: &Bvh2,
+    sizing: LeafSizing,
+    alignment: LeafAlignment,
+) -> (Vec<WideNode>, Vec<u32>) {
     if bvh2.nodes.is_empty() {
         return (Vec::new(), Vec::new());
     }
-    // A binary leaf too large for a wide leaf would be taken for an inner node (leaves come
-    // from `neighbour_clusters` or hold one primitive, and reinsertion keeps them whole).
     debug_assert!(
         bvh2.nodes
             .iter()
             .all(|node| node.prim_count <= MAX_PRIMS_PER_LEAF)
     );
     let mut root_primitives = Vec::new();
-    let (mut root, inner_children) = wide_node(bvh2, 0, true, sizing, &mut root_primitives);
+    let (mut root, inner_children) =
+        wide_node(bvh2, 0, true, sizing, alignment, &mut root_primitives);
     let subtrees: Vec<Subtree> = inner_children
         .as_slice()
         .par_iter()
-        .map(|&child| collapse_subtree(bvh2, child as usize, sizing))
+        .map(|&(_, child)| collapse_subtree(bvh2, child as usize, sizing, alignment))
         .collect();
 
-    // Layout: root, its inner children's roots side by side (CWBVH addresses inner children
-    // as `child_base_idx + rank`), then each child's descendants; primitives: the root's
-    // leaves, then each child's primitives.
-    root.child_base_idx = 1;
-    root.primitive_base_idx = 0;
+    // Layout: root, its inner children's roots side by side, then each child's descendants;
+    // primitives: the root's leaves, then each child's primitives.
+    for (rank, &(slot, _)) in inner_children.as_slice().iter().enumerate() {
+        root.children[slot as usize] = 1 + rank as u32;
+    }
     let root = [root];
-    let mut node_parts: Vec<&[CwBvhNode]> = vec![&root];
+    let mut node_parts: Vec<&[WideNode]> = vec![&root];
     node_parts.extend(subtrees.iter().map(|subtree| &subtree.nodes[..1]));
     node_parts.extend(subtrees.iter().map(|subtree| &subtree.nodes[1..]));
     let mut primitive_parts: Vec<&[u32]> = vec![&root_primitives];
     primitive_parts.extend(subtrees.iter().map(|subtree| &subtree.primitives[..]));
 
-    // Per subtree: subtree node j >= 1 moves to descendant_base + j - 1, its primitives move
-    // up by primitive_base.
+    // Per subtree: subtree node j >= 1 moves to descendant_base + j - 1, its leaves' first
+    // slots move up by primitive_base (a multiple of four with `LeafAlignment::Group`).
     let mut relocations = Vec::with_capacity(subtrees.len());
     let mut descendant_base = 1 + subtrees.len() as u32;
     let mut primitive_base = root_primitives.len() as u32;
@@ -272,13 +383,23 @@ pub(crate) fn collapse_to_wide(bvh2: &Bvh2, sizing: LeafSizing) -> (Vec<CwBvhNod
         primitive_base += subtree.primitives.len() as u32;
     }
     let subtree_count = subtrees.len();
-    let relocate = |part: usize, mut node: CwBvhNode| {
+    let relocate = |part: usize, mut node: WideNode| {
         if part == 0 {
             return node;
         }
         let (descendant_base, primitive_base) = relocations[(part - 1) % subtree_count];
-        node.child_base_idx = (node.child_base_idx + descendant_base).saturating_sub(1);
-        node.primitive_base_idx += primitive_base;
+        for slot in 0..WIDTH {
+            if !occupied(&node, slot) {
+                continue;
+            }
+            let code = &mut node.children[slot];
+            if *code & LEAF_BIT != 0 {
+                *code += primitive_base;
+            } else {
+                // Inner children of a subtree are never its root (index 0).
+                *code += descendant_base - 1;
+            }
+        }
         node
     };
     let nodes = concat_parallel(&node_parts, relocate);
@@ -311,19 +432,29 @@ fn concat_parallel<T: Copy + Sync, U: Send>(
 }
 
 /// Collapses the binary subtree at `binary_root` into a node array with its root at 0.
-fn collapse_subtree(bvh2: &Bvh2, binary_root: usize, sizing: LeafSizing) -> Subtree {
-    let mut nodes = vec![CwBvhNode::default()];
+fn collapse_subtree(
+    bvh2: &Bvh2,
+    binary_root: usize,
+    sizing: LeafSizing,
+    alignment: LeafAlignment,
+) -> Subtree {
+    let mut nodes = vec![WideNode::default()];
     let mut primitives = Vec::new();
     // (wide node index, binary node it stands for)
     let mut pending = vec![(0usize, binary_root)];
     while let Some((wide_index, binary_index)) = pending.pop() {
-        let (mut node, inner_children) =
-            wide_node(bvh2, binary_index, false, sizing, &mut primitives);
-        // Inner children get consecutive nodes in slot order.
-        node.child_base_idx = nodes.len() as u32;
-        for &child in inner_children.as_slice() {
+        let (mut node, inner_children) = wide_node(
+            bvh2,
+            binary_index,
+            false,
+            sizing,
+            alignment,
+            &mut primitives,
+        );
+        for &(slot, child) in inner_children.as_slice() {
+            node.children[slot as usize] = nodes.len() as u32;
             pending.push((nodes.len(), child as usize));
-            nodes.push(CwBvhNode::default());
+            nodes.push(WideNode::default());
         }
         nodes[wide_index] = node;
     }
@@ -331,72 +462,154 @@ fn collapse_subtree(bvh2: &Bvh2, binary_root: usize, sizing: LeafSizing) -> Subt
 }
 
 /// One wide node for `binary_index`: child boxes, leaves (their primitives are appended to
-/// `primitive_order`, starting at the node's `primitive_base_idx`) and, in slot order, the
-/// binary nodes of its inner children. `child_base_idx` is left for the caller. Only the
-/// root may be small enough to be a leaf itself (`may_be_leaf`): every other node passed
-/// here is an inner child, already known to hold more than three primitives.
+/// `primitive_order`; with `LeafAlignment::Group` the node's leaves share groups of four, see
+/// [`share_groups`]) and the
+/// slots and binary nodes of its inner children, whose codes are left for the caller. Only
+/// the root may be small enough to be a leaf itself (`may_be_leaf`).
 fn wide_node(
     bvh2: &Bvh2,
     binary_index: usize,
     may_be_leaf: bool,
     sizing: LeafSizing,
+    alignment: LeafAlignment,
     primitive_order: &mut Vec<u32>,
-) -> (CwBvhNode, InnerChildren) {
+) -> (WideNode, InnerChildren) {
     let binary = &bvh2.nodes;
-    let children = wide_children(bvh2, binary_index, may_be_leaf, sizing);
+    let children = wide_children(bvh2, binary_index, may_be_leaf, sizing, alignment);
     let children = children.as_slice();
     let parent_box = *binary[binary_index].aabb();
-    let slots = assign_slots(bvh2, children, &parent_box);
-    let (p, exponent, inverse_step) = quantization_frame(&parent_box);
-    let mut node = CwBvhNode {
-        p,
-        e: exponent,
-        primitive_base_idx: primitive_order.len() as u32,
-        ..CwBvhNode::default()
-    };
-    let mut inner_children = InnerChildren::new(0);
-    let mut leaf_offset = 0u32;
+    let slots = assign_slots(children, &parent_box);
+    let mut node = WideNode::default();
+    let mut inner_children = InnerChildren::new((0, 0));
+    // Grouped leaves: (slot, count, primitives), packed into shared groups below.
+    let mut group_leaves = WideList::new((0u8, 0u32, [0u32; MAX_PRIMS_PER_LEAF as usize]));
     for (slot, &position) in slots.iter().enumerate() {
         if position == EMPTY_SLOT {
             continue;
         }
         let child = children[position as usize];
-        let child_box = binary[child.index as usize].aabb();
-        let quantize = |axis: usize| {
-            // Exact in f64: f32 differences and power-of-two scalings do not round.
-            let origin = node.p[axis] as f64;
-            let low = ((child_box.min[axis] as f64 - origin) * inverse_step[axis])
-                .clamp(0.0, MAX_QUANTIZED as f64);
-            let high = ((child_box.max[axis] as f64 - origin) * inverse_step[axis])
-                .clamp(0.0, MAX_QUANTIZED as f64);
-            // Truncation is floor for these non-negative values (and avoids a libm call).
-            let low_q = low as u8;
-            let high_q = high as u8;
-            let high_q = high_q + u8::from((high_q as f64) < high);
-            (low_q, high_q)
-        };
-        (node.child_min_x[slot], node.child_max_x[slot]) = quantize(0);
-        (node.child_min_y[slot], node.child_max_y[slot]) = quantize(1);
-        (node.child_min_z[slot], node.child_max_z[slot]) = quantize(2);
+        let child_box = child.aabb;
+        for axis in 0..3 {
+            node.planes[2 * axis][slot] = child_box.min[axis];
+            node.planes[2 * axis + 1][slot] = child_box.max[axis];
+        }
         if child.leaf_count.is_some() {
             let before = primitive_order.len();
             collect_primitives(bvh2, child.index as usize, primitive_order);
+            for &partner in &child.partners.indices[..child.partners.len] {
+                collect_primitives(bvh2, partner as usize, primitive_order);
+            }
             let count = (primitive_order.len() - before) as u32;
-            node.child_meta[slot] = (leaf_offset | (((1 << count) - 1) << 5)) as u8;
-            leaf_offset += count;
+            match alignment {
+                LeafAlignment::Packed => node.children[slot] = leaf_code(before as u32, count),
+                LeafAlignment::Group => {
+                    let mut primitives = [0u32; MAX_PRIMS_PER_LEAF as usize];
+                    primitives[..count as usize].copy_from_slice(&primitive_order[before..]);
+                    primitive_order.truncate(before);
+                    group_leaves.push((slot as u8, count, primitives));
+                }
+            }
         } else {
-            node.imask |= 1 << slot;
-            node.child_meta[slot] = (24 + slot as u8) | 0b0010_0000;
-            inner_children.push(child.index);
+            inner_children.push((slot as u8, child.index));
         }
     }
+    share_groups(&mut node, group_leaves, primitive_order);
     (node, inner_children)
 }
 
+/// Packs a node's grouped leaves into groups of four slots, several leaves to a group where
+/// they fit (largest first, each into the first group with room; padding with [`PADDING`]
+/// after the last lane used), and sets their codes.
+fn share_groups(
+    node: &mut WideNode,
+    mut leaves: WideList<(u8, u32, [u32; MAX_PRIMS_PER_LEAF as usize])>,
+    primitive_order: &mut Vec<u32>,
+) {
+    let group = MAX_PRIMS_PER_LEAF as usize;
+    leaves.entries[..leaves.len].sort_by_key(|&(slot, count, _)| (std::cmp::Reverse(count), slot));
+    // (first slot, lanes used) of the node's groups.
+    let mut groups = WideList::new((0usize, 0usize));
+    for &(slot, count, primitives) in leaves.as_slice() {
+        let count = count as usize;
+        let position = match groups
+            .as_slice()
+            .iter()
+            .position(|&(_, used)| used + count <= group)
+        {
+            Some(position) => position,
+            None => {
+                groups.push((primitive_order.len(), 0));
+                primitive_order.resize(primitive_order.len() + group, PADDING);
+                groups.len - 1
+            }
+        };
+        let (start, used) = &mut groups.entries[position];
+        let first = *start + *used;
+        primitive_order[first..first + count].copy_from_slice(&primitives[..count]);
+        *used += count;
+        node.children[slot as usize] = leaf_code(first as u32, count as u32);
+    }
+}
+
+/// Binary subtrees sharing a leaf with a candidate (see [`pair_small_leaves`]): each leaf
+/// holds at least one primitive, so at most three join a candidate's.
+#[derive(Clone, Copy, Default)]
+struct Partners {
+    indices: [u32; MAX_PRIMS_PER_LEAF as usize - 1],
+    len: usize,
+}
+
+/// Joins the two sibling leaves whose primitives fit one group of four and whose union has the
+/// smallest surface area into one leaf (box: their union), so that a slot is freed. Returns
+/// whether a pair was found.
+fn pair_small_leaves(children: &mut Candidates) -> bool {
+    let list = children.as_slice();
+    let mut best: Option<(usize, usize, f32)> = None;
+    for i in 0..list.len() {
+        let Some(first) = list[i].leaf_count else {
+            continue;
+        };
+        for j in i + 1..list.len() {
+            let Some(second) = list[j].leaf_count else {
+                continue;
+            };
+            if first + second > MAX_PRIMS_PER_LEAF {
+                continue;
+            }
+            let area = list[i].aabb.union(&list[j].aabb).half_area();
+            if best.is_none_or(|(_, _, best_area)| area < best_area) {
+                best = Some((i, j, area));
+            }
+        }
+    }
+    let Some((i, j, area)) = best else {
+        return false;
+    };
+    let second = list[j];
+    let first = &mut children.entries[i];
+    first.aabb = first.aabb.union(&second.aabb);
+    first.half_area = area;
+    first.leaf_count = Some(first.leaf_count.unwrap_or(0) + second.leaf_count.unwrap_or(0));
+    let joined = &mut first.partners;
+    for index in std::iter::once(second.index).chain(
+        second.partners.indices[..second.partners.len]
+            .iter()
+            .copied(),
+    ) {
+        joined.indices[joined.len] = index;
+        joined.len += 1;
+    }
+    // The last candidate takes `j`'s place.
+    children.len -= 1;
+    children.entries[j] = children.entries[children.len];
+    true
+}
+
 /// The number of primitives below binary node `index` if it fits in one leaf (at most
-/// three); `None` for larger subtrees. Every subtree holds at least one primitive and every
-/// inner node at least two, so a lower bound decides most nodes after loading their two
-/// children, and at most one inner node can be left to open while the bound stays at three.
+/// [`MAX_PRIMS_PER_LEAF`]); `None` for larger subtrees. Every subtree holds at least one
+/// primitive and every inner node at least two, so a lower bound decides most nodes after
+/// loading their two children. A node with two inner children is taken as too large (at most
+/// four primitives only if both hold two; opening it instead is as correct).
 fn leaf_sized_count(bvh2: &Bvh2, index: usize) -> Option<u32> {
     let nodes = &bvh2.nodes;
     let mut node = &nodes[index];
@@ -415,7 +628,6 @@ fn leaf_sized_count(bvh2: &Bvh2, index: usize) -> Option<u32> {
         if bound > MAX_PRIMS_PER_LEAF {
             return None;
         }
-        // Within the bound, at most one child is an inner node.
         match (left.is_leaf(), right.is_leaf()) {
             (true, true) => return Some(bound),
             (true, false) => {
@@ -460,11 +672,8 @@ fn prefetch_pair(nodes: &[Bvh2Node], first: usize) {
 #[inline(always)]
 fn candidate_pair(bvh2: &Bvh2, first: usize) -> [Candidate; 2] {
     let binary = &bvh2.nodes;
-    let candidates = [first, first + 1].map(|index| Candidate {
-        index: index as u32,
-        half_area: binary[index].aabb().half_area(),
-        leaf_count: leaf_sized_count(bvh2, index),
-    });
+    let candidates =
+        [first, first + 1].map(|index| Candidate::of(bvh2, index, leaf_sized_count(bvh2, index)));
     for candidate in &candidates {
         if candidate.leaf_count.is_none() {
             let children = binary[candidate.index as usize].first_index as usize;
@@ -480,33 +689,37 @@ fn candidate_pair(bvh2: &Bvh2, first: usize) -> [Candidate; 2] {
 
 /// Up to eight binary descendants that become the children of one wide node, each with its
 /// primitive count if it is small enough to be a leaf.
-fn wide_children(bvh2: &Bvh2, index: usize, may_be_leaf: bool, sizing: LeafSizing) -> Candidates {
+fn wide_children(
+    bvh2: &Bvh2,
+    index: usize,
+    may_be_leaf: bool,
+    sizing: LeafSizing,
+    alignment: LeafAlignment,
+) -> Candidates {
     let binary = &bvh2.nodes;
     let node = &binary[index];
-    let mut children = Candidates::new(Candidate {
-        index: 0,
-        half_area: 0.0,
-        leaf_count: None,
-    });
+    let mut children = Candidates::new(Candidate::of(bvh2, 0, None));
     if may_be_leaf && let Some(count) = leaf_sized_count(bvh2, index) {
         // Only for a tiny root: a single leaf child.
-        children.push(Candidate {
-            index: index as u32,
-            half_area: 0.0,
-            leaf_count: Some(count),
-        });
+        children.push(Candidate::of(bvh2, index, Some(count)));
         return children;
     }
+    // Grouped leaves: small sibling leaves are joined only to free a slot for a subtree still
+    // to open. Joining more to fill groups is not needed (siblings share groups) and loosens
+    // the leaf boxes: the frustum packets were 2-5 % slower with it.
+    let join_leaves = alignment == LeafAlignment::Group;
     let [first, second] = candidate_pair(bvh2, node.first_index as usize);
     children.push(first);
     children.push(second);
-    while children.len < WIDTH {
+    loop {
         // Open the largest subtree too large for a leaf; with spare slots and
-        // `LeafSizing::Split`, then the largest one that fits a leaf.
+        // `LeafSizing::Split` or `LeafAlignment::Group`, then the largest one that fits a leaf.
         let mut best: Option<(usize, bool, f32)> = None;
         for (position, child) in children.as_slice().iter().enumerate() {
             let must_open = child.leaf_count.is_none();
-            if binary[child.index as usize].is_leaf() || (!must_open && sizing == LeafSizing::Whole)
+            if binary[child.index as usize].is_leaf()
+                || child.partners.len > 0
+                || (!must_open && sizing == LeafSizing::Whole && alignment != LeafAlignment::Group)
             {
                 continue;
             }
@@ -517,9 +730,24 @@ fn wide_children(bvh2: &Bvh2, index: usize, may_be_leaf: bool, sizing: LeafSizin
                 best = Some((position, must_open, child.half_area));
             }
         }
-        let Some((position, _, _)) = best else {
+        let Some((mut position, must_open, _)) = best else {
             break;
         };
+        if children.len == WIDTH {
+            let chosen = children.entries[position].index;
+            if !(must_open && join_leaves && pair_small_leaves(&mut children)) {
+                break;
+            }
+            // Joining moved candidates (never the chosen one, which is no leaf).
+            let Some(moved) = children
+                .as_slice()
+                .iter()
+                .position(|child| child.index == chosen)
+            else {
+                break;
+            };
+            position = moved;
+        }
         let opened = binary[children.entries[position].index as usize].first_index as usize;
         let [first, second] = candidate_pair(bvh2, opened);
         children.entries[position] = first;
@@ -532,14 +760,14 @@ fn wide_children(bvh2: &Bvh2, index: usize, may_be_leaf: bool, sizing: LeafSizin
 /// `slot ^ (7 - o)` visits near children first: slot `s` prefers the child that comes first
 /// along the direction whose signs are the bits of `s` (set = negative). Returns, per slot,
 /// the position of its child in `children` or [`EMPTY_SLOT`].
-fn assign_slots(bvh2: &Bvh2, children: &[Candidate], parent: &Aabb) -> [u8; WIDTH] {
+fn assign_slots(children: &[Candidate], parent: &Aabb) -> [u8; WIDTH] {
     let centre = parent.center();
     // costs[child][slot]: how far along slot's direction the child's centre lies, i.e. the dot
     // product of the offset with (+-1, +-1, +-1) summed as (x + y) + z, as `Vec3A::dot`
     // rounds it (the negations are exact).
     let mut costs = [[f32::INFINITY; WIDTH]; WIDTH];
     for (child, row) in children.iter().zip(costs.iter_mut()) {
-        let offset = bvh2.nodes[child.index as usize].aabb().center() - centre;
+        let offset = child.aabb.center() - centre;
         let y = Vec4::new(offset.y, offset.y, -offset.y, -offset.y);
         let z = Vec4::new(offset.z, -offset.z, offset.z, -offset.z);
         (Vec4::splat(offset.x) + y + z).write_to_slice(&mut row[..4]);
@@ -584,63 +812,6 @@ fn first_minimum(values: &[f32; WIDTH]) -> (f32, u8) {
     (minimum.x, at.trailing_zeros() as u8)
 }
 
-/// Node origin, exponent bytes and the inverse of the power-of-two step they encode: the
-/// smallest step for which 255 steps span the box on every axis.
-fn quantization_frame(parent: &Aabb) -> (Vec3, [u8; 3], [f64; 3]) {
-    let mut exponent = [0u8; 3];
-    let mut inverse_step = [0.0f64; 3];
-    for axis in 0..3 {
-        let extent = (parent.max[axis] as f64 - parent.min[axis] as f64).max(1.0e-30);
-        // extent = m * 2^e with 1 <= m < 2 (a normal f64), so extent / 2^(e - 7) = 128 m lies
-        // in [128, 256) and extent / 2^(e - 8) exceeds 255: the step is 2^(e - 7), or 2^(e - 6)
-        // if 128 m > 255. Exact, unlike log2/ceil/exp2, and cheaper.
-        let extent_exponent = ((extent.to_bits() >> 52) & 0x7ff) as i32 - 1023;
-        let mut power = extent_exponent - 7;
-        if extent * power_of_two(-power) > MAX_QUANTIZED as f64 {
-            power += 1;
-        }
-        let power = power.max(-126);
-        inverse_step[axis] = power_of_two(-power);
-        // Biased f32 exponent, the only non-zero bits of a power of two.
-        exponent[axis] = (power + 127) as u8;
-    }
-    (parent.min.into(), exponent, inverse_step)
-}
-
-/// `2^power` for `power` within the normal f64 range.
-fn power_of_two(power: i32) -> f64 {
-    f64::from_bits(((1023 + power) as u64) << 52)
-}
-
-/// Inverse direction components are clamped to this magnitude. Together with
-/// `MAX_COORDINATE` (which also bounds ray origins) it keeps every slab distance finite, so
-/// the box test never sees infinities or NaN.
-pub(crate) const MAX_INV_DIRECTION: f32 = 1.0e18;
-
-/// Bound on the relative rounding error of a slab distance `q * step * inv + (p - o) * inv`,
-/// taken relative to the magnitudes of its two terms. Box tests widen every slab by it (plus
-/// the half-ulp by which obvhs' quantization can miss a primitive), so rays that meet a
-/// primitive exactly on a box face, edge or corner are never culled, however parallel to an
-/// axis they run.
-pub(crate) const SLAB_ERROR: f32 = 4.0 * f32::EPSILON;
-
-/// Largest quantized plane value.
-pub(crate) const MAX_QUANTIZED: f32 = 255.0;
-
-/// Per-axis slab parameters of one node for one ray: `t = q * step + entry_offset` (or
-/// `exit_offset`), where the offsets already include the error widening.
-#[inline(always)]
-pub(crate) fn slab_parameters(
-    node: &CwBvhNode,
-    origin: Vec3A,
-    inv_direction: Vec3A,
-) -> (Vec3A, Vec3A, Vec3A) {
-    let step = quantization_step(node) * inv_direction;
-    let offset = (Vec3A::from(node.p) - origin) * inv_direction;
-    let error = (offset.abs() + step.abs() * MAX_QUANTIZED) * SLAB_ERROR;
-    (step, offset - error, offset + error)
-}
-
 /// A ray prepared for traversal and primitive tests, in the space of the BVH being traversed.
 /// `direction` need not be unit length (object-space rays of scaled instances are not).
 #[derive(Clone, Copy, Debug)]
@@ -651,7 +822,7 @@ pub(crate) struct TraversalRay {
     pub t_min: f32,
     /// Shrinks to the closest hit found so far.
     pub t_max: f32,
-    /// 3 bits, set for each axis whose direction is not negative (CWBVH child-order octant).
+    /// 3 bits (x: 4, y: 2, z: 1), set for each axis whose direction is not negative.
     pub octant_inv: u32,
     /// Watertight triangle test: axes permuted so that `axes[2]` is the dominant direction axis.
     pub shear_axes: [usize; 3],
@@ -666,47 +837,44 @@ impl TraversalRay {
     /// that are not finite or beyond `MAX_COORDINATE`, or an empty/NaN interval.
     #[inline]
     pub fn new(origin: Vec3A, direction: Vec3A, t_min: f32, t_max: f32) -> Option<TraversalRay> {
-        // `!(a <= b)` also rejects NaN.
+        // Comparisons that are false for NaN reject it; `!(a <= b)` too.
         #[allow(clippy::neg_cmp_op_on_partial_ord)]
         let bad_interval = !(t_min <= t_max);
+        let abs = direction.abs();
+        let too_short = Vec3A::splat(1.0 / MAX_INV_DIRECTION);
         if bad_interval
-            || !origin.is_finite()
-            || origin.abs().max_element() > MAX_COORDINATE
-            || !direction.is_finite()
-            || direction.abs().max_element() < 1.0 / MAX_INV_DIRECTION
+            || !origin.abs().cmple(Vec3A::splat(MAX_COORDINATE)).all()
+            || !abs.cmplt(Vec3A::INFINITY).all()
+            || !abs.cmpge(too_short).any()
         {
             return None;
         }
-        let inv = |d: f32| {
-            // The sign must agree with the `< 0.0` octant test below, also for -0.0.
-            if d.abs() < 1.0 / MAX_INV_DIRECTION {
-                if d < 0.0 {
-                    -MAX_INV_DIRECTION
-                } else {
-                    MAX_INV_DIRECTION
-                }
-            } else {
-                1.0 / d
-            }
-        };
-        let inv_direction = Vec3A::new(inv(direction.x), inv(direction.y), inv(direction.z));
-        let octant_inv = (if direction.x < 0.0 { 0 } else { 4 })
-            | (if direction.y < 0.0 { 0 } else { 2 })
-            | (if direction.z < 0.0 { 0 } else { 1 });
-        let abs = direction.abs();
-        let kz = if abs.x >= abs.y && abs.x >= abs.z {
-            0
+        // Components too short to invert are clamped, their sign agreeing with the octant's
+        // `< 0.0` test, also for -0.0. A vector division rounds each lane as a scalar one.
+        let negative = direction.cmplt(Vec3A::ZERO);
+        let clamped = Vec3A::select(
+            negative,
+            Vec3A::splat(-MAX_INV_DIRECTION),
+            Vec3A::splat(MAX_INV_DIRECTION),
+        );
+        let inv_direction = Vec3A::select(abs.cmplt(too_short), clamped, Vec3A::ONE / direction);
+        let octant_inv = OCTANT_INV[negative.bitmask() as usize & 7];
+        // The dominant axis last (ties to the lower axis), the others in cyclic order.
+        let (shear_axes, [d, inv, o]) = if abs.x >= abs.y && abs.x >= abs.z {
+            (
+                [1, 2, 0],
+                [direction, inv_direction, origin].map(Vec3A::yzx),
+            )
         } else if abs.y >= abs.z {
-            1
+            (
+                [2, 0, 1],
+                [direction, inv_direction, origin].map(Vec3A::zxy),
+            )
         } else {
-            2
+            ([0, 1, 2], [direction, inv_direction, origin])
         };
-        let kx = (kz + 1) % 3;
-        let ky = (kx + 1) % 3;
-        let d = direction.to_array();
-        let o = origin.to_array();
         // The dominant component is never clamped, so this is exactly 1 / d[kz].
-        let inv_dominant = inv_direction[kz];
+        let inv_dominant = inv.z;
         Some(TraversalRay {
             origin,
             direction,
@@ -714,309 +882,386 @@ impl TraversalRay {
             t_min,
             t_max,
             octant_inv,
-            shear_axes: [kx, ky, kz],
-            shear: Vec3::new(d[kx] * inv_dominant, d[ky] * inv_dominant, inv_dominant),
-            permuted_origin: Vec3::new(o[kx], o[ky], o[kz]),
+            shear_axes,
+            shear: Vec3::new(d.x * inv_dominant, d.y * inv_dominant, inv_dominant),
+            permuted_origin: o.into(),
         })
     }
 }
 
-/// Per axis, the quantized entry and exit planes of all eight children: which of a child's two
-/// planes a ray crosses first depends only on the direction's sign (the octant).
-#[inline(always)]
-pub(crate) fn entry_exit_planes(node: &CwBvhNode, octant_inv: u32) -> [(&[u8; 8], &[u8; 8]); 3] {
-    let order = |non_negative: bool, min, max| if non_negative { (min, max) } else { (max, min) };
-    [
-        order(octant_inv & 4 != 0, &node.child_min_x, &node.child_max_x),
-        order(octant_inv & 2 != 0, &node.child_min_y, &node.child_max_y),
-        order(octant_inv & 1 != 0, &node.child_min_z, &node.child_max_z),
-    ]
-}
-
-/// Eight plane bytes as floats.
-#[inline(always)]
-pub(crate) fn unpack_planes(planes: &[u8; 8]) -> [Vec4; 2] {
-    #[cfg(target_arch = "x86_64")]
-    {
-        // SAFETY: SSE2 is part of the x86_64 baseline, so the target feature is always present.
-        unsafe { sse2::unpack(planes) }.map(Vec4::from)
+/// `OCTANT_INV[negative]`: [`TraversalRay::octant_inv`] for the direction components that are
+/// negative (x: 1, y: 2, z: 4).
+static OCTANT_INV: [u32; 8] = {
+    let mut table = [0; 8];
+    let mut negative = 0;
+    while negative < 8 {
+        table[negative] =
+            7 ^ (((negative & 1) << 2) | (negative & 2) | ((negative >> 2) & 1)) as u32;
+        negative += 1;
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        let p = planes.map(f32::from);
-        [
-            Vec4::new(p[0], p[1], p[2], p[3]),
-            Vec4::new(p[4], p[5], p[6], p[7]),
-        ]
-    }
-}
+    table
+};
 
-/// Size of one quantization step per axis (a power of two stored as its exponent).
-#[inline(always)]
-pub(crate) fn quantization_step(node: &CwBvhNode) -> Vec3A {
-    Vec3A::new(
-        f32::from_bits((node.e[0] as u32) << 23),
-        f32::from_bits((node.e[1] as u32) << 23),
-        f32::from_bits((node.e[2] as u32) << 23),
-    )
-}
+/// Inverse direction components are clamped to this magnitude. Together with
+/// `MAX_COORDINATE` (which also bounds ray origins) and [`EMPTY_PLANE`] it keeps every slab
+/// distance finite, so the box test never sees infinities or NaN.
+pub(crate) const MAX_INV_DIRECTION: f32 = 1.0e18;
 
-/// Bit `i` is set if child box `i` overlaps the ray's `[t_min, t_max]` (bits of empty child
-/// slots are meaningless and must be ignored by the caller).
-#[inline(always)]
-pub(crate) fn child_box_hits(node: &CwBvhNode, ray: &TraversalRay) -> u32 {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if crate::accel::isa::avx2_selected() {
-            // SAFETY: AVX2 is selected only on CPUs that have AVX2 and FMA.
-            return unsafe { avx2::child_box_hits(node, ray) };
-        }
-        // SAFETY: SSE2 is part of the x86_64 baseline, so the target feature is always present.
-        unsafe { sse2::child_box_hits(node, ray) }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        child_box_hits_portable(node, ray)
-    }
-}
+/// Relative widening of a child's entry and exit distances: a slab distance
+/// `(plane - origin) * inverse_direction` is off by at most three half-ulps of itself (the
+/// subtraction, the rounded inverse, the product), and the larger of three entries (smaller of
+/// three exits) by no more, relative to the result; this covers that twice over, plus the
+/// rounding of the widening itself.
+pub(crate) const SLAB_ERROR: f32 = 4.0 * f32::EPSILON;
 
-/// The single-ray box test with AVX2 and FMA (selected at run time, `crate::accel::isa`): a
-/// node's eight children in one vector instead of two. Conservative like the baseline's (a
-/// fused multiply-add rounds once where the baseline rounds twice, inside the same error
-/// margins), so every box the baseline reaches with a hit is reached here, and the same leaves
-/// give the same hits.
-#[cfg(target_arch = "x86_64")]
-mod avx2 {
-    use crate::accel::wide_bvh::{TraversalRay, entry_exit_planes, slab_parameters};
-    use obvhs::cwbvh::node::CwBvhNode;
-    use std::arch::x86_64::*;
-
-    #[target_feature(enable = "avx2,fma")]
-    #[inline]
-    pub(crate) fn child_box_hits(node: &CwBvhNode, ray: &TraversalRay) -> u32 {
-        let (step, entry_offset, exit_offset) =
-            slab_parameters(node, ray.origin, ray.inv_direction);
-        let planes = entry_exit_planes(node, ray.octant_inv);
-        let mut near = _mm256_set1_ps(ray.t_min);
-        let mut far = _mm256_set1_ps(ray.t_max);
-        let eight = |planes: &[u8; 8]| {
-            _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_set_epi64x(
-                0,
-                i64::from_le_bytes(*planes),
-            )))
-        };
-        for (axis, (entry, exit)) in planes.iter().enumerate() {
-            let axis_step = _mm256_set1_ps(step[axis]);
-            let t_entry =
-                _mm256_fmadd_ps(eight(entry), axis_step, _mm256_set1_ps(entry_offset[axis]));
-            let t_exit = _mm256_fmadd_ps(eight(exit), axis_step, _mm256_set1_ps(exit_offset[axis]));
-            near = _mm256_max_ps(near, t_entry);
-            far = _mm256_min_ps(far, t_exit);
-        }
-        _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32
-    }
-}
-
-/// Reference implementation of [`child_box_hits`] without intrinsics (used off x86_64 and in tests).
-#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
-pub(crate) fn child_box_hits_portable(node: &CwBvhNode, ray: &TraversalRay) -> u32 {
-    let (step, entry_offset, exit_offset) = slab_parameters(node, ray.origin, ray.inv_direction);
-    let planes = entry_exit_planes(node, ray.octant_inv);
-    let mut mask = 0;
-    for child in 0..8 {
-        let mut near = ray.t_min;
-        let mut far = ray.t_max;
-        for (axis, (entry, exit)) in planes.iter().enumerate() {
-            near = near.max(entry[child] as f32 * step[axis] + entry_offset[axis]);
-            far = far.min(exit[child] as f32 * step[axis] + exit_offset[axis]);
-        }
-        if near <= far {
-            mask |= 1 << child;
-        }
-    }
-    mask
-}
-
-#[cfg(target_arch = "x86_64")]
-mod sse2 {
-    use crate::accel::wide_bvh::{TraversalRay, entry_exit_planes, slab_parameters};
-    use obvhs::cwbvh::node::CwBvhNode;
-    use std::arch::x86_64::*;
-
-    /// Eight quantized plane positions as two vectors of four floats.
-    #[target_feature(enable = "sse2")]
-    #[inline]
-    pub(crate) fn unpack(planes: &[u8; 8]) -> [__m128; 2] {
-        let bytes = _mm_set_epi64x(0, i64::from_le_bytes(*planes));
-        let zero = _mm_setzero_si128();
-        let words = _mm_unpacklo_epi8(bytes, zero);
-        [
-            _mm_cvtepi32_ps(_mm_unpacklo_epi16(words, zero)),
-            _mm_cvtepi32_ps(_mm_unpackhi_epi16(words, zero)),
-        ]
-    }
-
-    #[target_feature(enable = "sse2")]
-    #[inline]
-    pub(crate) fn child_box_hits(node: &CwBvhNode, ray: &TraversalRay) -> u32 {
-        let (step, entry_offset, exit_offset) =
-            slab_parameters(node, ray.origin, ray.inv_direction);
-        let planes = entry_exit_planes(node, ray.octant_inv);
-        let mut near = [_mm_set1_ps(ray.t_min); 2];
-        let mut far = [_mm_set1_ps(ray.t_max); 2];
-        for (axis, (entry, exit)) in planes.iter().enumerate() {
-            let axis_step = _mm_set1_ps(step[axis]);
-            let axis_entry_offset = _mm_set1_ps(entry_offset[axis]);
-            let axis_exit_offset = _mm_set1_ps(exit_offset[axis]);
-            let entry = unpack(entry);
-            let exit = unpack(exit);
-            for half in 0..2 {
-                let t_entry = _mm_add_ps(_mm_mul_ps(entry[half], axis_step), axis_entry_offset);
-                let t_exit = _mm_add_ps(_mm_mul_ps(exit[half], axis_step), axis_exit_offset);
-                near[half] = _mm_max_ps(near[half], t_entry);
-                far[half] = _mm_min_ps(far[half], t_exit);
+/// `ORDER[order][mask]`: bit `i` set when bit `i ^ order` of the child mask `mask` is, so that
+/// the set bits, lowest first, are the hit children nearest-first.
+pub(crate) static ORDER: [[u8; 256]; 8] = {
+    let mut table = [[0u8; 256]; 8];
+    let mut order = 0;
+    while order < 8 {
+        let mut mask = 0;
+        while mask < 256 {
+            let mut permuted = 0u8;
+            let mut i = 0;
+            while i < 8 {
+                if mask & (1 << (i ^ order)) != 0 {
+                    permuted |= 1 << i;
+                }
+                i += 1;
             }
+            table[order][mask] = permuted;
+            mask += 1;
         }
-        let low = _mm_movemask_ps(_mm_cmple_ps(near[0], far[0])) as u32;
-        let high = _mm_movemask_ps(_mm_cmple_ps(near[1], far[1])) as u32;
-        low | (high << 4)
+        order += 1;
+    }
+    table
+};
+
+/// What the box test needs of one ray, set up once per traversal.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct BoxRay {
+    pub origin: [f32; 3],
+    pub inv: [f32; 3],
+    /// Per axis, the plane row through which the ray enters children, and the one it leaves by.
+    pub entry: [usize; 3],
+    pub exit: [usize; 3],
+    /// Children are visited nearest-first in slots `i ^ order`, `i = 0..8`.
+    pub order: usize,
+}
+
+impl BoxRay {
+    #[inline(always)]
+    pub fn new(ray: &TraversalRay) -> BoxRay {
+        let octant = (ray.octant_inv & 7) as usize;
+        let [entry, exit] = PLANE_ROWS[octant];
+        BoxRay {
+            origin: ray.origin.to_array(),
+            inv: ray.inv_direction.to_array(),
+            entry,
+            exit,
+            order: 7 ^ octant,
+        }
     }
 }
 
-/// Splits the box hits of a node into the CWBVH group encoding: bits 24..32 mark hit inner
-/// children (bit `24 + (slot ^ octant)`, so the highest bit is the nearest child), bits 0..24
-/// mark the primitive slots (relative to `primitive_base_idx`) of hit leaves.
+/// `PLANE_ROWS[octant_inv]`: per axis the plane rows through which a ray of that octant enters
+/// children (minima along a non-negative direction, maxima along a negative one) and leaves
+/// them; a table, because working them out showed in profiles of single rays.
+static PLANE_ROWS: [[[usize; 3]; 2]; 8] = {
+    let mut table = [[[0; 3]; 2]; 8];
+    let mut octant = 0;
+    while octant < 8 {
+        let mut axis = 0;
+        while axis < 3 {
+            let negative = (octant >> (2 - axis)) & 1 == 0;
+            let (entry, exit) = if negative {
+                (2 * axis + 1, 2 * axis)
+            } else {
+                (2 * axis, 2 * axis + 1)
+            };
+            table[octant][0][axis] = entry;
+            table[octant][1][axis] = exit;
+            axis += 1;
+        }
+        octant += 1;
+    }
+    table
+};
+
+/// Which children a ray reaches within `[t_min, t_max]` (bit per slot) and, per slot, the
+/// widened entry distance (meaningful for the children hit).
 #[inline(always)]
-fn classify_hits(node: &CwBvhNode, box_hits: u32, octant_inv: u32) -> (u32, u32) {
-    let mut inner = 0;
-    let mut primitives = 0;
-    let mut remaining = box_hits & 0xff;
-    while remaining != 0 {
-        let slot = remaining.trailing_zeros();
-        remaining &= remaining - 1;
-        let meta = node.child_meta[slot as usize] as u32;
-        if node.imask & (1 << slot) != 0 {
-            inner |= 1 << (24 + (slot ^ octant_inv));
-        } else {
-            // Leaf: unary primitive count in the top three bits, first primitive in the low five.
-            primitives |= (meta >> 5) << (meta & 31);
-        }
+pub(crate) fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+    #[cfg(target_arch = "x86_64")]
+    if crate::accel::isa::avx2_selected() {
+        // SAFETY: AVX2 is selected only on CPUs that have it.
+        return unsafe { avx2::child_hits(node, ray, t_min, t_max) };
     }
-    (inner, primitives)
+    child_hits_four_wide(node, ray, t_min, t_max)
 }
 
-/// Children of one node still to visit: `bits` 24..32 as in [`classify_hits`], bits 0..8 the
-/// node's inner-child mask (needed to turn a slot into a node index).
-#[derive(Clone, Copy, Default)]
-pub(crate) struct NodeGroup {
-    pub first_child: u32,
-    pub bits: u32,
+/// The box test four children at a time (SSE2 on x86_64 through glam).
+#[inline(always)]
+pub(crate) fn child_hits_four_wide(
+    node: &WideNode,
+    ray: &BoxRay,
+    t_min: f32,
+    t_max: f32,
+) -> (u32, [f32; 8]) {
+    let mut nears = [0.0f32; 8];
+    let mut mask = 0;
+    for half in 0..2 {
+        let lanes = 4 * half..4 * half + 4;
+        let mut near = Vec4::splat(t_min);
+        let mut far = Vec4::splat(t_max);
+        for axis in 0..3 {
+            let origin = Vec4::splat(ray.origin[axis]);
+            let inv = Vec4::splat(ray.inv[axis]);
+            let entry = Vec4::from_slice(&node.planes[ray.entry[axis]][lanes.clone()]);
+            let exit = Vec4::from_slice(&node.planes[ray.exit[axis]][lanes.clone()]);
+            near = near.max((entry - origin) * inv);
+            far = far.min((exit - origin) * inv);
+        }
+        let (near, hit) = widened(near, far);
+        mask |= hit << (4 * half);
+        near.write_to_slice(&mut nears[lanes]);
+    }
+    (mask, nears)
 }
 
-const INLINE_STACK: usize = 32;
+/// Four children's entry and exit distances widened by [`SLAB_ERROR`] of their magnitude: the
+/// widened entries, and which children are hit (bit per lane).
+#[inline(always)]
+pub(crate) fn widened(near: Vec4, far: Vec4) -> (Vec4, u32) {
+    let error = Vec4::splat(SLAB_ERROR);
+    let near = near - near.abs() * error;
+    let far = far + far.abs() * error;
+    (near, near.cmple(far).bitmask())
+}
 
-/// Traversal stack; a well-formed CWBVH needs one entry per level, so the heap is only touched
-/// for pathologically deep trees.
-pub(crate) struct GroupStack<T> {
-    inline: [T; INLINE_STACK],
+/// Reference box test, one child at a time, in the same operations.
+#[cfg(test)]
+pub(crate) fn child_hits_scalar(
+    node: &WideNode,
+    ray: &BoxRay,
+    t_min: f32,
+    t_max: f32,
+) -> (u32, [f32; 8]) {
+    let mut nears = [0.0f32; 8];
+    let mut mask = 0;
+    for (slot, slot_near) in nears.iter_mut().enumerate() {
+        let mut near = t_min;
+        let mut far = t_max;
+        for axis in 0..3 {
+            near =
+                near.max((node.planes[ray.entry[axis]][slot] - ray.origin[axis]) * ray.inv[axis]);
+            far = far.min((node.planes[ray.exit[axis]][slot] - ray.origin[axis]) * ray.inv[axis]);
+        }
+        let near = near - near.abs() * SLAB_ERROR;
+        let far = far + far.abs() * SLAB_ERROR;
+        mask |= u32::from(near <= far) << slot;
+        *slot_near = near;
+    }
+    (mask, nears)
+}
+
+/// The box test with AVX2, chosen at run time (`crate::isa`): a node's eight children in one
+/// vector, in the same operations as the four-wide test (no fused multiply-adds), so it
+/// reaches the same children.
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod avx2 {
+    use super::{BoxRay, SLAB_ERROR, WideNode};
+    use std::arch::x86_64::*;
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn child_hits(
+        node: &WideNode,
+        ray: &BoxRay,
+        t_min: f32,
+        t_max: f32,
+    ) -> (u32, [f32; 8]) {
+        let mut near = _mm256_set1_ps(t_min);
+        let mut far = _mm256_set1_ps(t_max);
+        for axis in 0..3 {
+            let origin = _mm256_set1_ps(ray.origin[axis]);
+            let inv = _mm256_set1_ps(ray.inv[axis]);
+            // SAFETY: every plane row is eight floats, 32-byte aligned (`WideNode` is).
+            let (entry, exit) = unsafe {
+                (
+                    _mm256_load_ps(node.planes[ray.entry[axis]].as_ptr()),
+                    _mm256_load_ps(node.planes[ray.exit[axis]].as_ptr()),
+                )
+            };
+            near = _mm256_max_ps(near, _mm256_mul_ps(_mm256_sub_ps(entry, origin), inv));
+            far = _mm256_min_ps(far, _mm256_mul_ps(_mm256_sub_ps(exit, origin), inv));
+        }
+        let error = _mm256_set1_ps(SLAB_ERROR);
+        let sign = _mm256_set1_ps(-0.0);
+        let near = _mm256_sub_ps(near, _mm256_mul_ps(_mm256_andnot_ps(sign, near), error));
+        let far = _mm256_add_ps(far, _mm256_mul_ps(_mm256_andnot_ps(sign, far), error));
+        let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+        let mut nears = [0.0f32; 8];
+        // SAFETY: `nears` holds eight floats.
+        unsafe { _mm256_storeu_ps(nears.as_mut_ptr(), near) };
+        (mask, nears)
+    }
+}
+
+/// Entries of the traversal stack kept inline; deeper stacks spill to the heap.
+const INLINE_STACK: usize = 64;
+
+/// Traversal stack: what to visit, with its widened entry distance. The inline entries start
+/// uninitialised: clearing them for every ray showed in profiles, and only entries below `len`
+/// are ever read. Entries beyond the inline ones go to `spill`, which is only looked at while
+/// the inline part is full, so the common push and pop are one compare each.
+pub(crate) struct TraversalStack<T> {
+    inline: [std::mem::MaybeUninit<T>; INLINE_STACK],
     len: usize,
     spill: Vec<T>,
 }
 
-impl<T: Copy + Default> GroupStack<T> {
+impl<T: Copy> TraversalStack<T> {
     #[inline(always)]
-    pub fn new() -> GroupStack<T> {
-        GroupStack {
-            inline: [T::default(); INLINE_STACK],
+    pub fn new() -> TraversalStack<T> {
+        TraversalStack {
+            inline: [const { std::mem::MaybeUninit::uninit() }; INLINE_STACK],
             len: 0,
             spill: Vec::new(),
         }
     }
 
     #[inline(always)]
-    pub fn push(&mut self, group: T) {
+    pub fn push(&mut self, entry: T) {
         if self.len < INLINE_STACK {
-            self.inline[self.len] = group;
+            self.inline[self.len].write(entry);
             self.len += 1;
         } else {
-            self.spill.push(group);
+            spill_push(&mut self.spill, entry);
         }
     }
 
     #[inline(always)]
     pub fn pop(&mut self) -> Option<T> {
-        if let Some(group) = self.spill.pop() {
-            Some(group)
-        } else if self.len > 0 {
+        if self.len == INLINE_STACK
+            && let Some(entry) = self.spill.pop()
+        {
+            return Some(entry);
+        }
+        if self.len > 0 {
             self.len -= 1;
-            Some(self.inline[self.len])
+            // SAFETY: every entry below the old `len` was written by `push`, and `T: Copy`.
+            Some(unsafe { self.inline[self.len].assume_init() })
         } else {
             None
         }
     }
 }
 
-/// Walks the BVH and calls `test_primitive(slot, ray)` for every primitive slot in a leaf whose
-/// box the ray overlaps. The callback returns whether it accepted a hit; for closest-hit use it
-/// must then shrink `ray.t_max` to the hit. With `ANY_HIT` the walk stops at the first accepted
+/// Out of line and taking only the spill, so that the rest of the stack (its length above
+/// all) can stay in registers.
+#[cold]
+#[inline(never)]
+fn spill_push<T>(spill: &mut Vec<T>, entry: T) {
+    spill.push(entry);
+}
+
+/// A box test of a node's eight children (see [`child_hits`]) for [`traverse_with`]. (Triangle
+/// and quad BVHs take the walks of `single_ray`, compiled per instruction set.)
+pub(crate) trait BoxTest {
+    fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]);
+}
+
+/// The box test chosen per node at run time ([`child_hits`]).
+pub(crate) struct RuntimeBoxTest;
+
+impl BoxTest for RuntimeBoxTest {
+    #[inline(always)]
+    fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+        child_hits(node, ray, t_min, t_max)
+    }
+}
+
+/// Walks the BVH nearest-first and calls `test_leaf(leaf_code, ray)` for every leaf whose box
+/// the ray reaches within `[t_min, t_max]` (see [`leaf_range`]). The callback returns whether it
+/// accepted a hit; for closest-hit use it must then shrink `ray.t_max` to the hit, and
+/// subtrees entered beyond it are skipped. With `ANY_HIT` the walk stops at the first accepted
 /// hit. Returns whether any hit was accepted.
 #[inline(always)]
 pub(crate) fn traverse<const ANY_HIT: bool, F>(
-    nodes: &[CwBvhNode],
+    nodes: &[WideNode],
     ray: &mut TraversalRay,
-    mut test_primitive: F,
+    mut test_leaf: F,
 ) -> bool
 where
     F: FnMut(u32, &mut TraversalRay) -> bool,
 {
+    traverse_with::<RuntimeBoxTest, ANY_HIT, F>(nodes, ray, &mut test_leaf)
+}
+
+/// What [`traverse_with`] calls for a leaf: `test(leaf_code, ray)` as `traverse`'s callback.
+pub(crate) trait LeafTest {
+    fn test(&mut self, code: u32, ray: &mut TraversalRay) -> bool;
+}
+
+impl<F: FnMut(u32, &mut TraversalRay) -> bool> LeafTest for F {
+    #[inline(always)]
+    fn test(&mut self, code: u32, ray: &mut TraversalRay) -> bool {
+        self(code, ray)
+    }
+}
+
+/// [`traverse`] with the box test `B`.
+#[inline(always)]
+pub(crate) fn traverse_with<B: BoxTest, const ANY_HIT: bool, L: LeafTest>(
+    nodes: &[WideNode],
+    ray: &mut TraversalRay,
+    test_leaf: &mut L,
+) -> bool {
     if nodes.is_empty() {
         return false;
     }
-    let octant_inv = ray.octant_inv;
-    let mut stack: GroupStack<NodeGroup> = GroupStack::new();
-    // The root is the only "child" of a virtual group whose inner mask is empty.
-    let mut group = NodeGroup {
-        first_child: 0,
-        bits: 1 << 31,
-    };
+    let box_ray = BoxRay::new(ray);
+    let order = box_ray.order;
+    let mut stack: TraversalStack<(u32, f32)> = TraversalStack::new();
     let mut found = false;
+    let mut code = 0u32;
     loop {
-        if group.bits & 0xff00_0000 == 0 {
-            match stack.pop() {
-                Some(next) => group = next,
-                None => break,
+        if code & LEAF_BIT == 0 {
+            let node = &nodes[code as usize];
+            let (mask, nears) = B::child_hits(node, &box_ray, ray.t_min, ray.t_max);
+            if mask != 0 {
+                let ordered = u32::from(ORDER[order][mask as usize]);
+                let mut farther = ordered & (ordered - 1);
+                while farther != 0 {
+                    let i = 31 - farther.leading_zeros();
+                    farther &= !(1 << i);
+                    let slot = i as usize ^ order;
+                    stack.push((node.children[slot], nears[slot]));
+                }
+                code = node.children[ordered.trailing_zeros() as usize ^ order];
+                if code & LEAF_BIT == 0 {
+                    prefetch(&nodes[code as usize]);
+                }
+                continue;
+            }
+        } else if test_leaf.test(code, ray) {
+            found = true;
+            if ANY_HIT {
+                return true;
             }
         }
-        let bit = 31 - group.bits.leading_zeros();
-        group.bits &= !(1 << bit);
-        let slot = (bit - 24) ^ octant_inv;
-        let inner_before_slot = group.bits & 0xff & ((1 << slot) - 1);
-        let node = &nodes[(group.first_child + inner_before_slot.count_ones()) as usize];
-        if group.bits & 0xff00_0000 != 0 {
-            stack.push(group);
-        }
-
-        let (inner, mut primitives) = classify_hits(node, child_box_hits(node, ray), octant_inv);
-        if inner != 0 {
-            // The children are fetched next; start loading them while the leaves are tested.
-            prefetch(&nodes[node.child_base_idx as usize]);
-        }
-        group = NodeGroup {
-            first_child: node.child_base_idx,
-            bits: inner | node.imask as u32,
-        };
-        while primitives != 0 {
-            let offset = 31 - primitives.leading_zeros();
-            primitives &= !(1 << offset);
-            if test_primitive(node.primitive_base_idx + offset, ray) {
-                found = true;
-                if ANY_HIT {
-                    return true;
-                }
+        loop {
+            let Some((next, near)) = stack.pop() else {
+                return found;
+            };
+            if near <= ray.t_max {
+                code = next;
+                break;
             }
         }
     }
-    found
 }
 
 /// Hints the CPU to start loading `value`'s cache line (no-op off x86_64).

@@ -1,0 +1,677 @@
+//! Single rays through a BVH of triangle groups: the closest-hit and any-hit walks, compiled
+//! once per instruction set and per direction octant.
+//!
+//! The walk visits the children in the order of `wide_bvh::traverse_with` and tests leaves with
+//! the same arithmetic, so it finds the same hits, ids included; what differs is the work per
+//! node and per ray:
+//!
+//! - compiled per octant, the plane rows a ray enters and leaves children by are constant
+//!   offsets into the node, and the visiting order a constant table row;
+//! - one table entry per hit mask ([`VISIT`]) holds the nearest child's slot and the other hit
+//!   children's slots farthest first, so the walk descends without sorting and, with AVX2,
+//!   pushes all the others with one permutation of the node's codes and one of the entry
+//!   distances (two stores);
+//! - the stack is two fixed arrays (codes, entry distances) checked once per node; a walk
+//!   that would overflow them restarts with a larger stack on the heap (the same walk, so the
+//!   same hits);
+//! - the ray's values for the box test and for the triangle test are set up once per ray.
+//!
+//! The box test computes each slab distance as `(origin - plane) * (-inverse_direction)`, which
+//! equals `(plane - origin) * inverse_direction` exactly (negation is exact and rounding is
+//! symmetric) except for the sign of an exact zero, which no comparison sees: the same children,
+//! the same entry distances (compared as values) as `wide_bvh::child_hits`. The plane is then
+//! the instruction's memory operand.
+
+use crate::accel::primitives::{GROUP_LANES, GroupRay, TriangleGroup, closest_lane};
+use crate::accel::wide_bvh::{LEAF_BIT, TraversalRay, WIDTH, WideNode, group_leaf, widened};
+use glam::{Vec2, Vec4};
+use std::mem::MaybeUninit;
+
+/// `VISIT[order][mask]` for the hit children `mask` (bit per slot) of a ray whose children
+/// are visited nearest-first in slots `i ^ order`: the nearest hit child's slot in bits 0..3,
+/// the other hit children's slots three bits each from bit 3 on, farthest first, and their
+/// number from bit [`OTHERS_SHIFT`] on.
+pub(crate) static VISIT: [[u32; 256]; 8] = {
+    let mut table = [[0u32; 256]; 8];
+    let mut order = 0;
+    while order < 8 {
+        let mut mask = 1;
+        while mask < 256 {
+            let mut nearest = 0;
+            while mask & (1 << (nearest ^ order)) == 0 {
+                nearest += 1;
+            }
+            let mut entry = (nearest ^ order) as u32;
+            let mut others = 0;
+            let mut position = 7;
+            while position > nearest {
+                if mask & (1 << (position ^ order)) != 0 {
+                    entry |= ((position ^ order) as u32) << (3 + 3 * others);
+                    others += 1;
+                }
+                position -= 1;
+            }
+            table[order][mask] = entry | (others << OTHERS_SHIFT);
+            mask += 1;
+        }
+        order += 1;
+    }
+    table
+};
+
+/// Where a [`VISIT`] entry keeps the number of children to push.
+const OTHERS_SHIFT: u32 = 28;
+
+/// Entries of the stack kept inline (the walk restarts with a larger one if it needs more).
+const INLINE_STACK: usize = 128;
+
+/// The walk's stack: codes and entry distances in two arrays of `capacity` entries. A push
+/// writes eight entries at once, so a node's children are pushed only while `len + WIDTH <=
+/// capacity`.
+struct Stack {
+    codes: *mut u32,
+    nears: *mut f32,
+    len: usize,
+    /// The largest `len` a node's children may be pushed at.
+    last_push: usize,
+}
+
+/// The stack was about to overflow; the walk must be redone with a larger one.
+struct Overflow;
+
+/// A hit: its group and lane, and the group's edge functions `V`, `W` and determinants its
+/// barycentrics come from (lanes are picked once the walk is over).
+#[derive(Clone, Copy)]
+struct Hit {
+    group: usize,
+    lane: usize,
+    v: Vec4,
+    w: Vec4,
+    determinant: Vec4,
+}
+
+/// An instruction set's box test and push.
+trait Lanes {
+    /// What the box test needs of the ray.
+    type BoxRay: Copy;
+    /// The widened entry distances of a node's children.
+    type Nears: Copy;
+
+    fn box_ray(ray: &TraversalRay) -> Self::BoxRay;
+
+    /// The children hit within `[t_min, t_max]` (bit per slot) and their entry distances, for a
+    /// ray whose children are visited in slots `i ^ ORDER`.
+    fn child_hits<const ORDER: usize>(
+        node: &WideNode,
+        ray: &Self::BoxRay,
+        t_max: f32,
+    ) -> (u32, Self::Nears);
+
+    /// Pushes `count` children (slots three bits each in `slots`, first pushed first).
+    ///
+    /// # Safety
+    /// `stack.len <= stack.last_push`.
+    unsafe fn push(node: &WideNode, slots: u32, count: u32, nears: Self::Nears, stack: &mut Stack);
+}
+
+/// The plane rows of axis `axis` through which a ray of visiting order `order` enters and
+/// leaves children (`order` has bit `2 - axis` set for a negative direction).
+#[inline(always)]
+const fn rows(order: usize, axis: usize) -> (usize, usize) {
+    if (order >> (2 - axis)) & 1 != 0 {
+        (2 * axis + 1, 2 * axis)
+    } else {
+        (2 * axis, 2 * axis + 1)
+    }
+}
+
+/// The baseline path: the box test four children at a time (SSE2 on x86_64 through glam).
+struct FourWide;
+
+#[derive(Clone, Copy)]
+struct FourWideRay {
+    origin: [Vec4; 3],
+    negated_inverse: [Vec4; 3],
+    t_min: Vec4,
+}
+
+impl Lanes for FourWide {
+    type BoxRay = FourWideRay;
+    type Nears = [f32; WIDTH];
+
+    #[inline(always)]
+    fn box_ray(ray: &TraversalRay) -> FourWideRay {
+        FourWideRay {
+            origin: ray.origin.to_array().map(Vec4::splat),
+            negated_inverse: (-ray.inv_direction).to_array().map(Vec4::splat),
+            t_min: Vec4::splat(ray.t_min),
+        }
+    }
+
+    #[inline(always)]
+    fn child_hits<const ORDER: usize>(
+        node: &WideNode,
+        ray: &FourWideRay,
+        t_max: f32,
+    ) -> (u32, [f32; WIDTH]) {
+        let mut nears = [0.0f32; WIDTH];
+        let mut mask = 0;
+        for half in 0..2 {
+            let lanes = 4 * half..4 * half + 4;
+            let distances = |axis: usize| {
+                let (entry, exit) = rows(ORDER, axis);
+                let plane = |row: usize| Vec4::from_slice(&node.planes[row][lanes.clone()]);
+                let origin = ray.origin[axis];
+                let negated_inverse = ray.negated_inverse[axis];
+                (
+                    (origin - plane(entry)) * negated_inverse,
+                    (origin - plane(exit)) * negated_inverse,
+                )
+            };
+            let (near_x, far_x) = distances(0);
+            let (near_y, far_y) = distances(1);
+            let (near_z, far_z) = distances(2);
+            let near = near_x.max(near_y).max(near_z.max(ray.t_min));
+            let far = far_x.min(far_y).min(far_z.min(Vec4::splat(t_max)));
+            let (near, hit) = widened(near, far);
+            mask |= hit << (4 * half);
+            near.write_to_slice(&mut nears[lanes]);
+        }
+        (mask, nears)
+    }
+
+    #[inline(always)]
+    unsafe fn push(
+        node: &WideNode,
+        slots: u32,
+        count: u32,
+        nears: [f32; WIDTH],
+        stack: &mut Stack,
+    ) {
+        for index in 0..count as usize {
+            let slot = ((slots >> (3 * index)) & 7) as usize;
+            // SAFETY: `count < WIDTH` and `stack.len + WIDTH <= capacity` (the caller's
+            // promise).
+            unsafe {
+                *stack.codes.add(stack.len + index) = node.children[slot];
+                *stack.nears.add(stack.len + index) = nears[slot];
+            }
+        }
+        stack.len += count as usize;
+    }
+}
+
+/// The AVX2 path: the box test eight children at a time and pushes by permutation. Only walks
+/// compiled for AVX2 (entered only when AVX2 is selected) use it.
+#[cfg(target_arch = "x86_64")]
+struct Avx2;
+
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::{FourWideRay, Stack, WideNode, rows};
+    use crate::accel::wide_bvh::SLAB_ERROR;
+    use std::arch::x86_64::*;
+
+    #[derive(Clone, Copy)]
+    pub(super) struct Avx2Ray {
+        origin: [__m256; 3],
+        negated_inverse: [__m256; 3],
+        t_min: __m256,
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn box_ray(ray: &FourWideRay) -> Avx2Ray {
+        let splat = |value: glam::Vec4| _mm256_set1_ps(value.x);
+        Avx2Ray {
+            origin: ray.origin.map(splat),
+            negated_inverse: ray.negated_inverse.map(splat),
+            t_min: splat(ray.t_min),
+        }
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn distances(node: &WideNode, ray: &Avx2Ray, axis: usize, rows: (usize, usize)) -> [__m256; 2] {
+        let origin = ray.origin[axis];
+        let negated_inverse = ray.negated_inverse[axis];
+        // SAFETY: every plane row is eight floats, 32-byte aligned (`WideNode` is).
+        let (entry, exit) = unsafe {
+            (
+                _mm256_load_ps(node.planes[rows.0].as_ptr()),
+                _mm256_load_ps(node.planes[rows.1].as_ptr()),
+            )
+        };
+        [
+            _mm256_mul_ps(_mm256_sub_ps(origin, entry), negated_inverse),
+            _mm256_mul_ps(_mm256_sub_ps(origin, exit), negated_inverse),
+        ]
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) fn child_hits<const ORDER: usize>(
+        node: &WideNode,
+        ray: &Avx2Ray,
+        t_max: f32,
+    ) -> (u32, __m256) {
+        let [near_x, far_x] = distances(node, ray, 0, rows(ORDER, 0));
+        let [near_y, far_y] = distances(node, ray, 1, rows(ORDER, 1));
+        let [near_z, far_z] = distances(node, ray, 2, rows(ORDER, 2));
+        let near = _mm256_max_ps(
+            _mm256_max_ps(near_x, near_y),
+            _mm256_max_ps(near_z, ray.t_min),
+        );
+        let far = _mm256_min_ps(
+            _mm256_min_ps(far_x, far_y),
+            _mm256_min_ps(far_z, _mm256_set1_ps(t_max)),
+        );
+        let error = _mm256_set1_ps(SLAB_ERROR);
+        let sign = _mm256_set1_ps(-0.0);
+        let near = _mm256_sub_ps(near, _mm256_mul_ps(_mm256_andnot_ps(sign, near), error));
+        let far = _mm256_add_ps(far, _mm256_mul_ps(_mm256_andnot_ps(sign, far), error));
+        let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+        (mask, near)
+    }
+
+    /// Writes all eight permuted entries; `count` of them are kept.
+    ///
+    /// # Safety
+    /// `stack.len + 8` entries fit the stack.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(super) unsafe fn push(
+        node: &WideNode,
+        slots: u32,
+        count: u32,
+        nears: __m256,
+        stack: &mut Stack,
+    ) {
+        let shifts = _mm256_setr_epi32(0, 3, 6, 9, 12, 15, 18, 21);
+        // The permutations read the low three bits of each lane: the slot.
+        let slots = _mm256_srlv_epi32(_mm256_set1_epi32(slots as i32), shifts);
+        // SAFETY: the codes are eight u32, 32-byte aligned (`WideNode` is, and they follow six
+        // plane rows of 32 bytes); the stores stay within the stack (the caller's promise).
+        unsafe {
+            let codes = _mm256_load_si256(node.children.as_ptr().cast());
+            _mm256_storeu_si256(
+                stack.codes.add(stack.len).cast(),
+                _mm256_permutevar8x32_epi32(codes, slots),
+            );
+            _mm256_storeu_ps(
+                stack.nears.add(stack.len),
+                _mm256_permutevar8x32_ps(nears, slots),
+            );
+        }
+        stack.len += count as usize;
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Lanes for Avx2 {
+    type BoxRay = avx2::Avx2Ray;
+    type Nears = std::arch::x86_64::__m256;
+
+    #[inline(always)]
+    fn box_ray(ray: &TraversalRay) -> avx2::Avx2Ray {
+        // SAFETY: only walks entered when AVX2 is selected (so the CPU has it) use this path.
+        unsafe { avx2::box_ray(&FourWide::box_ray(ray)) }
+    }
+
+    #[inline(always)]
+    fn child_hits<const ORDER: usize>(
+        node: &WideNode,
+        ray: &avx2::Avx2Ray,
+        t_max: f32,
+    ) -> (u32, Self::Nears) {
+        // SAFETY: as in `box_ray`.
+        unsafe { avx2::child_hits::<ORDER>(node, ray, t_max) }
+    }
+
+    #[inline(always)]
+    unsafe fn push(node: &WideNode, slots: u32, count: u32, nears: Self::Nears, stack: &mut Stack) {
+        // SAFETY: as in `box_ray`; the stack has room (the caller's promise).
+        unsafe { avx2::push(node, slots, count, nears, stack) }
+    }
+}
+
+/// Whether every code of `nodes` is in range: inner codes index `nodes`, leaf codes address
+/// slots within `group_count` groups. The walks rely on it (no bounds checks); builds assert it.
+pub(crate) fn codes_in_range(nodes: &[WideNode], group_count: usize) -> bool {
+    nodes.iter().all(|node| {
+        (0..WIDTH).all(|slot| {
+            let code = node.children[slot];
+            if !crate::accel::wide_bvh::occupied(node, slot) {
+                true
+            } else if code & LEAF_BIT == 0 {
+                (code as usize) < nodes.len()
+            } else {
+                group_leaf(code).0 < group_count
+            }
+        })
+    })
+}
+
+/// The walk of one octant (children visited in slots `i ^ ORDER`): the closest hit within
+/// `[t_min, t_max]` (with `ANY_HIT`, the first hit found), and the `t` it was found at.
+///
+/// # Safety
+/// `codes_in_range(nodes, groups.len())`, `nodes` not empty, and `stack.last_push + WIDTH`
+/// entries behind the stack's pointers.
+#[inline(always)]
+unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    box_ray: &I::BoxRay,
+    group_ray: &GroupRay,
+    mut t_max: f32,
+    stack: &mut Stack,
+) -> Result<(Option<Hit>, f32), Overflow> {
+    let mut found = None;
+    let mut code = 0u32;
+    loop {
+        if code & LEAF_BIT == 0 {
+            // SAFETY: inner codes index `nodes` (the caller's promise).
+            let node = unsafe { nodes.get_unchecked(code as usize) };
+            let (mask, nears) = I::child_hits::<ORDER>(node, box_ray, t_max);
+            if mask != 0 {
+                let visit = VISIT[ORDER][(mask & 0xff) as usize];
+                code = node.children[(visit & 7) as usize];
+                let others = visit >> OTHERS_SHIFT;
+                if others != 0 {
+                    if stack.len > stack.last_push {
+                        return Err(Overflow);
+                    }
+                    // SAFETY: just checked.
+                    unsafe { I::push(node, visit >> 3, others, nears, stack) };
+                }
+                continue;
+            }
+        } else {
+            let (group_index, lanes) = group_leaf(code);
+            // SAFETY: leaf codes address existing groups (the caller's promise).
+            let group = unsafe { groups.get_unchecked(group_index) };
+            let (hits, t, [v, w, determinant]) = group_ray.hits(group, lanes, t_max);
+            if hits != 0 {
+                let (lane, t) = if ANY_HIT {
+                    (0, t_max)
+                } else {
+                    closest_lane(hits, t)
+                };
+                t_max = t;
+                found = Some(Hit {
+                    group: group_index,
+                    lane,
+                    v,
+                    w,
+                    determinant,
+                });
+                if ANY_HIT {
+                    return Ok((found, t_max));
+                }
+            }
+        }
+        loop {
+            if stack.len == 0 {
+                return Ok((found, t_max));
+            }
+            stack.len -= 1;
+            // SAFETY: entries below `len` were written by pushes.
+            let near = unsafe { *stack.nears.add(stack.len) };
+            if near <= t_max {
+                // SAFETY: as above.
+                code = unsafe { *stack.codes.add(stack.len) };
+                break;
+            }
+        }
+    }
+}
+
+/// [`walk`] for the ray's octant, with the inline stack and, should it overflow, again with
+/// ever larger ones on the heap.
+///
+/// # Safety
+/// `codes_in_range(nodes, groups.len())` and `nodes` not empty.
+#[inline(always)]
+unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &TraversalRay,
+) -> (Option<Hit>, f32) {
+    const { assert!(INLINE >= WIDTH) };
+    let box_ray = I::box_ray(ray);
+    // Kept in memory (opaque to the optimiser): the leaf test then reads its values as memory
+    // operands, where otherwise copies of them were spilled for the whole walk (13 fewer
+    // instructions per ray at 968 triangles).
+    let group_ray = GroupRay::new(ray);
+    let group_ray: &GroupRay = std::hint::black_box(&group_ray);
+    let order = (7 ^ (ray.octant_inv & 7)) as usize;
+    let mut codes = [MaybeUninit::<u32>::uninit(); INLINE];
+    let mut nears = [MaybeUninit::<f32>::uninit(); INLINE];
+    let mut stack = Stack {
+        codes: codes.as_mut_ptr().cast(),
+        nears: nears.as_mut_ptr().cast(),
+        len: 0,
+        last_push: INLINE - WIDTH,
+    };
+    // Holds the stack once it has outgrown the inline one.
+    let mut heap: (Vec<u32>, Vec<f32>);
+    loop {
+        macro_rules! octants {
+            ($($order:literal)*) => {
+                match order {
+                    $($order => unsafe {
+                        walk::<I, $order, ANY_HIT>(nodes, groups, &box_ray, group_ray, ray.t_max, &mut stack)
+                    },)*
+                    _ => unreachable!(),
+                }
+            };
+        }
+        // SAFETY: the caller's promise; the stack has `last_push + WIDTH` entries.
+        if let Ok(done) = octants!(0 1 2 3 4 5 6 7) {
+            return done;
+        }
+        let capacity = 4 * (stack.last_push + WIDTH);
+        heap = (vec![0; capacity], vec![0.0; capacity]);
+        stack = Stack {
+            codes: heap.0.as_mut_ptr(),
+            nears: heap.1.as_mut_ptr(),
+            len: 0,
+            last_push: capacity - WIDTH,
+        };
+    }
+}
+
+/// The closest hit among `groups` under `nodes`: its slot and barycentrics `(b1, b2)`;
+/// `ray.t_max` shrinks to it.
+///
+/// # Safety
+/// `codes_in_range(nodes, groups.len())`.
+#[inline]
+pub(crate) unsafe fn closest_triangle_slot(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &mut TraversalRay,
+) -> Option<(u32, Vec2)> {
+    if nodes.is_empty() {
+        return None;
+    }
+    #[cfg(target_arch = "x86_64")]
+    let (hit, t) = if crate::isa::avx2_selected() {
+        // SAFETY: AVX2 is selected only on CPUs that have it; the caller's promise.
+        unsafe { avx2_walks::closest(nodes, groups, ray) }
+    } else {
+        // SAFETY: the caller's promise.
+        unsafe { walk_ray::<FourWide, false, INLINE_STACK>(nodes, groups, ray) }
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    // SAFETY: the caller's promise.
+    let (hit, t) = unsafe { walk_ray::<FourWide, false, INLINE_STACK>(nodes, groups, ray) };
+    let Hit {
+        group,
+        lane,
+        v,
+        w,
+        determinant,
+    } = hit?;
+    ray.t_max = t;
+    let inv = 1.0 / determinant[lane];
+    let slot = (group * GROUP_LANES + lane) as u32;
+    Some((slot, Vec2::new(v[lane] * inv, w[lane] * inv)))
+}
+
+/// Whether any of `groups` under `nodes` is hit.
+///
+/// # Safety
+/// `codes_in_range(nodes, groups.len())`.
+#[inline]
+pub(crate) unsafe fn any_triangle_hit(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &TraversalRay,
+) -> bool {
+    if nodes.is_empty() {
+        return false;
+    }
+    #[cfg(target_arch = "x86_64")]
+    if crate::isa::avx2_selected() {
+        // SAFETY: AVX2 is selected only on CPUs that have it; the caller's promise.
+        return unsafe { avx2_walks::any(nodes, groups, ray) };
+    }
+    // SAFETY: the caller's promise.
+    unsafe { walk_ray::<FourWide, true, INLINE_STACK>(nodes, groups, ray) }
+        .0
+        .is_some()
+}
+
+/// The walks compiled for AVX2: the eight-wide box test and push inlined, the triangle test
+/// the same four-wide operations (VEX-encoded, no fused multiply-adds).
+#[cfg(target_arch = "x86_64")]
+mod avx2_walks {
+    use super::*;
+
+    /// # Safety
+    /// The CPU has AVX2; `codes_in_range(nodes, groups.len())`; `nodes` not empty.
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn closest(
+        nodes: &[WideNode],
+        groups: &[TriangleGroup],
+        ray: &TraversalRay,
+    ) -> (Option<Hit>, f32) {
+        // SAFETY: the caller's promise.
+        unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray) }
+    }
+
+    /// # Safety
+    /// As [`closest`].
+    #[target_feature(enable = "avx2")]
+    pub(super) unsafe fn any(
+        nodes: &[WideNode],
+        groups: &[TriangleGroup],
+        ray: &TraversalRay,
+    ) -> bool {
+        // SAFETY: the caller's promise.
+        unsafe { walk_ray::<Avx2, true, INLINE_STACK>(nodes, groups, ray) }
+            .0
+            .is_some()
+    }
+}
+
+/// Test hooks: the box test of every path this CPU has, and the walks with a small inline
+/// stack (so that they restart on the heap).
+#[cfg(test)]
+pub(crate) mod test_paths {
+    use super::*;
+
+    /// The single-ray box test of each path for `ray` (its octant's code), as
+    /// `(mask, entry distances)`.
+    pub(crate) fn child_hits(node: &WideNode, ray: &TraversalRay) -> Vec<(u32, [f32; WIDTH])> {
+        macro_rules! octants {
+            ($($order:literal)*) => {
+                match (7 ^ (ray.octant_inv & 7)) as usize {
+                    $($order => of_order::<$order>(node, ray),)*
+                    _ => unreachable!(),
+                }
+            };
+        }
+        octants!(0 1 2 3 4 5 6 7)
+    }
+
+    fn of_order<const ORDER: usize>(
+        node: &WideNode,
+        ray: &TraversalRay,
+    ) -> Vec<(u32, [f32; WIDTH])> {
+        let mut paths = vec![FourWide::child_hits::<ORDER>(
+            node,
+            &FourWide::box_ray(ray),
+            ray.t_max,
+        )];
+        #[cfg(target_arch = "x86_64")]
+        if crate::isa::Isa::Avx2.supported() {
+            let (mask, near) = Avx2::child_hits::<ORDER>(node, &Avx2::box_ray(ray), ray.t_max);
+            let mut nears = [0.0f32; WIDTH];
+            // SAFETY: `nears` holds eight floats.
+            unsafe { std::arch::x86_64::_mm256_storeu_ps(nears.as_mut_ptr(), near) };
+            paths.push((mask, nears));
+        }
+        paths
+    }
+
+    /// Closest hit and any-hit answer of the selected path's walk with an inline stack of
+    /// eight entries.
+    ///
+    /// # Safety
+    /// `codes_in_range(nodes, groups.len())`.
+    pub(crate) unsafe fn with_small_stack(
+        nodes: &[WideNode],
+        groups: &[TriangleGroup],
+        ray: &TraversalRay,
+    ) -> (Option<(u32, f32)>, bool) {
+        if nodes.is_empty() {
+            return (None, false);
+        }
+        let slot = |(hit, t): (Option<Hit>, f32)| {
+            hit.map(|hit| ((hit.group * GROUP_LANES + hit.lane) as u32, t))
+        };
+        // SAFETY: the caller's promise (AVX2 only where the CPU has it).
+        unsafe {
+            #[cfg(target_arch = "x86_64")]
+            if crate::isa::avx2_selected() {
+                return (
+                    slot(walk_ray::<Avx2, false, WIDTH>(nodes, groups, ray)),
+                    walk_ray::<Avx2, true, WIDTH>(nodes, groups, ray)
+                        .0
+                        .is_some(),
+                );
+            }
+            (
+                slot(walk_ray::<FourWide, false, WIDTH>(nodes, groups, ray)),
+                walk_ray::<FourWide, true, WIDTH>(nodes, groups, ray)
+                    .0
+                    .is_some(),
+            )
+        }
+    }
+
+    #[test]
+    fn the_visit_table_lists_hit_children_in_the_walks_order() {
+        use crate::accel::wide_bvh::ORDER;
+        for order in 0..8 {
+            for mask in 1..256usize {
+                // The reference: positions of the ordered mask, nearest first, as slots.
+                let ordered = u32::from(ORDER[order][mask]);
+                let slots: Vec<u32> = (0..8)
+                    .filter(|i| ordered & (1 << i) != 0)
+                    .map(|i| i ^ order as u32)
+                    .collect();
+                let entry = VISIT[order][mask];
+                assert_eq!(entry & 7, slots[0], "order {order} mask {mask:#b}");
+                let others = (entry >> OTHERS_SHIFT) as usize;
+                assert_eq!(others, slots.len() - 1, "order {order} mask {mask:#b}");
+                let pushed: Vec<u32> = (0..others).map(|k| (entry >> (3 + 3 * k)) & 7).collect();
+                let farthest_first: Vec<u32> = slots[1..].iter().rev().copied().collect();
+                assert_eq!(pushed, farthest_first, "order {order} mask {mask:#b}");
+            }
+        }
+    }
+}
