@@ -135,6 +135,9 @@ impl FastBlock<'_> {
         }
         let background = self.background();
         let depth_is_t = self.eye.depth_is_ray_parameter();
+        // Only depth asked for beside colour, and depth is the ray parameter (what a VR
+        // application asks of a pinhole eye): a hit's record is its `t`.
+        let depth_is_all = depth_is_t && records.as_deref().is_some_and(TileRecords::depth_only);
         for lane in 0..BLOCK_RAYS {
             let k = pixel(lane);
             covered[k] = true;
@@ -144,7 +147,9 @@ impl FastBlock<'_> {
                 continue;
             };
             colors[k] += Vec4::new(color[0][lane], color[1][lane], color[2][lane], 1.0);
-            if let Some(records) = records.as_deref_mut() {
+            if depth_is_all && let Some(records) = records.as_deref_mut() {
+                records.record_depth(k, hit.t);
+            } else if let Some(records) = records.as_deref_mut() {
                 let shading = Vec3::new(normal[0][lane], normal[1][lane], normal[2][lane]);
                 let point = UniformSurface::point(&self.rays[lane], hit);
                 let primary = surface.primary_hit(hit, point, shading);
