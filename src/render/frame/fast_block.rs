@@ -30,9 +30,9 @@ pub(super) struct FastBlock<'a> {
     pub(super) row_stride: usize,
 }
 
-/// A block's hits on its one surface, lane by lane (lanes without a hit hold zeros).
+/// The normals of a block's hits on its one surface, lane by lane (lanes without a hit hold
+/// zeros; which lanes hit is the block's `hits`).
 struct LaneHits {
-    hit: [bool; BLOCK_RAYS],
     normal: [[f32; BLOCK_RAYS]; 3],
 }
 
@@ -81,7 +81,6 @@ impl FastBlock<'_> {
     fn one_surface(&self) -> Option<(UniformSurface<'_>, LaneHits)> {
         let mut surface: Option<UniformSurface> = None;
         let mut lanes = LaneHits {
-            hit: [false; BLOCK_RAYS],
             normal: [[0.0; BLOCK_RAYS]; 3],
         };
         for (lane, hit) in self.hits.iter().enumerate() {
@@ -93,7 +92,6 @@ impl FastBlock<'_> {
                 Some(_) => return None,
                 None => surface = Some(UniformSurface::of(self.scene, hit)?),
             }
-            lanes.hit[lane] = true;
             for (axis, value) in hit.normal.to_array().into_iter().enumerate() {
                 lanes.normal[axis][lane] = value;
             }
@@ -141,7 +139,8 @@ impl FastBlock<'_> {
         for lane in 0..BLOCK_RAYS {
             let k = pixel(lane);
             covered[k] = true;
-            let Some(hit) = self.hits[lane].as_ref().filter(|_| lanes.hit[lane]) else {
+            // Every hit lies on `surface` (else the block is shaded lane by lane).
+            let Some(hit) = &self.hits[lane] else {
                 colors[k] +=
                     background.unwrap_or_else(|| self.settings.background_at(screen(lane)));
                 continue;
