@@ -1,9 +1,9 @@
 //! The block pipeline (rays made a block at a time, packet traversal, the fast renderer's lean
 //! shading, hit records per tile) against the plain per-pixel path (each ray made alone, traced
 //! alone, shaded by the general primary shading): every channel byte for byte (colour alone,
-//! colour and depth, every channel), on triangles,
-//! quads, spheres, a tube, an instance, a volume and a mirror, mono, stereo (side by side,
-//! interleaved, anaglyph), several viewers and the light-field camera, both renderers.
+//! colour and depth, every channel), on triangles, quads, spheres, a tube, an instance, a
+//! volume and a mirror, mono, stereo (side by side, interleaved, anaglyph), several viewers and
+//! the light-field camera, both renderers.
 
 mod common;
 use common::*;
