@@ -1,8 +1,9 @@
 //! The block pipeline (rays made a block at a time, packet traversal, the fast renderer's lean
 //! shading, hit records per tile) against the plain per-pixel path (each ray made alone, traced
-//! alone, shaded by the general primary shading): every channel byte for byte, on triangles,
-//! quads, spheres, a tube, an instance, a volume and a mirror, mono, stereo (side by side,
-//! interleaved, anaglyph), several viewers and the light-field camera, both renderers.
+//! alone, shaded by the general primary shading): every channel byte for byte (colour alone,
+//! colour and depth, every channel), on triangles, quads, spheres, a tube, an instance, a
+//! volume and a mirror, mono, stereo (side by side, interleaved, anaglyph), several viewers and
+//! the light-field camera, both renderers.
 
 mod common;
 use common::*;
@@ -77,8 +78,9 @@ fn assert_same_with(
     what: &str,
 ) {
     for renderer in ["fast", "default"] {
-        // Colour alone takes the fast renderer's colour-only path; every channel the other.
-        for channels in [&CHANNELS[..1], &CHANNELS[..]] {
+        // Colour alone takes the fast renderer's colour-only path; colour and depth (what a VR
+        // application asks for) records depth alone; every channel records them all.
+        for channels in [&CHANNELS[..1], &CHANNELS[..2], &CHANNELS[..]] {
             let pipeline = render(dev, world, camera, renderer, channels, false, background);
             let plain = render(dev, world, camera, renderer, channels, true, background);
             for (k, (name, _)) in channels.iter().enumerate() {
@@ -91,7 +93,7 @@ fn assert_same_with(
                 );
                 assert_eq!(pipeline[k].len(), plain[k].len(), "{what} {name}");
             }
-            if channels.len() > 1 {
+            if channels.len() == CHANNELS.len() {
                 let ids = &pipeline[3];
                 assert!(
                     ids.chunks_exact(4).any(|id| id != [0xff; 4]),

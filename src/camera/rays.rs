@@ -913,10 +913,31 @@ fn pinhole_block(
     t: &[f32; BLOCK_RAYS],
     block: &mut BlockRays,
 ) {
+    // Without clip planes the loop is made for a clip range known to be empty: over lane
+    // arrays the compiler otherwise computes the planes' division for every lane and drops it.
+    match pinhole.clip {
+        ClipRange {
+            near: None,
+            far: None,
+        } => pinhole_lanes(region, pinhole, &ClipRange::default(), s, t, block),
+        clip => pinhole_lanes(region, pinhole, &clip, s, t, block),
+    }
+}
+
+/// [`pinhole_block`]'s lanes with the pinhole's clip range `clip`.
+#[inline(always)]
+fn pinhole_lanes(
+    region: &ImageRegion,
+    pinhole: &Pinhole,
+    clip: &ClipRange,
+    s: &[f32; BLOCK_RAYS],
+    t: &[f32; BLOCK_RAYS],
+    block: &mut BlockRays,
+) {
     let eye = pinhole.eye.to_array();
     for i in 0..BLOCK_RAYS {
         let target = window_point(pinhole, region.apply(s[i], t[i]));
-        block.set(i, eye, target.to_array(), pinhole.forward, &pinhole.clip);
+        block.set(i, eye, target.to_array(), pinhole.forward, clip);
     }
 }
 

@@ -102,12 +102,26 @@ impl ChannelFormat {
         }
     }
 
+    /// Writes `encode(colors[k])` as pixel `k` of `out` (N bytes each, the type's size): the
+    /// colours walked beside the pixels, with no bounds check per pixel.
+    #[inline(always)]
+    fn encode_colors<const N: usize>(
+        &self,
+        out: &mut [u8],
+        colors: &[Vec4],
+        encode: impl Fn(Vec4) -> [u8; N],
+    ) {
+        debug_assert_eq!(N, self.pixel_bytes, "pixel size of {:?}", self.data_type);
+        for (chunk, color) in out.chunks_exact_mut(N).zip(colors) {
+            chunk.copy_from_slice(&encode(*color));
+        }
+    }
+
     /// Encodes the pixels of a tile into `out` (`pixel_bytes` each, in the order of `colors`):
     /// `colors` are their final colours, `records` the other channels' values. The match on
     /// the type is made once per tile, not per pixel.
     pub(super) fn encode(&self, colors: &[Vec4], records: &TileRecords, out: &mut [u8]) {
         let out = &mut out[..colors.len() * self.pixel_bytes];
-        let color = |k: usize| colors[k];
         let float = |values: &[f32], k: usize, nothing: f32| {
             f32_bytes::<1, 4>([values.get(k).copied().unwrap_or(nothing)])
         };
@@ -117,13 +131,13 @@ impl ChannelFormat {
         match (self.kind, self.data_type) {
             (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB) => {
                 let srgba = srgb8_rgba_encoder();
-                self.encode_pixels(out, |k| srgba(color(k)))
+                self.encode_colors(out, colors, srgba)
             }
             (ChannelKind::Color, ANARI_UFIXED8_VEC4) => {
-                self.encode_pixels(out, |k| color(k).to_array().map(to_unorm8))
+                self.encode_colors(out, colors, |color| color.to_array().map(to_unorm8))
             }
             (ChannelKind::Color, _) => {
-                self.encode_pixels(out, |k| f32_bytes::<4, 16>(color(k).to_array()))
+                self.encode_colors(out, colors, |color| f32_bytes::<4, 16>(color.to_array()))
             }
             (ChannelKind::Depth, _) => match records.depth.get(..colors.len()) {
                 // Every pixel recorded (the usual case): a plain copy.

@@ -30,9 +30,9 @@ pub(super) struct FastBlock<'a> {
     pub(super) row_stride: usize,
 }
 
-/// A block's hits on its one surface, lane by lane (lanes without a hit hold zeros).
+/// The normals of a block's hits on its one surface, lane by lane (lanes without a hit hold
+/// zeros; which lanes hit is the block's `hits`).
 struct LaneHits {
-    hit: [bool; BLOCK_RAYS],
     normal: [[f32; BLOCK_RAYS]; 3],
 }
 
@@ -81,7 +81,6 @@ impl FastBlock<'_> {
     fn one_surface(&self) -> Option<(UniformSurface<'_>, LaneHits)> {
         let mut surface: Option<UniformSurface> = None;
         let mut lanes = LaneHits {
-            hit: [false; BLOCK_RAYS],
             normal: [[0.0; BLOCK_RAYS]; 3],
         };
         for (lane, hit) in self.hits.iter().enumerate() {
@@ -93,7 +92,6 @@ impl FastBlock<'_> {
                 Some(_) => return None,
                 None => surface = Some(UniformSurface::of(self.scene, hit)?),
             }
-            lanes.hit[lane] = true;
             for (axis, value) in hit.normal.to_array().into_iter().enumerate() {
                 lanes.normal[axis][lane] = value;
             }
@@ -135,16 +133,22 @@ impl FastBlock<'_> {
         }
         let background = self.background();
         let depth_is_t = self.eye.depth_is_ray_parameter();
+        // Only depth asked for beside colour, and depth is the ray parameter (what a VR
+        // application asks of a pinhole eye): a hit's record is its `t`.
+        let depth_is_all = depth_is_t && records.as_deref().is_some_and(TileRecords::depth_only);
         for lane in 0..BLOCK_RAYS {
             let k = pixel(lane);
             covered[k] = true;
-            let Some(hit) = self.hits[lane].as_ref().filter(|_| lanes.hit[lane]) else {
+            // Every hit lies on `surface` (else the block is shaded lane by lane).
+            let Some(hit) = &self.hits[lane] else {
                 colors[k] +=
                     background.unwrap_or_else(|| self.settings.background_at(screen(lane)));
                 continue;
             };
             colors[k] += Vec4::new(color[0][lane], color[1][lane], color[2][lane], 1.0);
-            if let Some(records) = records.as_deref_mut() {
+            if depth_is_all && let Some(records) = records.as_deref_mut() {
+                records.record_depth(k, hit.t);
+            } else if let Some(records) = records.as_deref_mut() {
                 let shading = Vec3::new(normal[0][lane], normal[1][lane], normal[2][lane]);
                 let point = UniformSurface::point(&self.rays[lane], hit);
                 let primary = surface.primary_hit(hit, point, shading);

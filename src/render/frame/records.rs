@@ -102,6 +102,21 @@ impl TileRecords {
             .any();
     }
 
+    /// Whether no channel but depth is wanted.
+    pub(super) fn depth_only(&self) -> bool {
+        self.depth_only
+    }
+
+    /// Records depth `depth` of pixel `k`'s first hit where only depth is wanted
+    /// ([`TileRecords::depth_only`]): what [`TileRecords::record`] records then.
+    #[inline(always)]
+    pub(super) fn record_depth(&mut self, k: usize, depth: f32) {
+        debug_assert!(self.depth_only);
+        if let Some(slot) = self.depth.get_mut(k) {
+            *slot = depth;
+        }
+    }
+
     /// Records pixel `k`'s first hit seen along the camera ray `ray()` of `eye` (a channel
     /// not wanted has no values to set; the ray is made only for the channels that read it),
     /// `depth(t)` being [`EyeRays::depth`] of the hit. A pixel is recorded at most once after
