@@ -1,9 +1,11 @@
 //! Which instruction set the hot kernels use. The library is built for baseline x86-64 so that
-//! it loads on any x86-64 CPU; three kernels also have AVX2 builds, chosen when the CPU has
-//! AVX2: the single-ray traversal's box test (AVX2+FMA, eight children in one vector; used by
-//! light-field rays, shadow and secondary rays, sparse progressive lattices), a block of a
-//! pinhole camera's primary rays (four f64 lanes per instruction) and the blend of several
-//! viewers' camera positions for a block (eight f32 lanes). The choice is the process's: made
+//! it loads on any x86-64 CPU; the hot kernels also have AVX2 builds, chosen when the CPU has
+//! AVX2: the BVH walks (the single-ray triangle walks and the generic walk test a node's eight
+//! child boxes in one vector — light-field rays, shadow and secondary rays, sparse progressive
+//! lattices; the frustum walk of primary-ray packets culls them per frustum the same way; no
+//! fused multiply-adds, so each path computes the same values), a block of a pinhole camera's
+//! primary rays (four f64 lanes per instruction) and the blend of several viewers' camera
+//! positions for a block (eight f32 lanes). The choice is the process's: made
 //! when a device is created (the environment variable `CAVETRACE_ISA`, else the best the CPU
 //! has) and whenever a device commits its `isa` parameter. Every path finds the same hits and
 //! makes the same rays.
