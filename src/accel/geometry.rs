@@ -80,6 +80,36 @@ impl GeometryBvh {
         unsafe { single_ray::test_paths::with_small_stack(&self.nodes, groups, ray) }
     }
 
+    /// FNV-1a over the layout: every node's planes (bits) and child codes, the source ids
+    /// per slot and, for triangles and quads, every group's vertex coordinates (bits).
+    pub(crate) fn layout_fingerprint(&self) -> u64 {
+        let mut hash = 0xcbf2_9ce4_8422_2325u64;
+        let mut add = |word: u32| {
+            for byte in word.to_le_bytes() {
+                hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+            }
+        };
+        for node in &self.nodes {
+            node.planes
+                .iter()
+                .flatten()
+                .for_each(|plane| add(plane.to_bits()));
+            node.children.iter().for_each(|&code| add(code));
+        }
+        self.source_ids.iter().for_each(|&id| add(id));
+        if let PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) = &self.primitives {
+            for group in groups {
+                let coordinates = group
+                    .vertices
+                    .iter()
+                    .flatten()
+                    .flat_map(|row| row.to_array());
+                coordinates.for_each(|coordinate| add(coordinate.to_bits()));
+            }
+        }
+        hash
+    }
+
     /// Closest hit's slot and `t` of the single-ray walk ([`Self::closest_slot`]).
     pub(crate) fn closest_slot_and_t(&self, ray: &TraversalRay) -> Option<(u32, f32)> {
         let mut ray = *ray;
