@@ -275,18 +275,24 @@ impl GeometryBvh {
                     None => in_slot_order(&order, |i| i),
                     Some(ids) => in_slot_order(&order, |i| ids[i as usize]),
                 };
-                let triangles: Vec<PackedTriangle> = source_ids
-                    .par_iter()
-                    .map(|&id| {
-                        let [v0, v1, v2] = candidates[id as usize]
-                            .to_array()
-                            .map(|corner| positions[corner as usize]);
-                        PackedTriangle::from_usable(v0, v1, v2)
+                // Straight into groups: a grouped order fills whole groups of four slots.
+                let groups = source_ids
+                    .par_chunks(GROUP_LANES)
+                    .map(|ids| {
+                        let triangles: [PackedTriangle; GROUP_LANES] =
+                            std::array::from_fn(|lane| {
+                                let id = ids.get(lane).unwrap_or(&ids[0]);
+                                let [v0, v1, v2] = candidates[*id as usize]
+                                    .to_array()
+                                    .map(|corner| positions[corner as usize]);
+                                PackedTriangle::from_usable(v0, v1, v2)
+                            });
+                        TriangleGroup::new(&triangles[..ids.len()])
                     })
                     .collect();
                 GeometryBvh {
                     nodes,
-                    primitives: PrimitiveData::Triangles(triangle_groups(&triangles)),
+                    primitives: PrimitiveData::Triangles(groups),
                     source_ids,
                     bounds,
                     primitive_count: accepted,
