@@ -80,6 +80,36 @@ impl GeometryBvh {
         unsafe { single_ray::test_paths::with_small_stack(&self.nodes, groups, ray) }
     }
 
+    /// FNV-1a over the layout: every node's planes (bits) and child codes, the source ids
+    /// per slot and, for triangles and quads, every group's vertex coordinates (bits).
+    pub(crate) fn layout_fingerprint(&self) -> u64 {
+        let mut hash = 0xcbf2_9ce4_8422_2325u64;
+        let mut add = |word: u32| {
+            for byte in word.to_le_bytes() {
+                hash = (hash ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+            }
+        };
+        for node in &self.nodes {
+            node.planes
+                .iter()
+                .flatten()
+                .for_each(|plane| add(plane.to_bits()));
+            node.children.iter().for_each(|&code| add(code));
+        }
+        self.source_ids.iter().for_each(|&id| add(id));
+        if let PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) = &self.primitives {
+            for group in groups {
+                let coordinates = group
+                    .vertices
+                    .iter()
+                    .flatten()
+                    .flat_map(|row| row.to_array());
+                coordinates.for_each(|coordinate| add(coordinate.to_bits()));
+            }
+        }
+        hash
+    }
+
     /// Closest hit's slot and `t` of the single-ray walk ([`Self::closest_slot`]).
     pub(crate) fn closest_slot_and_t(&self, ray: &TraversalRay) -> Option<(u32, f32)> {
         let mut ray = *ray;
@@ -245,18 +275,24 @@ impl GeometryBvh {
                     None => in_slot_order(&order, |i| i),
                     Some(ids) => in_slot_order(&order, |i| ids[i as usize]),
                 };
-                let triangles: Vec<PackedTriangle> = source_ids
-                    .par_iter()
-                    .map(|&id| {
-                        let [v0, v1, v2] = candidates[id as usize]
-                            .to_array()
-                            .map(|corner| positions[corner as usize]);
-                        PackedTriangle::from_usable(v0, v1, v2)
+                // Straight into groups: a grouped order fills whole groups of four slots.
+                let groups = source_ids
+                    .par_chunks(GROUP_LANES)
+                    .map(|ids| {
+                        let triangles: [PackedTriangle; GROUP_LANES] =
+                            std::array::from_fn(|lane| {
+                                let id = ids.get(lane).unwrap_or(&ids[0]);
+                                let [v0, v1, v2] = candidates[*id as usize]
+                                    .to_array()
+                                    .map(|corner| positions[corner as usize]);
+                                PackedTriangle::from_usable(v0, v1, v2)
+                            });
+                        TriangleGroup::new(&triangles[..ids.len()])
                     })
                     .collect();
                 GeometryBvh {
                     nodes,
-                    primitives: PrimitiveData::Triangles(triangle_groups(&triangles)),
+                    primitives: PrimitiveData::Triangles(groups),
                     source_ids,
                     bounds,
                     primitive_count: accepted,

@@ -3095,3 +3095,63 @@ fn rays_through_shared_edges_and_vertices_of_closed_meshes_never_leak() {
     );
     eprintln!("Möller–Trumbore leaked {naive_leaks} of the rays");
 }
+
+/// Height field of `cells` x `cells` quads: vertices and the quads' corner indices.
+fn height_field_grid(cells: u32) -> (Vec<Vec3>, Vec<UVec4>) {
+    let n = cells + 1;
+    let positions = (0..n * n)
+        .map(|k| {
+            let (x, z) = ((k % n) as f32 / cells as f32, (k / n) as f32 / cells as f32);
+            vec3(x, 0.05 * (x * 9.0).sin() * (z * 7.0).cos(), z)
+        })
+        .collect();
+    let quads = (0..cells * cells)
+        .map(|k| {
+            let a = (k / cells) * n + k % cells;
+            UVec4::new(a, a + 1, a + n + 1, a + n)
+        })
+        .collect();
+    (positions, quads)
+}
+
+/// The build's layout (nodes, slots, groups, ids) is pinned: faster builders must produce
+/// exactly this BVH. Covers the triangle path with and without skipped triangles, quads and
+/// spheres (split leaves, packed order), each large enough for the parallel collapse.
+#[test]
+fn build_layout_is_unchanged() {
+    let (positions, quads) = height_field_grid(150);
+    let triangles: Vec<UVec3> = quads
+        .iter()
+        .flat_map(|q| [UVec3::new(q.x, q.y, q.z), UVec3::new(q.x, q.z, q.w)])
+        .collect();
+    let mut with_skipped = triangles.clone();
+    for triangle in with_skipped.iter_mut().step_by(97) {
+        triangle.y = triangle.x;
+    }
+    let mut rng = Rng::new(7);
+    let fingerprints = [
+        GeometryPrims::Triangles {
+            positions: positions.clone(),
+            indices: triangles,
+        },
+        GeometryPrims::Triangles {
+            positions: positions.clone(),
+            indices: with_skipped,
+        },
+        GeometryPrims::Quads {
+            positions,
+            indices: quads,
+        },
+        random_spheres(&mut rng, 20_000, 10.0, 0.05),
+    ]
+    .map(|prims| GeometryBvh::build(prims).layout_fingerprint());
+    assert_eq!(
+        fingerprints,
+        [
+            3398085200649982481,
+            10420994867940916855,
+            12304594831072735673,
+            17152728817455457097
+        ]
+    );
+}

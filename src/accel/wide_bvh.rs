@@ -494,18 +494,21 @@ fn wide_node(
             node.planes[2 * axis + 1][slot] = child_box.max[axis];
         }
         if child.leaf_count.is_some() {
-            let before = primitive_order.len();
-            collect_primitives(bvh2, child.index as usize, primitive_order);
+            // Gathered on the stack: a leaf holds at most four primitives.
+            let mut leaf = LeafPrimitives::new(0);
+            collect_primitives(bvh2, child.index as usize, &mut leaf);
             for &partner in &child.partners.indices[..child.partners.len] {
-                collect_primitives(bvh2, partner as usize, primitive_order);
+                collect_primitives(bvh2, partner as usize, &mut leaf);
             }
-            let count = (primitive_order.len() - before) as u32;
+            let count = leaf.len as u32;
             match alignment {
-                LeafAlignment::Packed => node.children[slot] = leaf_code(before as u32, count),
+                LeafAlignment::Packed => {
+                    node.children[slot] = leaf_code(primitive_order.len() as u32, count);
+                    primitive_order.extend_from_slice(leaf.as_slice());
+                }
                 LeafAlignment::Group => {
                     let mut primitives = [0u32; MAX_PRIMS_PER_LEAF as usize];
-                    primitives[..count as usize].copy_from_slice(&primitive_order[before..]);
-                    primitive_order.truncate(before);
+                    primitives.copy_from_slice(&leaf.entries[..MAX_PRIMS_PER_LEAF as usize]);
                     group_leaves.push((slot as u8, count, primitives));
                 }
             }
@@ -643,11 +646,16 @@ fn leaf_sized_count(bvh2: &Bvh2, index: usize) -> Option<u32> {
     }
 }
 
-fn collect_primitives(bvh2: &Bvh2, index: usize, out: &mut Vec<u32>) {
+/// The primitives of one leaf (at most [`MAX_PRIMS_PER_LEAF`]).
+type LeafPrimitives = WideList<u32>;
+
+fn collect_primitives(bvh2: &Bvh2, index: usize, out: &mut LeafPrimitives) {
     let node = &bvh2.nodes[index];
     if node.is_leaf() {
         let first = node.first_index as usize;
-        out.extend_from_slice(&bvh2.primitive_indices[first..first + node.prim_count as usize]);
+        for &primitive in &bvh2.primitive_indices[first..first + node.prim_count as usize] {
+            out.push(primitive);
+        }
     } else {
         collect_primitives(bvh2, node.first_index as usize, out);
         collect_primitives(bvh2, node.first_index as usize + 1, out);
