@@ -55,9 +55,9 @@ mod wide_bvh;
 mod tests;
 
 pub use geometry::{GeometryBvh, geometry_build_count};
-pub use packet::PacketScratch;
 #[cfg(test)]
 pub(crate) use packet::QUADRANT_GROUPS;
+pub use packet::{FRUSTUM_RAYS, PacketScratch, RayArrays};
 pub use procedural::{ProceduralHit, ProceduralPrimitives};
 pub use scene::SceneBvh;
 pub use tube::{TubeKind, TubeSegment};

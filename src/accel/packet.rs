@@ -125,6 +125,33 @@ impl RayPacket {
                 t_max[lane] = ray.t_max;
             }
         }
+        RayPacket::prepare_lanes(origin, direction, t_min, t_max, present)
+    }
+
+    /// [`Self::prepare`] of rays `4 * group ..` of `arrays`, loaded straight from the lanes.
+    #[inline(always)]
+    pub fn prepare_arrays(arrays: &RayArrays, group: usize) -> Option<RayPacket> {
+        let lanes = group * LANES..group * LANES + LANES;
+        let load = |values: &[f32; FRUSTUM_RAYS]| Vec4::from_slice(&values[lanes.clone()]);
+        RayPacket::prepare_lanes(
+            arrays.origin.each_ref().map(load),
+            arrays.direction.each_ref().map(load),
+            load(arrays.t_min),
+            load(arrays.t_max),
+            0b1111,
+        )
+    }
+
+    /// The arithmetic of [`Self::prepare`] on rays already in lanes (`present`: the lanes
+    /// holding a ray).
+    #[inline(always)]
+    fn prepare_lanes(
+        origin: [Vec4; 3],
+        direction: [Vec4; 3],
+        t_min: Vec4,
+        t_max: Vec4,
+        present: u32,
+    ) -> Option<RayPacket> {
         let finite =
             |v: &[Vec4; 3]| v[0].is_finite_mask() & v[1].is_finite_mask() & v[2].is_finite_mask();
         let abs_origin = origin.map(Vec4::abs);
@@ -584,7 +611,7 @@ pub(crate) fn group_packet(
 }
 
 /// Most rays in a frustum packet (an 8x8 block of primary rays).
-pub(crate) const FRUSTUM_RAYS: usize = 64;
+pub const FRUSTUM_RAYS: usize = 64;
 const FRUSTUM_GROUPS: usize = FRUSTUM_RAYS / LANES;
 /// The packet's groups of four as four quadrants of four groups (4x4 pixels of the 8x8 block
 /// when the groups are 2x2 quads in row order). Leaf boxes are culled per quadrant before
@@ -767,6 +794,30 @@ fn lane_mask(lanes: u32) -> BVec4A {
     )
 }
 
+/// A block of 64 rays as lane arrays: ray `i` is lane `i` of each array (as a camera makes an
+/// 8x8 block of pixels, sixteen 2x2 blocks of four consecutive lanes).
+#[derive(Clone, Copy)]
+pub struct RayArrays<'a> {
+    pub origin: &'a [[f32; FRUSTUM_RAYS]; 3],
+    pub direction: &'a [[f32; FRUSTUM_RAYS]; 3],
+    pub t_min: &'a [f32; FRUSTUM_RAYS],
+    pub t_max: &'a [f32; FRUSTUM_RAYS],
+}
+
+impl RayArrays<'_> {
+    /// Ray `lane`.
+    #[inline]
+    pub fn ray(&self, lane: usize) -> Ray {
+        let at = |v: &[[f32; FRUSTUM_RAYS]; 3]| glam::Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
+        Ray {
+            origin: at(self.origin),
+            direction: at(self.direction),
+            t_min: self.t_min[lane],
+            t_max: self.t_max[lane],
+        }
+    }
+}
+
 /// Working memory for tracing packets of primary rays, reusable from one tile to the next.
 pub struct PacketScratch {
     pub(crate) frustum: FrustumPacket,
@@ -832,17 +883,43 @@ impl FrustumPacket {
         if rays.is_empty() || rays.len() > FRUSTUM_RAYS {
             return false;
         }
+        self.fill_groups(
+            rays.len(),
+            |group| {
+                RayPacket::prepare(&rays[group * LANES..(group * LANES + LANES).min(rays.len())])
+            },
+            |index| prepare_one(&rays[index]).is_some(),
+        )
+    }
+
+    /// [`Self::fill_from_rays`] of the 64 rays of `arrays`, read straight from their lanes:
+    /// the same packet, value for value.
+    pub fn fill_from_arrays(&mut self, arrays: &RayArrays) -> bool {
+        self.fill_groups(
+            FRUSTUM_RAYS,
+            |group| RayPacket::prepare_arrays(arrays, group),
+            |index| prepare_one(&arrays.ray(index)).is_some(),
+        )
+    }
+
+    /// Fills `count` rays group by group: `prepare_group(g)` prepares group `g`, and when it
+    /// cannot, `valid(i)` tells whether ray `i` could be traced alone (then the rays cannot be
+    /// a frustum packet).
+    #[inline(always)]
+    fn fill_groups(
+        &mut self,
+        count: usize,
+        mut prepare_group: impl FnMut(usize) -> Option<RayPacket>,
+        mut valid: impl FnMut(usize) -> bool,
+    ) -> bool {
         let mut octant: Option<u32> = None;
         let mut origins = SharedOrigin::default();
-        self.group_count = rays.len().div_ceil(LANES);
-        for (group, chunk) in self.groups[..self.group_count]
-            .iter_mut()
-            .zip(rays.chunks(LANES))
-        {
-            let Some(packet) = RayPacket::prepare(chunk) else {
+        self.group_count = count.div_ceil(LANES);
+        for (index, group) in self.groups[..self.group_count].iter_mut().enumerate() {
+            let Some(packet) = prepare_group(index) else {
                 // Either no valid ray in this group, or a group that cannot be a packet.
-                let any_valid = chunk.iter().any(|ray| prepare_one(ray).is_some());
-                if any_valid {
+                let rays = index * LANES..(index * LANES + LANES).min(count);
+                if rays.into_iter().any(&mut valid) {
                     return false;
                 }
                 group.reset();

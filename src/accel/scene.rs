@@ -7,7 +7,8 @@
 
 use crate::accel::geometry::{GeometryBvh, prepare};
 use crate::accel::packet::{
-    FRUSTUM_RAYS, FrustumPacket, LANES, PacketScratch, RayPacket, traverse_frustum, traverse_packet,
+    FRUSTUM_RAYS, FrustumPacket, LANES, PacketScratch, RayArrays, RayPacket, traverse_frustum,
+    traverse_packet,
 };
 use crate::accel::wide_bvh::{
     LeafAlignment, LeafSizing, MAX_PRIMITIVES, TraversalRay, WideBvh, WideNode, build_wide_bvh,
@@ -209,26 +210,53 @@ impl SceneBvh {
         let frustum = &mut scratch.frustum;
         for (rays, hits) in rays.chunks(FRUSTUM_RAYS).zip(hits.chunks_mut(FRUSTUM_RAYS)) {
             if frustum.fill_from_rays(rays) {
-                let closest = self.closest_frustum(frustum);
-                for (index, hit) in hits.iter_mut().enumerate() {
-                    let group = &frustum.groups[index / LANES];
-                    *hit = closest[index]
-                        .and_then(|found| self.packet_hit(found, group, index % LANES));
+                self.frustum_hits(frustum, hits);
+            } else {
+                self.small_packet_hits(rays, hits);
+            }
+        }
+    }
+
+    /// [`Self::intersect_packet_with`] of the 64 rays of a block given as lane arrays
+    /// (`hits[i]` for lane `i`); the frustum packet is filled straight from the lanes.
+    pub fn intersect_arrays_with(
+        &self,
+        scratch: &mut PacketScratch,
+        arrays: &RayArrays,
+        hits: &mut [Option<SceneHit>; FRUSTUM_RAYS],
+    ) {
+        let frustum = &mut scratch.frustum;
+        if frustum.fill_from_arrays(arrays) {
+            self.frustum_hits(frustum, hits);
+        } else {
+            let rays: [Ray; FRUSTUM_RAYS] = std::array::from_fn(|lane| arrays.ray(lane));
+            self.small_packet_hits(&rays, hits);
+        }
+    }
+
+    /// Closest hits of the rays of a filled frustum packet.
+    fn frustum_hits(&self, frustum: &mut FrustumPacket, hits: &mut [Option<SceneHit>]) {
+        let closest = self.closest_frustum(frustum);
+        for (index, hit) in hits.iter_mut().enumerate() {
+            let group = &frustum.groups[index / LANES];
+            *hit = closest[index].and_then(|found| self.packet_hit(found, group, index % LANES));
+        }
+    }
+
+    /// Closest hits of rays that do not make a frustum packet: as 2x2 packets where they
+    /// can, otherwise ray by ray.
+    fn small_packet_hits(&self, rays: &[Ray], hits: &mut [Option<SceneHit>]) {
+        for (rays, hits) in rays.chunks(LANES).zip(hits.chunks_mut(LANES)) {
+            let prepared = std::array::from_fn(|lane| rays.get(lane).and_then(prepare));
+            let Some(mut packet) = RayPacket::new(&prepared) else {
+                for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+                    *hit = self.intersect(ray);
                 }
                 continue;
-            }
-            for (rays, hits) in rays.chunks(LANES).zip(hits.chunks_mut(LANES)) {
-                let prepared = std::array::from_fn(|lane| rays.get(lane).and_then(prepare));
-                let Some(mut packet) = RayPacket::new(&prepared) else {
-                    for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
-                        *hit = self.intersect(ray);
-                    }
-                    continue;
-                };
-                let closest = self.closest_packet(&mut packet);
-                for (lane, hit) in hits.iter_mut().enumerate() {
-                    *hit = closest[lane].and_then(|found| self.packet_hit(found, &packet, lane));
-                }
+            };
+            let closest = self.closest_packet(&mut packet);
+            for (lane, hit) in hits.iter_mut().enumerate() {
+                *hit = closest[lane].and_then(|found| self.packet_hit(found, &packet, lane));
             }
         }
     }

@@ -3155,3 +3155,86 @@ fn build_layout_is_unchanged() {
         ]
     );
 }
+
+#[test]
+fn frustum_packets_filled_from_lane_arrays_match_those_filled_from_rays() {
+    use crate::accel::packet::FrustumPacket;
+    let mut rng = Rng::new(95);
+    let triangles = TestGeometry::from(random_triangles(&mut rng, 3000, 10.0, 1.5)).build();
+    let scene = SceneBvh::build(vec![identity_instance(vec![Arc::new(triangles)])]);
+    let (mut scratch, mut reference_scratch) = (PacketScratch::new(), PacketScratch::new());
+    let (mut formed, mut hit_count) = (0, 0);
+    for round in 0..200 {
+        // Eyes in all eight octants around the scene, looking at points near its centre.
+        let corner = vec3(
+            if round & 1 == 0 { -25.0 } else { 25.0 },
+            if round & 2 == 0 { -18.0 } else { 18.0 },
+            if round & 4 == 0 { -12.0 } else { 12.0 },
+        );
+        let target = if round % 16 < 8 {
+            rng.point(-3.0, 3.0)
+        } else {
+            // Views along an axis: tiles straddle octants or dominant axes.
+            corner * vec3(1.0, 0.0, 0.0)
+        };
+        // One 8x8 tile of a 48x48 view.
+        let tile = (rng.next_u64() % 36) as usize;
+        let mut rays =
+            camera_tiles(&mut rng, corner, target, 48)[64 * tile..64 * tile + 64].to_vec();
+        for (lane, ray) in rays.iter_mut().enumerate() {
+            // Per-lane origins (several viewers, a near plane) in half of the rounds.
+            if round % 4 >= 2 {
+                ray.origin += rng.point(-0.3, 0.3);
+            }
+            match rng.next_u64() % 40 {
+                0 => ray.origin.x = f32::NAN,
+                1 => ray.t_max = f32::NAN,
+                2 => ray.t_min = ray.t_max + 1.0,
+                3 => ray.direction = Vec3::splat(1.0e-30),
+                4 if round % 8 == 7 => ray.direction = -ray.direction,
+                _ => {}
+            }
+            // A whole group without a valid ray.
+            if round % 10 == 9 && lane / 4 == 5 {
+                ray.direction = Vec3::ZERO;
+            }
+        }
+        let lanes = |of: fn(&Ray) -> f32| -> [f32; 64] { std::array::from_fn(|i| of(&rays[i])) };
+        let origin = [
+            lanes(|r| r.origin.x),
+            lanes(|r| r.origin.y),
+            lanes(|r| r.origin.z),
+        ];
+        let direction = [
+            lanes(|r| r.direction.x),
+            lanes(|r| r.direction.y),
+            lanes(|r| r.direction.z),
+        ];
+        let (t_min, t_max) = (lanes(|r| r.t_min), lanes(|r| r.t_max));
+        let arrays = RayArrays {
+            origin: &origin,
+            direction: &direction,
+            t_min: &t_min,
+            t_max: &t_max,
+        };
+        let (mut from_arrays, mut from_rays) = (FrustumPacket::empty(), FrustumPacket::empty());
+        let filled = from_arrays.fill_from_arrays(&arrays);
+        assert_eq!(filled, from_rays.fill_from_rays(&rays), "round {round}");
+        if filled {
+            formed += 1;
+            assert_eq!(from_arrays.group_count, from_rays.group_count);
+            for (a, b) in from_arrays.groups.iter().zip(&from_rays.groups) {
+                assert_eq!(format!("{a:?}"), format!("{b:?}"), "round {round}");
+            }
+        }
+        let mut hits = [None; 64];
+        let mut reference = [None; 64];
+        scene.intersect_arrays_with(&mut scratch, &arrays, &mut hits);
+        scene.intersect_packet_with(&mut reference_scratch, &rays, &mut reference);
+        assert_eq!(hits, reference, "round {round}");
+        hit_count += hits.iter().flatten().count();
+    }
+    // Most blocks make frustum packets; some fall back; many rays hit.
+    assert!((100..200).contains(&formed), "{formed}");
+    assert!(hit_count > 200 * 6, "{hit_count} {formed}");
+}

@@ -3,7 +3,7 @@
 
 use glam::{Vec2, Vec3, Vec4};
 
-use crate::accel::{PacketScratch, Ray};
+use crate::accel::{PacketScratch, Ray, RayArrays};
 use crate::camera::{BLOCK_RAYS, BlockRays, CameraRay, EyeRays, PixelSet};
 use crate::render::block_shadows::BlockShadows;
 use crate::render::cluster;
@@ -448,6 +448,18 @@ pub(super) fn trace_blocks(
                     for (hit, ray) in hits.iter_mut().zip(&rays) {
                         *hit = setup.scene.bvh.intersect(ray);
                     }
+                } else if block_rays.is_some() {
+                    // The packet is filled straight from the block's lanes.
+                    let arrays = RayArrays {
+                        origin: &block.origin,
+                        direction: &block.direction,
+                        t_min: &block.t_min,
+                        t_max: &block.t_max,
+                    };
+                    setup
+                        .scene
+                        .bvh
+                        .intersect_arrays_with(&mut scratch.packets, &arrays, &mut hits);
                 } else {
                     setup
                         .scene
