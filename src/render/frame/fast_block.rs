@@ -7,20 +7,19 @@
 
 use glam::{Vec2, Vec3, Vec4};
 
-use crate::accel::{Ray, SceneHit};
+use crate::accel::SceneHit;
 use crate::camera::{BLOCK_RAYS, BlockRays, EyeRays};
 use crate::render::integrator::{UniformSurface, fast_surface_color, fast_surface_sample};
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
 
 use super::records::TileRecords;
-use super::tile::{PACKET_ORDER, PACKET_SIDE};
+use super::tile::{PACKET_ORDER, PACKET_SIDE, traced_lane};
 
 /// One sample of a traced block to shade.
 pub(super) struct FastBlock<'a> {
     pub(super) scene: &'a SceneSnapshot,
     pub(super) settings: &'a RendererSettings,
-    pub(super) rays: &'a [Ray; BLOCK_RAYS],
     pub(super) hits: &'a [Option<SceneHit>; BLOCK_RAYS],
     pub(super) block: &'a BlockRays,
     pub(super) eye: &'a EyeRays,
@@ -150,7 +149,7 @@ impl FastBlock<'_> {
                 records.record_depth(k, hit.t);
             } else if let Some(records) = records.as_deref_mut() {
                 let shading = Vec3::new(normal[0][lane], normal[1][lane], normal[2][lane]);
-                let point = UniformSurface::point(&self.rays[lane], hit);
+                let point = UniformSurface::point(&traced_lane(self.block, lane), hit);
                 let primary = surface.primary_hit(hit, point, shading);
                 let depth = |t| self.depth(lane, t, depth_is_t);
                 records.record(k, Some(&primary), || self.block.ray(lane), depth, self.eye);
@@ -205,7 +204,7 @@ impl FastBlock<'_> {
         for lane in 0..BLOCK_RAYS {
             let k = pixel(lane);
             covered[k] = true;
-            let ray = &self.rays[lane];
+            let ray = &traced_lane(block, lane);
             let Some(hit) = &self.hits[lane] else {
                 colors[k] += background.unwrap_or_else(|| settings.background_at(screen(lane)));
                 continue;

@@ -91,7 +91,7 @@ pub(super) fn traced(camera_ray: &CameraRay) -> Ray {
 /// The ray to trace for lane `lane` of a block: [`traced`] of its camera ray, read straight
 /// from the block's arrays.
 #[inline(always)]
-fn traced_lane(block: &BlockRays, lane: usize) -> Ray {
+pub(super) fn traced_lane(block: &BlockRays, lane: usize) -> Ray {
     let at = |v: &[[f32; BLOCK_RAYS]; 3]| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
     Ray {
         origin: at(&block.origin),
@@ -374,11 +374,16 @@ pub(super) fn trace_blocks(
                     if !eye_rays.block_rays(&s_lanes, &t_lanes, &mut block) {
                         return None;
                     }
+                    Some(eye_rays)
+                });
+                // The fast renderer shades a whole block from its arrays; everything else
+                // reads the block's rays one by one.
+                let shaded_from_arrays = block_rays.is_some() && work.fast_surfaces && !clustered;
+                if block_rays.is_some() && (!shaded_from_arrays || work.block_shadows) {
                     for (lane, ray) in rays.iter_mut().enumerate() {
                         *ray = traced_lane(&block, lane);
                     }
-                    Some(eye_rays)
-                });
+                }
                 // Otherwise ray by ray.
                 let per_lane = if block_rays.is_some() {
                     &[][..]
@@ -480,12 +485,11 @@ pub(super) fn trace_blocks(
                         },
                     );
                 }
-                if let Some(eye_rays) = block_rays.filter(|_| work.fast_surfaces && !clustered) {
+                if let Some(eye_rays) = block_rays.filter(|_| shaded_from_arrays) {
                     // A whole block from one eye: shaded from the block's arrays.
                     let fast = FastBlock {
                         scene: &setup.scene,
                         settings: &setup.settings,
-                        rays: &rays,
                         hits: &hits,
                         block: &block,
                         eye: eye_rays,
