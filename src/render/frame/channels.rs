@@ -141,7 +141,11 @@ impl ChannelFormat {
             }
             (ChannelKind::Depth, _) => match records.depth.get(..colors.len()) {
                 // Every pixel recorded (the usual case): a plain copy.
-                Some(depths) => self.encode_pixels(out, |k| f32_bytes::<1, 4>([depths[k]])),
+                Some(depths) => {
+                    for (chunk, depth) in out.chunks_exact_mut(4).zip(depths) {
+                        chunk.copy_from_slice(&depth.to_ne_bytes());
+                    }
+                }
                 None => self.encode_pixels(out, |k| float(&records.depth, k, f32::INFINITY)),
             },
             (ChannelKind::WindowDepth, _) => {
