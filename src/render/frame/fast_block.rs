@@ -34,6 +34,7 @@ pub(super) struct FastBlock<'a> {
 /// zeros; which lanes hit is the block's `hits`).
 struct LaneHits {
     normal: [[f32; BLOCK_RAYS]; 3],
+    t: [f32; BLOCK_RAYS],
 }
 
 impl FastBlock<'_> {
@@ -66,13 +67,22 @@ impl FastBlock<'_> {
             }
             return;
         }
-        let cyclopean_view = self.settings.cyclopean_lighting && self.block.cyclopean.is_some();
-        match self.one_surface().filter(|_| !cyclopean_view) {
+        match self.one_surface() {
             Some((surface, lanes)) => {
                 self.shade_arrays(surface, &lanes, pixel, screen, colors, covered, records)
             }
             None => self.shade_lanes(pixel, screen, colors, covered, records),
         }
+    }
+
+    /// The stereo eye's cyclopean point per lane when shading looks from it (cyclopean
+    /// lighting of a stereo pair), else `None`: the view looks along the rays.
+    #[inline(always)]
+    fn cyclopean_view(&self) -> Option<&[[f32; BLOCK_RAYS]; 3]> {
+        self.block
+            .cyclopean
+            .as_ref()
+            .filter(|_| self.settings.cyclopean_lighting)
     }
 
     /// The uniform surface every hit of the block lies on, with the hits' normals; `None` when
@@ -82,6 +92,7 @@ impl FastBlock<'_> {
         let mut surface: Option<UniformSurface> = None;
         let mut lanes = LaneHits {
             normal: [[0.0; BLOCK_RAYS]; 3],
+            t: [0.0; BLOCK_RAYS],
         };
         for (lane, hit) in self.hits.iter().enumerate() {
             let Some(hit) = hit else {
@@ -95,12 +106,14 @@ impl FastBlock<'_> {
             for (axis, value) in hit.normal.to_array().into_iter().enumerate() {
                 lanes.normal[axis][lane] = value;
             }
+            lanes.t[lane] = hit.t;
         }
         Some((surface?, lanes))
     }
 
-    /// [`Self::shade`] for hits on one uniform surface `surface`, the view along the rays: the
-    /// shading normals and colours over lane arrays, then each lane's pixel.
+    /// [`Self::shade`] for hits on one uniform surface `surface`: the shading normals and
+    /// colours over lane arrays (the view along the rays, or from a stereo eye's cyclopean
+    /// point as [`RendererSettings::view_direction`] has it), then each lane's pixel.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn shade_arrays(
@@ -113,18 +126,27 @@ impl FastBlock<'_> {
         covered: &mut [bool],
         mut records: Option<&mut TileRecords>,
     ) {
-        let direction = &self.block.direction;
+        let (origin, direction) = (&self.block.origin, &self.block.direction);
         let mut normal = [[0.0; BLOCK_RAYS]; 3];
         let mut color = [[0.0; BLOCK_RAYS]; 3];
-        // The rays' directions are the block's, as traced.
+        let at = |v: &[[f32; BLOCK_RAYS]; 3], lane: usize| {
+            Vec3::new(v[0][lane], v[1][lane], v[2][lane])
+        };
+        let cyclopean = self.cyclopean_view();
+        // The rays' origins and directions are the block's, as traced.
         for lane in 0..BLOCK_RAYS {
-            let view = Vec3::new(direction[0][lane], direction[1][lane], direction[2][lane]);
-            let geometric = Vec3::new(
-                lanes.normal[0][lane],
-                lanes.normal[1][lane],
-                lanes.normal[2][lane],
-            );
-            let shading = UniformSurface::normal(geometric, view);
+            let along = at(direction, lane);
+            let geometric = at(&lanes.normal, lane);
+            let shading = UniformSurface::normal(geometric, along);
+            let view = match cyclopean {
+                // The hit point as `UniformSurface::point` has it, seen from the cyclopean
+                // point (lanes without a hit compute a colour that is not used).
+                Some(viewer) => {
+                    let point = at(origin, lane) + along * lanes.t[lane];
+                    (point - at(viewer, lane)).try_normalize().unwrap_or(along)
+                }
+                None => along,
+            };
             let rgb = surface.color(view, shading);
             for axis in 0..3 {
                 normal[axis][lane] = shading[axis];
@@ -198,7 +220,7 @@ impl FastBlock<'_> {
         };
         // The view looks along the ray unless a stereo eye's shading looks from its cyclopean
         // point.
-        let cyclopean_view = settings.cyclopean_lighting && block.cyclopean.is_some();
+        let cyclopean_view = self.cyclopean_view().is_some();
         let background = self.background();
         let depth_is_t = self.eye.depth_is_ray_parameter();
         let mut surface: Option<UniformSurface> = None;
