@@ -126,32 +126,31 @@ impl FastBlock<'_> {
         covered: &mut [bool],
         mut records: Option<&mut TileRecords>,
     ) {
-        let (origin, direction) = (&self.block.origin, &self.block.direction);
+        let direction = &self.block.direction;
         let mut normal = [[0.0; BLOCK_RAYS]; 3];
         let mut color = [[0.0; BLOCK_RAYS]; 3];
-        let at = |v: &[[f32; BLOCK_RAYS]; 3], lane: usize| {
-            Vec3::new(v[0][lane], v[1][lane], v[2][lane])
-        };
-        let cyclopean = self.cyclopean_view();
-        // The rays' origins and directions are the block's, as traced.
-        for lane in 0..BLOCK_RAYS {
-            let along = at(direction, lane);
-            let geometric = at(&lanes.normal, lane);
-            let shading = UniformSurface::normal(geometric, along);
-            let view = match cyclopean {
-                // The hit point as `UniformSurface::point` has it, seen from the cyclopean
-                // point (lanes without a hit compute a colour that is not used).
-                Some(viewer) => {
-                    let point = at(origin, lane) + along * lanes.t[lane];
-                    (point - at(viewer, lane)).try_normalize().unwrap_or(along)
+        let at =
+            |v: &[[f32; BLOCK_RAYS]; 3], lane: usize| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
+        let mut shade = |views: &[[f32; BLOCK_RAYS]; 3]| {
+            for lane in 0..BLOCK_RAYS {
+                let along = at(direction, lane);
+                let shading = UniformSurface::normal(at(&lanes.normal, lane), along);
+                let rgb = surface.color(at(views, lane), shading);
+                for axis in 0..3 {
+                    normal[axis][lane] = shading[axis];
+                    color[axis][lane] = rgb[axis];
                 }
-                None => along,
-            };
-            let rgb = surface.color(view, shading);
-            for axis in 0..3 {
-                normal[axis][lane] = shading[axis];
-                color[axis][lane] = rgb[axis];
             }
+        };
+        // The view looks along the rays (the block's directions, as traced), or from a stereo
+        // eye's cyclopean point.
+        match self.cyclopean_view() {
+            Some(viewer) => {
+                let mut views = [[0.0; BLOCK_RAYS]; 3];
+                cyclopean_views_into(&self.block.origin, direction, &lanes.t, viewer, &mut views);
+                shade(&views);
+            }
+            None => shade(direction),
         }
         let background = self.background();
         let depth_is_t = self.eye.depth_is_ray_parameter();
@@ -279,6 +278,37 @@ impl FastBlock<'_> {
                 let depth = |t| self.depth(lane, t, depth_is_t);
                 records.record(k, Some(&primary), || block.ray(lane), depth, self.eye);
             }
+        }
+    }
+}
+
+/// Per lane, [`RendererSettings::view_direction`] of the hit at ray parameter `t` seen from
+/// the cyclopean point `viewer`: `(point − viewer).try_normalize()`, else the ray's direction
+/// (lanes without a hit get a view that is not used). Four lanes per vector with the scalar
+/// operations in the same order (the hit point as `UniformSurface::point` has it): the same
+/// bits as lane by lane, where glam's branch kept the compiler from vectorizing.
+#[inline(always)]
+fn cyclopean_views_into(
+    origin: &[[f32; BLOCK_RAYS]; 3],
+    direction: &[[f32; BLOCK_RAYS]; 3],
+    t: &[f32; BLOCK_RAYS],
+    viewer: &[[f32; BLOCK_RAYS]; 3],
+    views: &mut [[f32; BLOCK_RAYS]; 3],
+) {
+    for first in (0..BLOCK_RAYS).step_by(4) {
+        let lanes = first..first + 4;
+        let load = |values: &[f32; BLOCK_RAYS]| Vec4::from_slice(&values[lanes.clone()]);
+        let t = load(t);
+        let along = direction.each_ref().map(load);
+        let offset: [Vec4; 3] = std::array::from_fn(|axis| {
+            (load(&origin[axis]) + along[axis] * t) - load(&viewer[axis])
+        });
+        let length_squared = offset[0] * offset[0] + offset[1] * offset[1] + offset[2] * offset[2];
+        let scale = Vec4::ONE / length_squared.sqrt();
+        let normalizable = scale.is_finite_mask() & scale.cmpgt(Vec4::ZERO);
+        for axis in 0..3 {
+            Vec4::select(normalizable, offset[axis] * scale, along[axis])
+                .write_to_slice(&mut views[axis][lanes.clone()]);
         }
     }
 }
