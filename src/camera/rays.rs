@@ -531,7 +531,13 @@ impl EyeRays {
         block: &mut BlockRays,
     ) -> bool {
         if let Generator::Blended(b) = &self.generator {
-            blended_block(&self.region, b, s, t, block, avx2);
+            #[cfg(target_arch = "x86_64")]
+            if avx2 && std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
+                unsafe { blended_block_avx2(&self.region, b, s, t, block) };
+                return true;
+            }
+            blended_block(&self.region, b, s, t, block, false);
             return true;
         }
         let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
@@ -941,28 +947,6 @@ fn pinhole_lanes(
     }
 }
 
-/// [`EyeRays::rays4`]'s rays for a whole block: the camera positions for all its points at
-/// once (the same bits as four at a time), the rays from them lane by lane (on the AVX2 path
-/// where `avx2` asks for it and this CPU has AVX2: four f64 lanes per instruction, the same
-/// bits).
-#[inline(always)]
-fn blended_block(
-    region: &ImageRegion,
-    b: &Blended,
-    s: &[f32; BLOCK_RAYS],
-    t: &[f32; BLOCK_RAYS],
-    block: &mut BlockRays,
-    avx2: bool,
-) {
-    #[cfg(target_arch = "x86_64")]
-    if avx2 && std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-        unsafe { blended_block_avx2(region, b, s, t, block) };
-        return;
-    }
-    blended_lanes(region, b, s, t, block, false);
-}
-
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn blended_block_avx2(
@@ -972,13 +956,15 @@ fn blended_block_avx2(
     t: &[f32; BLOCK_RAYS],
     block: &mut BlockRays,
 ) {
-    blended_lanes(region, b, s, t, block, true);
+    blended_block(region, b, s, t, block, true);
 }
 
-/// [`blended_block`]'s body: the rays [`EyeRays::rays4`] makes, each lane's from its own eye
-/// (the blended head, in stereo moved along the blended right vector) through its window point.
+/// [`EyeRays::rays4`]'s rays for a whole block: the camera positions for all its points at
+/// once (the same bits as four at a time), the rays from them lane by lane, each from its own
+/// eye (the blended head, in stereo moved along the blended right vector) through its window
+/// point (on the AVX2 path four f64 lanes per instruction, the same bits).
 #[inline(always)]
-fn blended_lanes(
+fn blended_block(
     region: &ImageRegion,
     b: &Blended,
     s: &[f32; BLOCK_RAYS],
@@ -1015,8 +1001,8 @@ fn blended_lanes(
         let eye =
             [0, 1, 2].map(|axis| cameras.head[axis][i] + cameras.right[axis][i] * b.eye_offset);
         block.set(i, eye, target.to_array(), b.forward, &b.clip);
-        for axis in 0..3 {
-            cyclopean[axis][i] = cameras.head[axis][i] as f32;
+        for (lanes, heads) in cyclopean.iter_mut().zip(&cameras.head) {
+            lanes[i] = heads[i] as f32;
         }
     }
     block.cyclopean = Some(cyclopean);
