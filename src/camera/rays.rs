@@ -9,7 +9,7 @@ use super::fisheye::DomeRays;
 use super::light_field::LightFieldCamera;
 use super::offaxis::ScreenFrame;
 use super::omnidirectional::EquirectangularRays;
-use super::viewers::ViewerSet;
+use super::viewers::{CameraLanes, ViewerSet};
 
 /// Near plane used by `EyeRays::window_depth` for perspective-like cameras whose `near` is
 /// unset or 0 (a zero near plane has no OpenGL depth mapping), in meters.
@@ -531,7 +531,13 @@ impl EyeRays {
         block: &mut BlockRays,
     ) -> bool {
         if let Generator::Blended(b) = &self.generator {
-            blended_block(&self.region, b, s, t, block, avx2);
+            #[cfg(target_arch = "x86_64")]
+            if avx2 && std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
+                unsafe { blended_block_avx2(&self.region, b, s, t, block) };
+                return true;
+            }
+            blended_block(&self.region, b, s, t, block, false);
             return true;
         }
         let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
@@ -941,8 +947,22 @@ fn pinhole_lanes(
     }
 }
 
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn blended_block_avx2(
+    region: &ImageRegion,
+    b: &Blended,
+    s: &[f32; BLOCK_RAYS],
+    t: &[f32; BLOCK_RAYS],
+    block: &mut BlockRays,
+) {
+    blended_block(region, b, s, t, block, true);
+}
+
 /// [`EyeRays::rays4`]'s rays for a whole block: the camera positions for all its points at
-/// once (the same bits as four at a time), the rays from them lane by lane.
+/// once (the same bits as four at a time), the rays from them lane by lane, each from its own
+/// eye (the blended head, in stereo moved along the blended right vector) through its window
+/// point (on the AVX2 path four f64 lanes per instruction, the same bits).
 #[inline(always)]
 fn blended_block(
     region: &ImageRegion,
@@ -955,20 +975,37 @@ fn blended_block(
     let st: [DVec2; BLOCK_RAYS] = std::array::from_fn(|i| region.apply(s[i], t[i]));
     let targets = st.map(|st| b.window_origin + st.x * b.window_right + st.y * b.window_up);
     let stereo = b.eye_offset != 0.0;
-    let mut cyclopean = [[0.0; BLOCK_RAYS]; 3];
-    let cameras = b.viewers.cameras(&targets, &st, stereo, avx2);
-    for (i, (head, right)) in cameras.into_iter().enumerate() {
-        let eye = if stereo {
-            head + right * b.eye_offset
-        } else {
-            head
+    let mut cameras = CameraLanes::<BLOCK_RAYS>::default();
+    b.viewers
+        .cameras_into(&targets, &st, stereo, avx2, &mut cameras);
+    if !stereo {
+        // As in `pinhole_block`: a clip range known to be empty lets the loop skip its planes.
+        let lanes = |clip: &ClipRange, block: &mut BlockRays| {
+            for (i, target) in targets.iter().enumerate() {
+                let eye = [0, 1, 2].map(|axis| cameras.head[axis][i]);
+                block.set(i, eye, target.to_array(), b.forward, clip);
+            }
         };
-        block.set(i, eye.to_array(), targets[i].to_array(), b.forward, &b.clip);
-        for (axis, value) in head.as_vec3().to_array().into_iter().enumerate() {
-            cyclopean[axis][i] = value;
+        match b.clip {
+            ClipRange {
+                near: None,
+                far: None,
+            } => lanes(&ClipRange::default(), block),
+            clip => lanes(&clip, block),
+        }
+        block.set_cyclopean(None);
+        return;
+    }
+    let mut cyclopean = [[0.0; BLOCK_RAYS]; 3];
+    for (i, target) in targets.iter().enumerate() {
+        let eye =
+            [0, 1, 2].map(|axis| cameras.head[axis][i] + cameras.right[axis][i] * b.eye_offset);
+        block.set(i, eye, target.to_array(), b.forward, &b.clip);
+        for (lanes, heads) in cyclopean.iter_mut().zip(&cameras.head) {
+            lanes[i] = heads[i] as f32;
         }
     }
-    block.cyclopean = stereo.then_some(cyclopean);
+    block.cyclopean = Some(cyclopean);
 }
 
 /// Window depth of eye-space distance `z` for a glFrustum-style projection; `far = None` is the

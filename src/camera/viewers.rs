@@ -127,6 +127,58 @@ struct ViewerF32 {
 /// A camera position and its right vector.
 type CameraAt = (DVec3, DVec3);
 
+/// Camera positions and right vectors of `N` screen points, x, y and z by lane.
+#[derive(Clone, Debug)]
+pub(crate) struct CameraLanes<const N: usize> {
+    pub head: [[f64; N]; 3],
+    pub right: [[f64; N]; 3],
+}
+
+impl<const N: usize> Default for CameraLanes<N> {
+    fn default() -> CameraLanes<N> {
+        CameraLanes {
+            head: [[0.0; N]; 3],
+            right: [[0.0; N]; 3],
+        }
+    }
+}
+
+impl<const N: usize> CameraLanes<N> {
+    /// Lane `l`'s camera position.
+    #[inline(always)]
+    pub fn head(&self, l: usize) -> DVec3 {
+        DVec3::new(self.head[0][l], self.head[1][l], self.head[2][l])
+    }
+
+    /// Lane `l`'s right vector.
+    #[inline(always)]
+    pub fn right(&self, l: usize) -> DVec3 {
+        DVec3::new(self.right[0][l], self.right[1][l], self.right[2][l])
+    }
+
+    /// Lanes `l` where `take(l)` holds get `head` and `right` (every lane rewritten, with a
+    /// select: no branch per lane).
+    #[inline(always)]
+    fn set_where(&mut self, take: impl Fn(usize) -> bool, head: DVec3, right: DVec3) {
+        for axis in 0..3 {
+            for l in 0..N {
+                let taken = take(l);
+                let (h, r) = (self.head[axis][l], self.right[axis][l]);
+                self.head[axis][l] = if taken { head[axis] } else { h };
+                self.right[axis][l] = if taken { right[axis] } else { r };
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn set(&mut self, l: usize, head: DVec3, right: DVec3) {
+        for axis in 0..3 {
+            self.head[axis][l] = head[axis];
+            self.right[axis][l] = right[axis];
+        }
+    }
+}
+
 /// Validated viewers, ready to give any screen point its camera.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ViewerSet {
@@ -411,9 +463,9 @@ impl ViewerSet {
                     ViewerWeighting::Cosine => cos(a),
                     _ => 1.0 - a,
                 };
-                if members[l] > 1.0 {
-                    weight[l] = if weight[l] > 0.0 { max(raw, 0.0) } else { 0.0 };
-                }
+                let blended = if weight[l] > 0.0 { max(raw, 0.0) } else { 0.0 };
+                // A select, not a branch: a masked store per vector is slow on some CPUs.
+                weight[l] = if members[l] > 1.0 { blended } else { weight[l] };
                 total[l] += weight[l];
             }
         }
@@ -436,9 +488,8 @@ impl ViewerSet {
     }
 
     /// The camera position and right vector (unused, and not computed, when `needs_right` is
-    /// false) for `N` screen points at once (four for single rays, a frame's block), whose
-    /// screen coordinates (after imageRegion) are `st`: on the AVX2 path where `avx2` asks for
-    /// it and this CPU has AVX2, else the baseline one; the same bits on both.
+    /// false) for `N` screen points at once (four for single rays), whose screen coordinates
+    /// (after imageRegion) are `st`: [`Self::cameras_into`] per point.
     #[inline]
     pub(crate) fn cameras<const N: usize>(
         &self,
@@ -447,17 +498,41 @@ impl ViewerSet {
         needs_right: bool,
         avx2: bool,
     ) -> [CameraAt; N] {
+        let mut lanes = CameraLanes::default();
+        self.cameras_into(points, st, needs_right, avx2, &mut lanes);
+        std::array::from_fn(|l| (lanes.head(l), lanes.right(l)))
+    }
+
+    /// The camera positions and right vectors (blended ones unused, and not computed, when
+    /// `needs_right` is false) for `N` screen points at once (four for single rays, a frame's
+    /// block) into `cameras`, lane by lane; the points' screen coordinates (after imageRegion)
+    /// are `st`. On the AVX2 path where `avx2` asks for it and this CPU has AVX2, else the
+    /// baseline one; the same bits on both.
+    #[inline]
+    pub(crate) fn cameras_into<const N: usize>(
+        &self,
+        points: &[DVec3; N],
+        st: &[DVec2; N],
+        needs_right: bool,
+        avx2: bool,
+        cameras: &mut CameraLanes<N>,
+    ) {
         if self.mode == ViewerMode::Tiles {
-            return st.map(|st| self.tile_camera(st, needs_right));
+            for (l, st) in st.iter().enumerate() {
+                let (head, right) = self.tile_camera(*st, needs_right);
+                cameras.set(l, head, right);
+            }
+            return;
         }
         #[cfg(target_arch = "x86_64")]
         if avx2 && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-            return unsafe { self.cameras_avx2(points, needs_right) };
+            unsafe { self.cameras_avx2(points, needs_right, cameras) };
+            return;
         }
         #[cfg(not(target_arch = "x86_64"))]
         let _ = avx2;
-        self.cameras_at_points(points, needs_right)
+        self.cameras_at_points(points, needs_right, cameras)
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -466,8 +541,9 @@ impl ViewerSet {
         &self,
         points: &[DVec3; N],
         needs_right: bool,
-    ) -> [CameraAt; N] {
-        self.cameras_at_points(points, needs_right)
+        cameras: &mut CameraLanes<N>,
+    ) {
+        self.cameras_at_points(points, needs_right, cameras)
     }
 
     /// The camera of the tile holding screen coordinates `st`.
@@ -488,7 +564,9 @@ impl ViewerSet {
     }
 
     fn camera_at_point(&self, point: DVec3, needs_right: bool) -> (DVec3, DVec3) {
-        self.cameras_at_points(&[point; 4], needs_right)[0]
+        let mut lanes = CameraLanes::<4>::default();
+        self.cameras_at_points(&[point; 4], needs_right, &mut lanes);
+        (lanes.head(0), lanes.right(0))
     }
 
     /// The cameras for the weights at `N` screen points: `Σ ŵ_i H_i` in f32; exactly `H_i`
@@ -498,33 +576,31 @@ impl ViewerSet {
         &self,
         points: &[DVec3; N],
         needs_right: bool,
-    ) -> [CameraAt; N] {
+        cameras: &mut CameraLanes<N>,
+    ) {
         // Working memory sized for the viewers there are (it is set up for every call).
         match self.heads.len() {
-            0..=4 => self.cameras_with::<4, N>(points, needs_right),
-            5..=16 => self.cameras_with::<16, N>(points, needs_right),
-            _ => self.cameras_with::<MAX_VIEWERS, N>(points, needs_right),
+            0..=4 => self.cameras_with::<4, N>(points, needs_right, cameras),
+            5..=16 => self.cameras_with::<16, N>(points, needs_right, cameras),
+            _ => self.cameras_with::<MAX_VIEWERS, N>(points, needs_right, cameras),
         }
     }
 
+    /// Lane by lane with selects rather than a branch per point, so that the compiler makes
+    /// it SIMD: the blend, then where a viewer's weight is 1 (every other one's is then 0) that
+    /// viewer's own head and right vector, and where no viewer has a say the mean of all.
     #[inline(always)]
     fn cameras_with<const V: usize, const N: usize>(
         &self,
         points: &[DVec3; N],
         needs_right: bool,
-    ) -> [CameraAt; N] {
+        cameras: &mut CameraLanes<N>,
+    ) {
         let mut weights = [[0.0; N]; V];
         let any = self.weights_of(points, &mut weights);
         let mut head = [[0.0f32; N]; 3];
         let mut right = [[0.0f32; N]; 3];
-        // Per point, the viewer whose weight is 1 (then every other one's is 0).
-        let mut only = [usize::MAX; N];
-        for (index, (weight, viewer)) in weights.iter().zip(&self.viewers_f32).enumerate() {
-            for l in 0..N {
-                if weight[l] == 1.0 {
-                    only[l] = index;
-                }
-            }
+        for (weight, viewer) in weights.iter().zip(&self.viewers_f32) {
             for (sum, component) in head.iter_mut().zip(viewer.head) {
                 for l in 0..N {
                     sum[l] += weight[l] * component;
@@ -538,21 +614,39 @@ impl ViewerSet {
                 }
             }
         }
-        std::array::from_fn(|l| {
-            if any & (1 << l) == 0 {
-                return (self.mean_head, self.mean_right);
+        for (lanes, sum) in cameras.head.iter_mut().zip(&head) {
+            for l in 0..N {
+                lanes[l] = f64::from(sum[l]);
             }
-            if let Some(head) = self.heads.get(only[l]) {
-                return (*head, self.rights[only[l]]);
+        }
+        if needs_right {
+            for l in 0..N {
+                let blended =
+                    DVec3::new(right[0][l].into(), right[1][l].into(), right[2][l].into())
+                        .try_normalize()
+                        .unwrap_or(self.screen.x);
+                for (axis, lanes) in cameras.right.iter_mut().enumerate() {
+                    lanes[l] = blended[axis];
+                }
             }
-            let of = |v: &[[f32; N]; 3]| DVec3::new(v[0][l].into(), v[1][l].into(), v[2][l].into());
-            let right = if needs_right {
-                of(&right).try_normalize().unwrap_or(self.screen.x)
-            } else {
-                self.screen.x
-            };
-            (of(&head), right)
-        })
+        } else {
+            for (axis, lanes) in cameras.right.iter_mut().enumerate() {
+                lanes.fill(self.screen.x[axis]);
+            }
+        }
+        for (index, weight) in weights.iter().enumerate().take(self.heads.len()) {
+            // Usually no point is one viewer's alone: one vector test spares the selects.
+            if weight
+                .iter()
+                .fold(0u32, |any, w| any | u32::from(*w == 1.0))
+                != 0
+            {
+                cameras.set_where(|l| weight[l] == 1.0, self.heads[index], self.rights[index]);
+            }
+        }
+        if any.count_ones() as usize != N {
+            cameras.set_where(|l| any & (1 << l) == 0, self.mean_head, self.mean_right);
+        }
     }
 
     /// Screen point at the centre of tile (`column`, `row`). The centre's coordinates are

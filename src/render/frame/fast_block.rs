@@ -33,6 +33,7 @@ pub(super) struct FastBlock<'a> {
 /// zeros; which lanes hit is the block's `hits`).
 struct LaneHits {
     normal: [[f32; BLOCK_RAYS]; 3],
+    t: [f32; BLOCK_RAYS],
 }
 
 impl FastBlock<'_> {
@@ -65,13 +66,22 @@ impl FastBlock<'_> {
             }
             return;
         }
-        let cyclopean_view = self.settings.cyclopean_lighting && self.block.cyclopean.is_some();
-        match self.one_surface().filter(|_| !cyclopean_view) {
+        match self.one_surface() {
             Some((surface, lanes)) => {
                 self.shade_arrays(surface, &lanes, pixel, screen, colors, covered, records)
             }
             None => self.shade_lanes(pixel, screen, colors, covered, records),
         }
+    }
+
+    /// The stereo eye's cyclopean point per lane when shading looks from it (cyclopean
+    /// lighting of a stereo pair), else `None`: the view looks along the rays.
+    #[inline(always)]
+    fn cyclopean_view(&self) -> Option<&[[f32; BLOCK_RAYS]; 3]> {
+        self.block
+            .cyclopean
+            .as_ref()
+            .filter(|_| self.settings.cyclopean_lighting)
     }
 
     /// The uniform surface every hit of the block lies on, with the hits' normals; `None` when
@@ -81,6 +91,7 @@ impl FastBlock<'_> {
         let mut surface: Option<UniformSurface> = None;
         let mut lanes = LaneHits {
             normal: [[0.0; BLOCK_RAYS]; 3],
+            t: [0.0; BLOCK_RAYS],
         };
         for (lane, hit) in self.hits.iter().enumerate() {
             let Some(hit) = hit else {
@@ -94,12 +105,14 @@ impl FastBlock<'_> {
             for (axis, value) in hit.normal.to_array().into_iter().enumerate() {
                 lanes.normal[axis][lane] = value;
             }
+            lanes.t[lane] = hit.t;
         }
         Some((surface?, lanes))
     }
 
-    /// [`Self::shade`] for hits on one uniform surface `surface`, the view along the rays: the
-    /// shading normals and colours over lane arrays, then each lane's pixel.
+    /// [`Self::shade`] for hits on one uniform surface `surface`: the shading normals and
+    /// colours over lane arrays (the view along the rays, or from a stereo eye's cyclopean
+    /// point as [`RendererSettings::view_direction`] has it), then each lane's pixel.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn shade_arrays(
@@ -115,20 +128,28 @@ impl FastBlock<'_> {
         let direction = &self.block.direction;
         let mut normal = [[0.0; BLOCK_RAYS]; 3];
         let mut color = [[0.0; BLOCK_RAYS]; 3];
-        // The rays' directions are the block's, as traced.
-        for lane in 0..BLOCK_RAYS {
-            let view = Vec3::new(direction[0][lane], direction[1][lane], direction[2][lane]);
-            let geometric = Vec3::new(
-                lanes.normal[0][lane],
-                lanes.normal[1][lane],
-                lanes.normal[2][lane],
-            );
-            let shading = UniformSurface::normal(geometric, view);
-            let rgb = surface.color(view, shading);
-            for axis in 0..3 {
-                normal[axis][lane] = shading[axis];
-                color[axis][lane] = rgb[axis];
+        let at =
+            |v: &[[f32; BLOCK_RAYS]; 3], lane: usize| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
+        let mut shade = |views: &[[f32; BLOCK_RAYS]; 3]| {
+            for lane in 0..BLOCK_RAYS {
+                let along = at(direction, lane);
+                let shading = UniformSurface::normal(at(&lanes.normal, lane), along);
+                let rgb = surface.color(at(views, lane), shading);
+                for axis in 0..3 {
+                    normal[axis][lane] = shading[axis];
+                    color[axis][lane] = rgb[axis];
+                }
             }
+        };
+        // The view looks along the rays (the block's directions, as traced), or from a stereo
+        // eye's cyclopean point.
+        match self.cyclopean_view() {
+            Some(viewer) => {
+                let mut views = [[0.0; BLOCK_RAYS]; 3];
+                cyclopean_views_into(&self.block.origin, direction, &lanes.t, viewer, &mut views);
+                shade(&views);
+            }
+            None => shade(direction),
         }
         let background = self.background();
         let depth_is_t = self.eye.depth_is_ray_parameter();
@@ -197,7 +218,7 @@ impl FastBlock<'_> {
         };
         // The view looks along the ray unless a stereo eye's shading looks from its cyclopean
         // point.
-        let cyclopean_view = settings.cyclopean_lighting && block.cyclopean.is_some();
+        let cyclopean_view = self.cyclopean_view().is_some();
         let background = self.background();
         let depth_is_t = self.eye.depth_is_ray_parameter();
         let mut surface: Option<UniformSurface> = None;
@@ -256,6 +277,37 @@ impl FastBlock<'_> {
                 let depth = |t| self.depth(lane, t, depth_is_t);
                 records.record(k, Some(&primary), || block.ray(lane), depth, self.eye);
             }
+        }
+    }
+}
+
+/// Per lane, [`RendererSettings::view_direction`] of the hit at ray parameter `t` seen from
+/// the cyclopean point `viewer`: `(point − viewer).try_normalize()`, else the ray's direction
+/// (lanes without a hit get a view that is not used). Four lanes per vector with the scalar
+/// operations in the same order (the hit point as `UniformSurface::point` has it): the same
+/// bits as lane by lane, where glam's branch kept the compiler from vectorizing.
+#[inline(always)]
+fn cyclopean_views_into(
+    origin: &[[f32; BLOCK_RAYS]; 3],
+    direction: &[[f32; BLOCK_RAYS]; 3],
+    t: &[f32; BLOCK_RAYS],
+    viewer: &[[f32; BLOCK_RAYS]; 3],
+    views: &mut [[f32; BLOCK_RAYS]; 3],
+) {
+    for first in (0..BLOCK_RAYS).step_by(4) {
+        let lanes = first..first + 4;
+        let load = |values: &[f32; BLOCK_RAYS]| Vec4::from_slice(&values[lanes.clone()]);
+        let t = load(t);
+        let along = direction.each_ref().map(load);
+        let offset: [Vec4; 3] = std::array::from_fn(|axis| {
+            (load(&origin[axis]) + along[axis] * t) - load(&viewer[axis])
+        });
+        let length_squared = offset[0] * offset[0] + offset[1] * offset[1] + offset[2] * offset[2];
+        let scale = Vec4::ONE / length_squared.sqrt();
+        let normalizable = scale.is_finite_mask() & scale.cmpgt(Vec4::ZERO);
+        for axis in 0..3 {
+            Vec4::select(normalizable, offset[axis] * scale, along[axis])
+                .write_to_slice(&mut views[axis][lanes.clone()]);
         }
     }
 }
