@@ -569,6 +569,7 @@ fn viewers_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames:
         ("2 narrow cones, perPixel", viewers(2, "perPixel", narrow)),
         ("4 narrow cones, perPixel", viewers(4, "perPixel", narrow)),
         ("4 narrow cones, zones", viewers(4, "zones", narrow)),
+        ("2 viewers, tiles 8x8", viewers(2, "tiles", wide)),
     ];
     // `CAVETRACE_BENCH_VIEWER_CASE=<index>` runs one case alone (for profiling).
     let only: Option<usize> = std::env::var("CAVETRACE_BENCH_VIEWER_CASE")
