@@ -233,6 +233,7 @@ impl Camera for LightFieldCamera {
                 flip_subpixels: d.flip_subpixels,
                 view_centre: self.view_centre(),
                 view_x: s.x * self.viewing_distance,
+                view_eyes: Vec::new(),
             },
         )
     }

@@ -140,25 +140,75 @@ pub(crate) struct LightFieldRays {
     /// axis times the viewing distance.
     pub view_centre: DVec3,
     pub view_x: DVec3,
+    /// Filled by [`LightFieldRays::with_view_eyes`].
+    pub view_eyes: Vec<DVec3>,
 }
 
 impl LightFieldRays {
-    /// The view fraction of the subpixel at viewport coordinates (s, t).
-    #[inline]
+    /// The eyes of the `views` snapped views (view i at fraction (i+½)/N), when there are at
+    /// most [`MAX_TABLED_VIEWS`]: each subpixel's eye is then looked up, not computed.
+    pub(crate) fn with_view_eyes(mut self) -> LightFieldRays {
+        self.view_eyes = if self.views > 0 && self.views <= MAX_TABLED_VIEWS {
+            let n = f64::from(self.views);
+            (0..self.views)
+                .map(|view| self.eye_of_fraction((f64::from(view) + 0.5) / n))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        self
+    }
+
+    /// The view fraction of the subpixel at viewport coordinates (s, t), before snapping.
+    #[inline(always)]
     fn view_fraction(&self, s: f64, t: f64) -> f64 {
         // s is the subpixel's centre; the calibration's phase is written for the pixel's
         // centre plus k subpixels, which is s plus one subpixel.
-        let mut f =
-            ((s + t * self.tilt) * self.pitch - self.center + self.subpixel).rem_euclid(1.0);
-        if self.inv_view {
-            f = 1.0 - f;
-        }
-        if self.views > 0 {
-            let n = f64::from(self.views);
-            f = ((f * n).floor().min(n - 1.0) + 0.5) / n;
-        }
-        f
+        let f = fraction((s + t * self.tilt) * self.pitch - self.center + self.subpixel);
+        if self.inv_view { 1.0 - f } else { f }
     }
+
+    /// The eye of the subpixel at viewport coordinates (s, t): of its view fraction, snapped
+    /// to the nearest of `views` views (i+½)/N when there are views.
+    #[inline(always)]
+    fn eye(&self, s: f64, t: f64) -> DVec3 {
+        let f = self.view_fraction(s, t);
+        if self.views == 0 {
+            return self.eye_of_fraction(f);
+        }
+        let n = f64::from(self.views);
+        // NaN never reaches here as an index: `min` gives n − 1 for it, as the table does.
+        let view = (f * n).floor().min(n - 1.0);
+        match self.view_eyes.get(view as usize) {
+            Some(eye) => *eye,
+            None => self.eye_of_fraction((view + 0.5) / n),
+        }
+    }
+
+    /// The eye of view fraction `f`.
+    #[inline(always)]
+    fn eye_of_fraction(&self, f: f64) -> DVec3 {
+        LightFieldCamera::view_eye(self.view_centre, self.view_x, self.view_cone, f)
+    }
+
+    /// The subpixel's centre on the screen for viewport coordinates `st`.
+    #[inline(always)]
+    fn target(&self, st: DVec2) -> DVec3 {
+        let s = if self.flip_x { 1.0 - st.x } else { st.x };
+        let t = if self.flip_y { 1.0 - st.y } else { st.y };
+        self.window_origin + s * self.window_right + t * self.window_up
+    }
+}
+
+/// Most snapped views whose eyes a light-field generator keeps in a table (quilt drivers use
+/// 45 to 100).
+const MAX_TABLED_VIEWS: u32 = 4096;
+
+/// x − ⌊x⌋: bit for bit `x.rem_euclid(1.0)` but for the sign of a zero result (the remainder
+/// and the +1 of a negative x round the same exact value once), without a call to `fmod`.
+#[inline(always)]
+fn fraction(x: f64) -> f64 {
+    x - x.floor()
 }
 
 /// Rays unprojected from NDC through proj⁻¹ then view⁻¹: matrix camera.
@@ -324,7 +374,7 @@ impl EyeRays {
     pub(crate) fn light_field(region: ImageRegion, rays: LightFieldRays) -> EyeRays {
         EyeRays {
             region,
-            generator: Generator::LightField(rays),
+            generator: Generator::LightField(rays.with_view_eyes()),
             stereo: None,
         }
     }
@@ -416,14 +466,7 @@ impl EyeRays {
                 ray
             }
             Generator::Blended(_) => self.rays4([s; 4], [t; 4], lens)[0],
-            Generator::LightField(l) => {
-                let f = l.view_fraction(st.x, st.y);
-                let eye = LightFieldCamera::view_eye(l.view_centre, l.view_x, l.view_cone, f);
-                let s = if l.flip_x { 1.0 - st.x } else { st.x };
-                let t = if l.flip_y { 1.0 - st.y } else { st.y };
-                let target = l.window_origin + s * l.window_right + t * l.window_up;
-                clipped_ray(eye, target, l.forward, &l.clip)
-            }
+            Generator::LightField(l) => clipped_ray(l.eye(st.x, st.y), l.target(st), l.forward, &l.clip),
             Generator::Parallel(p) => CameraRay {
                 origin: (p.plane_origin + st.x * p.plane_right + st.y * p.plane_up).as_vec3(),
                 direction: p.forward.as_vec3(),
@@ -500,11 +543,15 @@ impl EyeRays {
         }
     }
 
-    /// Whether [`Self::block_rays`] makes this eye's rays: a lensless pinhole, or several
-    /// viewers' blended camera positions.
+    /// Whether [`Self::block_rays`] makes this eye's rays: a lensless pinhole, several
+    /// viewers' blended camera positions, or a light-field display's subpixels.
     #[inline]
     pub fn makes_block_rays(&self) -> bool {
-        self.lensless_pinhole().is_some() || matches!(self.generator, Generator::Blended(_))
+        self.lensless_pinhole().is_some()
+            || matches!(
+                self.generator,
+                Generator::Blended(_) | Generator::LightField(_)
+            )
     }
 
     /// Writes into `block` the rays of viewport points `(s[i], t[i])` (as for [`Self::ray`],
@@ -532,6 +579,16 @@ impl EyeRays {
     ) -> bool {
         if let Generator::Blended(b) = &self.generator {
             blended_block(&self.region, b, s, t, block, avx2);
+            return true;
+        }
+        if let Generator::LightField(l) = &self.generator {
+            #[cfg(target_arch = "x86_64")]
+            if avx2 && std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
+                unsafe { light_field_block_avx2(&self.region, l, s, t, block) };
+                return true;
+            }
+            light_field_block(&self.region, l, s, t, block);
             return true;
         }
         let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
@@ -939,6 +996,36 @@ fn pinhole_lanes(
         let target = window_point(pinhole, region.apply(s[i], t[i]));
         block.set(i, eye, target.to_array(), pinhole.forward, clip);
     }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn light_field_block_avx2(
+    region: &ImageRegion,
+    rays: &LightFieldRays,
+    s: &[f32; BLOCK_RAYS],
+    t: &[f32; BLOCK_RAYS],
+    block: &mut BlockRays,
+) {
+    light_field_block(region, rays, s, t, block);
+}
+
+/// [`EyeRays::ray`]'s light-field rays for a block of subpixels, lane by lane with the same
+/// functions (no fused multiply-adds on the AVX2 path, where `floor` is one instruction).
+#[inline(always)]
+fn light_field_block(
+    region: &ImageRegion,
+    rays: &LightFieldRays,
+    s: &[f32; BLOCK_RAYS],
+    t: &[f32; BLOCK_RAYS],
+    block: &mut BlockRays,
+) {
+    for i in 0..BLOCK_RAYS {
+        let st = region.apply(s[i], t[i]);
+        let eye = rays.eye(st.x, st.y);
+        block.set(i, eye.to_array(), rays.target(st).to_array(), rays.forward, &rays.clip);
+    }
+    block.set_cyclopean(None);
 }
 
 /// [`EyeRays::rays4`]'s rays for a whole block: the camera positions for all its points at
