@@ -1020,10 +1020,29 @@ fn light_field_block(
     t: &[f32; BLOCK_RAYS],
     block: &mut BlockRays,
 ) {
+    // The eyes and targets first (branches, a table look-up), then the rays over lane arrays:
+    // their square roots and divisions several lanes per instruction.
+    let mut eyes = [[0.0; 3]; BLOCK_RAYS];
+    let mut targets = [[0.0; 3]; BLOCK_RAYS];
     for i in 0..BLOCK_RAYS {
         let st = region.apply(s[i], t[i]);
-        let eye = rays.eye(st.x, st.y);
-        block.set(i, eye.to_array(), rays.target(st).to_array(), rays.forward, &rays.clip);
+        eyes[i] = rays.eye(st.x, st.y).to_array();
+        targets[i] = rays.target(st).to_array();
+    }
+    match rays.clip {
+        ClipRange {
+            near: None,
+            far: None,
+        } => {
+            for i in 0..BLOCK_RAYS {
+                block.set(i, eyes[i], targets[i], rays.forward, &ClipRange::default());
+            }
+        }
+        clip => {
+            for i in 0..BLOCK_RAYS {
+                block.set(i, eyes[i], targets[i], rays.forward, &clip);
+            }
+        }
     }
     block.set_cyclopean(None);
 }
