@@ -382,19 +382,33 @@ mod tests {
                 for chunk in s.chunks(BLOCK_RAYS) {
                     let lanes: [f32; BLOCK_RAYS] = std::array::from_fn(|i| chunk[i]);
                     for &avx2 in paths {
-                        assert!(rays.block_rays_on_path(avx2, &lanes, &[t; BLOCK_RAYS], &mut block));
+                        assert!(rays.block_rays_on_path(
+                            avx2,
+                            &lanes,
+                            &[t; BLOCK_RAYS],
+                            &mut block
+                        ));
                         for (i, &s) in lanes.iter().enumerate() {
                             let (origin, direction) =
                                 direct_ray(&cam, f64::from(w), f64::from(h), s, t);
                             let alone = rays.ray(s, t, Vec2::ZERO);
                             for ray in [alone, block.ray(i)] {
                                 let what = format!("{desc:?} ({s}, {t}) avx2 {avx2}");
-                                assert_eq!(ray.origin.to_array().map(f32::to_bits),
-                                    origin.to_array().map(f32::to_bits), "{what}");
-                                assert_eq!(ray.direction.to_array().map(f32::to_bits),
-                                    direction.to_array().map(f32::to_bits), "{what}");
-                                assert_eq!((ray.t_min, ray.t_max, ray.cyclopean),
-                                    (0.0, f32::INFINITY, None), "{what}");
+                                assert_eq!(
+                                    ray.origin.to_array().map(f32::to_bits),
+                                    origin.to_array().map(f32::to_bits),
+                                    "{what}"
+                                );
+                                assert_eq!(
+                                    ray.direction.to_array().map(f32::to_bits),
+                                    direction.to_array().map(f32::to_bits),
+                                    "{what}"
+                                );
+                                assert_eq!(
+                                    (ray.t_min, ray.t_max, ray.cyclopean),
+                                    (0.0, f32::INFINITY, None),
+                                    "{what}"
+                                );
                             }
                             checked += 1;
                         }

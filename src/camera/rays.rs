@@ -466,7 +466,9 @@ impl EyeRays {
                 ray
             }
             Generator::Blended(_) => self.rays4([s; 4], [t; 4], lens)[0],
-            Generator::LightField(l) => clipped_ray(l.eye(st.x, st.y), l.target(st), l.forward, &l.clip),
+            Generator::LightField(l) => {
+                clipped_ray(l.eye(st.x, st.y), l.target(st), l.forward, &l.clip)
+            }
             Generator::Parallel(p) => CameraRay {
                 origin: (p.plane_origin + st.x * p.plane_right + st.y * p.plane_up).as_vec3(),
                 direction: p.forward.as_vec3(),
@@ -1136,7 +1138,9 @@ mod tests {
         // Phases of every magnitude a calibration gives (up to a few thousand cycles).
         let mut state = 0x2545_f491_4f6c_dd1d_u64;
         for _ in 0..200_000 {
-            state = state.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
             let unit = (state >> 11) as f64 / (1u64 << 53) as f64;
             let scale = [1e-6, 1.0, 40.0, 5000.0][(state >> 3) as usize % 4];
             values.push((2.0 * unit - 1.0) * scale);
