@@ -177,7 +177,7 @@ impl LightFieldRays {
             return self.eye_of_fraction(f);
         }
         let n = f64::from(self.views);
-        // NaN never reaches here as an index: `min` gives n − 1 for it, as the table does.
+        // `min` makes a NaN fraction view n − 1, in the table as in the formula.
         let view = (f * n).floor().min(n - 1.0);
         match self.view_eyes.get(view as usize) {
             Some(eye) => *eye,
@@ -205,7 +205,8 @@ impl LightFieldRays {
 const MAX_TABLED_VIEWS: u32 = 4096;
 
 /// x − ⌊x⌋: bit for bit `x.rem_euclid(1.0)` but for the sign of a zero result (the remainder
-/// and the +1 of a negative x round the same exact value once), without a call to `fmod`.
+/// and the +1 of a negative x round the same exact value once), without a call to `fmod`. A
+/// view fraction's zero sign never reaches a ray: 1 − f, ⌊f·N⌋ + ½ and f − ½ drop it.
 #[inline(always)]
 fn fraction(x: f64) -> f64 {
     x - x.floor()
