@@ -160,6 +160,18 @@ fn viewers(dev: ANARIDevice, mode: &str, stereo: &str) -> ANARICamera {
     camera
 }
 
+/// The light-field camera of [`light_field`] with `views` snapped views and every flip of
+/// the calibration (the block's subpixel rays then take their eyes from the views' table).
+fn light_field_flipped(dev: ANARIDevice, views: u32) -> ANARICamera {
+    let camera = light_field(dev);
+    set(dev, camera, "views", ANARI_UINT32, &views);
+    for flip in ["invView", "flipImageX", "flipImageY", "flipSubpixels"] {
+        set(dev, camera, flip, ANARI_BOOL, &1u8);
+    }
+    commit(dev, camera);
+    camera
+}
+
 fn light_field(dev: ANARIDevice) -> ANARICamera {
     let camera = anariNewCamera(dev, c("lightField").as_ptr());
     set(
@@ -228,6 +240,10 @@ fn cameras(dev: ANARIDevice) -> Vec<(&'static str, ANARICamera)> {
         viewers(dev, "perPixel", "sideBySide"),
     ));
     cameras.push(("light field", light_field(dev)));
+    cameras.push((
+        "light field, 45 views, flipped",
+        light_field_flipped(dev, 45),
+    ));
     cameras
 }
 

@@ -233,6 +233,7 @@ impl Camera for LightFieldCamera {
                 flip_subpixels: d.flip_subpixels,
                 view_centre: self.view_centre(),
                 view_x: s.x * self.viewing_distance,
+                view_eyes: Vec::new(),
             },
         )
     }
@@ -241,6 +242,7 @@ impl Camera for LightFieldCamera {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::camera::{BLOCK_RAYS, BlockRays};
     use glam::{DVec3, Vec2};
 
     fn camera(desc: LightFieldDesc) -> LightFieldCamera {
@@ -298,6 +300,123 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Subpixel (s, t)'s ray as the definition reads, computed alone: the view fraction by
+    /// `rem_euclid`, the snapped view's eye computed, the unit direction as glam normalizes.
+    fn direct_ray(cam: &LightFieldCamera, w: f64, h: f64, s: f32, t: f32) -> (Vec3, Vec3) {
+        let d = &cam.desc;
+        let slope = f64::from(d.slope);
+        let p = f64::from(d.pitch) * (w / f64::from(d.dpi)) * 1f64.atan2(slope).cos();
+        let (s, t) = (f64::from(s), f64::from(t));
+        let phase = (s + t * (-h / (w * slope))) * p - f64::from(d.center) + p / (3.0 * w);
+        let mut f = phase.rem_euclid(1.0);
+        if d.inv_view {
+            f = 1.0 - f;
+        }
+        if d.views > 0 {
+            let n = f64::from(d.views);
+            f = ((f * n).floor().min(n - 1.0) + 0.5) / n;
+        }
+        let screen = &cam.screen;
+        let view_x = screen.x * cam.viewing_distance;
+        let cone = f64::from(d.view_cone).to_radians();
+        let eye = LightFieldCamera::view_eye(cam.view_centre(), view_x, cone, f);
+        let s = if d.flip_image_x { 1.0 - s } else { s };
+        let t = if d.flip_image_y { 1.0 - t } else { t };
+        let target = screen.lower_left
+            + s * (screen.lower_right - screen.lower_left)
+            + t * (screen.upper_right - screen.lower_right);
+        let towards = target - eye;
+        let recip = 1.0 / towards.length_squared().sqrt();
+        (eye.as_vec3(), (towards * recip).as_vec3())
+    }
+
+    #[test]
+    fn subpixel_rays_alone_and_a_block_at_a_time_are_the_definitions_bit_for_bit() {
+        // The frame makes a block's rays together (eyes of snapped views from a table): every
+        // one must be the ray the definition gives alone, on either instruction-set path.
+        let (w, h) = (2560u32, 1600u32);
+        let paths: &[bool] = if crate::isa::Isa::Avx2.supported() {
+            &[false, true]
+        } else {
+            &[false]
+        };
+        let mut block = BlockRays::default();
+        let mut checked = 0;
+        let calibrations = [
+            LightFieldDesc::default(),
+            LightFieldDesc {
+                views: 45,
+                ..LightFieldDesc::default()
+            },
+            LightFieldDesc {
+                views: 45,
+                inv_view: true,
+                flip_image_x: true,
+                flip_image_y: true,
+                flip_subpixels: true,
+                ..LightFieldDesc::default()
+            },
+            LightFieldDesc {
+                views: 7,
+                center: -3.7,
+                slope: -4.1,
+                ..LightFieldDesc::default()
+            },
+            // More views than the table holds: computed per ray.
+            LightFieldDesc {
+                views: 5000,
+                ..LightFieldDesc::default()
+            },
+        ];
+        for desc in calibrations {
+            let cam = camera(desc.clone());
+            let rays = cam.prepare(Eye::Mono, w, h);
+            assert!(rays.makes_block_rays());
+            for (y, offset) in [(0, 0.5), (801, 0.5), (1599, 0.5), (377, 0.123)] {
+                let t = (y as f32 + offset) / h as f32;
+                let s: Vec<f32> = (0..3 * w)
+                    .map(|sub| (sub as f32 + offset) / (3 * w) as f32)
+                    .collect();
+                for chunk in s.chunks(BLOCK_RAYS) {
+                    let lanes: [f32; BLOCK_RAYS] = std::array::from_fn(|i| chunk[i]);
+                    for &avx2 in paths {
+                        assert!(rays.block_rays_on_path(
+                            avx2,
+                            &lanes,
+                            &[t; BLOCK_RAYS],
+                            &mut block
+                        ));
+                        for (i, &s) in lanes.iter().enumerate() {
+                            let (origin, direction) =
+                                direct_ray(&cam, f64::from(w), f64::from(h), s, t);
+                            let alone = rays.ray(s, t, Vec2::ZERO);
+                            for ray in [alone, block.ray(i)] {
+                                let what = format!("{desc:?} ({s}, {t}) avx2 {avx2}");
+                                assert_eq!(
+                                    ray.origin.to_array().map(f32::to_bits),
+                                    origin.to_array().map(f32::to_bits),
+                                    "{what}"
+                                );
+                                assert_eq!(
+                                    ray.direction.to_array().map(f32::to_bits),
+                                    direction.to_array().map(f32::to_bits),
+                                    "{what}"
+                                );
+                                assert_eq!(
+                                    (ray.t_min, ray.t_max, ray.cyclopean),
+                                    (0.0, f32::INFINITY, None),
+                                    "{what}"
+                                );
+                            }
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert_eq!(checked, 5 * 4 * 3 * w as usize * paths.len());
     }
 
     #[test]

@@ -140,25 +140,76 @@ pub(crate) struct LightFieldRays {
     /// axis times the viewing distance.
     pub view_centre: DVec3,
     pub view_x: DVec3,
+    /// Filled by [`LightFieldRays::with_view_eyes`].
+    pub view_eyes: Vec<DVec3>,
 }
 
 impl LightFieldRays {
-    /// The view fraction of the subpixel at viewport coordinates (s, t).
-    #[inline]
+    /// The eyes of the `views` snapped views (view i at fraction (i+½)/N), when there are at
+    /// most [`MAX_TABLED_VIEWS`]: each subpixel's eye is then looked up, not computed.
+    pub(crate) fn with_view_eyes(mut self) -> LightFieldRays {
+        self.view_eyes = if self.views > 0 && self.views <= MAX_TABLED_VIEWS {
+            let n = f64::from(self.views);
+            (0..self.views)
+                .map(|view| self.eye_of_fraction((f64::from(view) + 0.5) / n))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        self
+    }
+
+    /// The view fraction of the subpixel at viewport coordinates (s, t), before snapping.
+    #[inline(always)]
     fn view_fraction(&self, s: f64, t: f64) -> f64 {
         // s is the subpixel's centre; the calibration's phase is written for the pixel's
         // centre plus k subpixels, which is s plus one subpixel.
-        let mut f =
-            ((s + t * self.tilt) * self.pitch - self.center + self.subpixel).rem_euclid(1.0);
-        if self.inv_view {
-            f = 1.0 - f;
-        }
-        if self.views > 0 {
-            let n = f64::from(self.views);
-            f = ((f * n).floor().min(n - 1.0) + 0.5) / n;
-        }
-        f
+        let f = fraction((s + t * self.tilt) * self.pitch - self.center + self.subpixel);
+        if self.inv_view { 1.0 - f } else { f }
     }
+
+    /// The eye of the subpixel at viewport coordinates (s, t): of its view fraction, snapped
+    /// to the nearest of `views` views (i+½)/N when there are views.
+    #[inline(always)]
+    fn eye(&self, s: f64, t: f64) -> DVec3 {
+        let f = self.view_fraction(s, t);
+        if self.views == 0 {
+            return self.eye_of_fraction(f);
+        }
+        let n = f64::from(self.views);
+        // `min` makes a NaN fraction view n − 1, in the table as in the formula.
+        let view = (f * n).floor().min(n - 1.0);
+        match self.view_eyes.get(view as usize) {
+            Some(eye) => *eye,
+            None => self.eye_of_fraction((view + 0.5) / n),
+        }
+    }
+
+    /// The eye of view fraction `f`.
+    #[inline(always)]
+    fn eye_of_fraction(&self, f: f64) -> DVec3 {
+        LightFieldCamera::view_eye(self.view_centre, self.view_x, self.view_cone, f)
+    }
+
+    /// The subpixel's centre on the screen for viewport coordinates `st`.
+    #[inline(always)]
+    fn target(&self, st: DVec2) -> DVec3 {
+        let s = if self.flip_x { 1.0 - st.x } else { st.x };
+        let t = if self.flip_y { 1.0 - st.y } else { st.y };
+        self.window_origin + s * self.window_right + t * self.window_up
+    }
+}
+
+/// Most snapped views whose eyes a light-field generator keeps in a table (quilt drivers use
+/// 45 to 100).
+const MAX_TABLED_VIEWS: u32 = 4096;
+
+/// x − ⌊x⌋: bit for bit `x.rem_euclid(1.0)` but for the sign of a zero result (the remainder
+/// and the +1 of a negative x round the same exact value once), without a call to `fmod`. A
+/// view fraction's zero sign never reaches a ray: 1 − f, ⌊f·N⌋ + ½ and f − ½ drop it.
+#[inline(always)]
+fn fraction(x: f64) -> f64 {
+    x - x.floor()
 }
 
 /// Rays unprojected from NDC through proj⁻¹ then view⁻¹: matrix camera.
@@ -324,7 +375,7 @@ impl EyeRays {
     pub(crate) fn light_field(region: ImageRegion, rays: LightFieldRays) -> EyeRays {
         EyeRays {
             region,
-            generator: Generator::LightField(rays),
+            generator: Generator::LightField(rays.with_view_eyes()),
             stereo: None,
         }
     }
@@ -417,12 +468,7 @@ impl EyeRays {
             }
             Generator::Blended(_) => self.rays4([s; 4], [t; 4], lens)[0],
             Generator::LightField(l) => {
-                let f = l.view_fraction(st.x, st.y);
-                let eye = LightFieldCamera::view_eye(l.view_centre, l.view_x, l.view_cone, f);
-                let s = if l.flip_x { 1.0 - st.x } else { st.x };
-                let t = if l.flip_y { 1.0 - st.y } else { st.y };
-                let target = l.window_origin + s * l.window_right + t * l.window_up;
-                clipped_ray(eye, target, l.forward, &l.clip)
+                clipped_ray(l.eye(st.x, st.y), l.target(st), l.forward, &l.clip)
             }
             Generator::Parallel(p) => CameraRay {
                 origin: (p.plane_origin + st.x * p.plane_right + st.y * p.plane_up).as_vec3(),
@@ -500,11 +546,15 @@ impl EyeRays {
         }
     }
 
-    /// Whether [`Self::block_rays`] makes this eye's rays: a lensless pinhole, or several
-    /// viewers' blended camera positions.
+    /// Whether [`Self::block_rays`] makes this eye's rays: a lensless pinhole, several
+    /// viewers' blended camera positions, or a light-field display's subpixels.
     #[inline]
     pub fn makes_block_rays(&self) -> bool {
-        self.lensless_pinhole().is_some() || matches!(self.generator, Generator::Blended(_))
+        self.lensless_pinhole().is_some()
+            || matches!(
+                self.generator,
+                Generator::Blended(_) | Generator::LightField(_)
+            )
     }
 
     /// Writes into `block` the rays of viewport points `(s[i], t[i])` (as for [`Self::ray`],
@@ -538,6 +588,16 @@ impl EyeRays {
                 return true;
             }
             blended_block(&self.region, b, s, t, block, false);
+            return true;
+        }
+        if let Generator::LightField(l) = &self.generator {
+            #[cfg(target_arch = "x86_64")]
+            if avx2 && std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
+                unsafe { light_field_block_avx2(&self.region, l, s, t, block) };
+                return true;
+            }
+            light_field_block(&self.region, l, s, t, block);
             return true;
         }
         let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
@@ -959,6 +1019,55 @@ fn blended_block_avx2(
     blended_block(region, b, s, t, block, true);
 }
 
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn light_field_block_avx2(
+    region: &ImageRegion,
+    rays: &LightFieldRays,
+    s: &[f32; BLOCK_RAYS],
+    t: &[f32; BLOCK_RAYS],
+    block: &mut BlockRays,
+) {
+    light_field_block(region, rays, s, t, block);
+}
+
+/// [`EyeRays::ray`]'s light-field rays for a block of subpixels, lane by lane with the same
+/// functions (no fused multiply-adds on the AVX2 path, where `floor` is one instruction).
+#[inline(always)]
+fn light_field_block(
+    region: &ImageRegion,
+    rays: &LightFieldRays,
+    s: &[f32; BLOCK_RAYS],
+    t: &[f32; BLOCK_RAYS],
+    block: &mut BlockRays,
+) {
+    // The eyes and targets first (branches, a table look-up), then the rays over lane arrays:
+    // their square roots and divisions several lanes per instruction.
+    let mut eyes = [[0.0; 3]; BLOCK_RAYS];
+    let mut targets = [[0.0; 3]; BLOCK_RAYS];
+    for i in 0..BLOCK_RAYS {
+        let st = region.apply(s[i], t[i]);
+        eyes[i] = rays.eye(st.x, st.y).to_array();
+        targets[i] = rays.target(st).to_array();
+    }
+    match rays.clip {
+        ClipRange {
+            near: None,
+            far: None,
+        } => {
+            for i in 0..BLOCK_RAYS {
+                block.set(i, eyes[i], targets[i], rays.forward, &ClipRange::default());
+            }
+        }
+        clip => {
+            for i in 0..BLOCK_RAYS {
+                block.set(i, eyes[i], targets[i], rays.forward, &clip);
+            }
+        }
+    }
+    block.set_cyclopean(None);
+}
+
 /// [`EyeRays::rays4`]'s rays for a whole block: the camera positions for all its points at
 /// once (the same bits as four at a time), the rays from them lane by lane, each from its own
 /// eye (the blended head, in stereo moved along the blended right vector) through its window
@@ -1041,6 +1150,48 @@ fn concentric_disk(sample: Vec2) -> DVec2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fraction_is_rem_euclid_but_for_the_sign_of_zero() {
+        let mut values = vec![
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            0.25,
+            -0.25,
+            1e-20,
+            -1e-20,
+            -3.000_000_000_1,
+            12345.678,
+            -12345.678,
+            4_503_599_627_370_495.5,
+            -4_503_599_627_370_495.5,
+            1e300,
+            f64::MIN_POSITIVE,
+            -f64::MIN_POSITIVE,
+            f64::INFINITY,
+            f64::NAN,
+        ];
+        // Phases of every magnitude a calibration gives (up to a few thousand cycles).
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        for _ in 0..200_000 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            let unit = (state >> 11) as f64 / (1u64 << 53) as f64;
+            let scale = [1e-6, 1.0, 40.0, 5000.0][(state >> 3) as usize % 4];
+            values.push((2.0 * unit - 1.0) * scale);
+        }
+        for x in values {
+            let (fast, reference) = (fraction(x), x.rem_euclid(1.0));
+            let same_bits = fast.to_bits() == reference.to_bits();
+            assert!(
+                same_bits || fast == reference || (fast.is_nan() && reference.is_nan()),
+                "{x}: {fast} vs {reference}"
+            );
+        }
+    }
 
     #[test]
     fn concentric_disk_maps_square_edges_onto_the_unit_circle() {

@@ -267,6 +267,21 @@ pub(super) enum PixelRays {
     Subpixel(u32),
 }
 
+impl PixelRays {
+    /// The viewport coordinate s of column `x`'s ray in `viewport` (`offset`: the sample's
+    /// offset within the pixel).
+    #[inline(always)]
+    fn s(self, x: u32, viewport: &crate::camera::EyeViewport, offset: f32) -> f32 {
+        match self {
+            PixelRays::All => ((x - viewport.x) as f32 + offset) / viewport.width as f32,
+            // The subpixel as a pixel of a frame three times as wide.
+            PixelRays::Subpixel(k) => {
+                ((3 * (x - viewport.x) + k) as f32 + offset) / (3 * viewport.width) as f32
+            }
+        }
+    }
+}
+
 /// An eye's viewport with its ray generator for the frame.
 pub(super) type PreparedEye = (crate::camera::EyeViewport, EyeRays);
 
@@ -322,11 +337,10 @@ pub(super) fn trace_blocks(
                 batch = [None; 64];
             }
             // A whole block of pixels seen from one lensless pinhole (or from several viewers'
-            // blended positions): its rays are made together, lane by lane.
-            let whole_block = !work.plain_pixels
-                && matches!(pixel_rays, PixelRays::All)
-                && bx_end - bx == PACKET_SIDE
-                && by_end - by == PACKET_SIDE;
+            // blended positions, or a light-field display's subpixels of one pass): its rays
+            // are made together, lane by lane.
+            let whole_block =
+                !work.plain_pixels && bx_end - bx == PACKET_SIDE && by_end - by == PACKET_SIDE;
             let block_maker =
                 block_eye.filter(|(_, eye_rays)| whole_block && eye_rays.makes_block_rays());
             for s in 0..samples {
@@ -334,11 +348,11 @@ pub(super) fn trace_blocks(
                 let offset = jitter(index);
                 let lens = lens_sample(index);
                 let block_rays = block_maker.and_then(|(viewport, eye_rays)| {
-                    let (width, height) = (viewport.width as f32, viewport.height as f32);
                     let mut s_lanes = [0.0; BLOCK_RAYS];
                     let mut t_lanes = [0.0; BLOCK_RAYS];
+                    let height = viewport.height as f32;
                     // As below, ray by ray.
-                    let s_of = |x: u32| ((x - viewport.x) as f32 + offset.x) / width;
+                    let s_of = |x: u32| pixel_rays.s(x, viewport, offset.x);
                     let t_of = |y: u32| ((y - viewport.y) as f32 + offset.y) / height;
                     if rectangle {
                         // A pixel's s depends on its column only and t on its row: 16
@@ -405,16 +419,7 @@ pub(super) fn trace_blocks(
                     let Some((viewport, eye_rays)) = eye else {
                         continue;
                     };
-                    let u = match pixel_rays {
-                        PixelRays::All => {
-                            ((x - viewport.x) as f32 + offset.x) / viewport.width as f32
-                        }
-                        // The subpixel as a pixel of a frame three times as wide.
-                        PixelRays::Subpixel(k) => {
-                            ((3 * (x - viewport.x) + k) as f32 + offset.x)
-                                / (3 * viewport.width) as f32
-                        }
-                    };
+                    let u = pixel_rays.s(x, viewport, offset.x);
                     let v = ((y - viewport.y) as f32 + offset.y) / viewport.height as f32;
                     if batched.is_some() {
                         batch[lane] = Some((u, v));
