@@ -390,10 +390,14 @@ pub(super) fn trace_blocks(
                     }
                     Some(eye_rays)
                 });
-                // The fast renderer shades a whole block from its arrays; everything else
-                // reads the block's rays one by one.
+                let subpixels = matches!(pixel_rays, PixelRays::Subpixel(_));
+                let coherent = map.stride() < SINGLE_RAY_STRIDE && !subpixels;
+                let one_by_one = !coherent || work.plain_pixels;
+                // The fast renderer shades a whole block from its arrays, and a coherent one is
+                // traced from them; everything else reads the block's rays one by one.
                 let shaded_from_arrays = block_rays.is_some() && work.fast_surfaces && !clustered;
-                if block_rays.is_some() && (!shaded_from_arrays || work.block_shadows) {
+                let reads_rays = one_by_one || !shaded_from_arrays || work.block_shadows;
+                if block_rays.is_some() && reads_rays {
                     for (lane, ray) in rays.iter_mut().enumerate() {
                         *ray = traced_lane(&block, lane);
                     }
@@ -450,9 +454,7 @@ pub(super) fn trace_blocks(
                         }
                     }
                 }
-                let subpixels = matches!(pixel_rays, PixelRays::Subpixel(_));
-                let coherent = map.stride() < SINGLE_RAY_STRIDE && !subpixels;
-                if !coherent || work.plain_pixels {
+                if one_by_one {
                     // Sparse lattices make incoherent packets, and a light field's neighbouring
                     // subpixels look from eyes centimetres apart: ray by ray is cheaper there.
                     for (hit, ray) in hits.iter_mut().zip(&rays) {
