@@ -32,7 +32,7 @@
 
 use crate::accel::primitives::{GROUP_LANES, GroupRay, TriangleGroup, closest_lane, group_closest};
 use crate::accel::wide_bvh::{
-    LEAF_BIT, SLAB_ERROR, TraversalRay, WIDTH, WideNode, group_leaf, prefetch, traverse,
+    LEAF_BIT, SLAB_ERROR, TraversalRay, WIDTH, WideNode, group_leaf, traverse,
 };
 use glam::{Vec2, Vec3, Vec4};
 use std::mem::MaybeUninit;
@@ -391,9 +391,6 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
         if code & LEAF_BIT == 0 {
             // SAFETY: inner codes index `nodes` (the caller's promise).
             let node = unsafe { nodes.get_unchecked(code as usize) };
-            // The child codes may sit on a cache line the box test does not touch: request it
-            // now, so that a miss on it overlaps the box test instead of following it.
-            prefetch(&node.children);
             let (mask, nears) = I::child_hits::<ORDER>(node, box_ray, t_max);
             if mask != 0 {
                 let visit = VISIT[ORDER][(mask & 0xff) as usize];

@@ -1642,7 +1642,12 @@ fn single_ray_box_tests_keep_every_box_an_exact_test_reaches() {
                 let rays = [
                     Ray::new(origin, direction, t_min, f32::INFINITY),
                     Ray::new(origin, direction, t_min, 1.0),
-                    Ray::new(origin, rng.point(-10.0, 10.0) - origin, t_min, f32::INFINITY),
+                    Ray::new(
+                        origin,
+                        rng.point(-10.0, 10.0) - origin,
+                        t_min,
+                        f32::INFINITY,
+                    ),
                 ];
                 for ray in rays {
                     if ray.direction.abs().min_element() < 1.0e-3 {
@@ -1667,7 +1672,10 @@ fn single_ray_box_tests_keep_every_box_an_exact_test_reaches() {
             }
         }
     }
-    assert!(corner_rays > 10_000 && reached > 10_000, "{corner_rays} {reached}");
+    assert!(
+        corner_rays > 10_000 && reached > 10_000,
+        "{corner_rays} {reached}"
+    );
     assert_eq!(missed, 0, "of {reached}");
 }
 
