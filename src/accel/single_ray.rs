@@ -555,11 +555,11 @@ pub(crate) unsafe fn closest_triangle_slot(
         unsafe { avx2_walks::closest(nodes, groups, ray) }
     } else {
         // SAFETY: the caller's promise.
-        unsafe { walk_ray::<FourWide, false, INLINE_STACK>(nodes, groups, ray) }
+        unsafe { closest_baseline(nodes, groups, ray) }
     };
     #[cfg(not(target_arch = "x86_64"))]
     // SAFETY: the caller's promise.
-    let (hit, t) = unsafe { walk_ray::<FourWide, false, INLINE_STACK>(nodes, groups, ray) };
+    let (hit, t) = unsafe { closest_baseline(nodes, groups, ray) };
     let Hit {
         group,
         lane,
@@ -595,6 +595,31 @@ pub(crate) unsafe fn any_triangle_hit(
         // SAFETY: AVX2 is selected only on CPUs that have it; the caller's promise.
         return unsafe { avx2_walks::any(nodes, groups, ray) };
     }
+    // SAFETY: the caller's promise.
+    unsafe { any_baseline(nodes, groups, ray) }
+}
+
+/// The baseline path's closest-hit walk, out of line like the AVX2 one, so that its callers
+/// stay small enough to be inlined into the scene's ray query.
+///
+/// # Safety
+/// `codes_in_range(nodes, groups.len())`; `nodes` not empty.
+#[inline(never)]
+unsafe fn closest_baseline(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &TraversalRay,
+) -> (Option<Hit>, f32) {
+    // SAFETY: the caller's promise.
+    unsafe { walk_ray::<FourWide, false, INLINE_STACK>(nodes, groups, ray) }
+}
+
+/// The baseline path's any-hit walk (as [`closest_baseline`]).
+///
+/// # Safety
+/// As [`closest_baseline`].
+#[inline(never)]
+unsafe fn any_baseline(nodes: &[WideNode], groups: &[TriangleGroup], ray: &TraversalRay) -> bool {
     // SAFETY: the caller's promise.
     unsafe { walk_ray::<FourWide, true, INLINE_STACK>(nodes, groups, ray) }
         .0
