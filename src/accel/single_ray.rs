@@ -465,7 +465,11 @@ fn field_by_field(ray: &TraversalRay) -> TraversalRay {
         octant_inv: read(&ray.octant_inv),
         shear_axes: ray.shear_axes.each_ref().map(read),
         shear: Vec3::new(read(&ray.shear.x), read(&ray.shear.y), read(&ray.shear.z)),
-        permuted_origin: read(&ray.permuted_origin),
+        permuted_origin: Vec3::new(
+            read(&ray.permuted_origin.x),
+            read(&ray.permuted_origin.y),
+            read(&ray.permuted_origin.z),
+        ),
     }
 }
 

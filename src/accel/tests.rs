@@ -1658,11 +1658,11 @@ fn single_ray_box_tests_keep_every_box_an_exact_test_reaches() {
                     for (mask, nears) in
                         crate::accel::single_ray::test_paths::child_hits(node, &prepared)
                     {
-                        for child in 0..8 {
+                        for (child, &found_near) in nears.iter().enumerate() {
                             let (near, far) = exact(node, child, &ray);
                             if near <= far && crate::accel::wide_bvh::occupied(node, child) {
                                 reached += 1;
-                                if mask & (1 << child) == 0 || f64::from(nears[child]) > near {
+                                if mask & (1 << child) == 0 || f64::from(found_near) > near {
                                     missed += 1;
                                 }
                             }

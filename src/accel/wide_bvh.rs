@@ -836,9 +836,8 @@ pub(crate) struct TraversalRay {
     pub shear_axes: [usize; 3],
     /// `(d[x]/d[z], d[y]/d[z], 1/d[z])` over the permuted axes.
     pub shear: Vec3,
-    /// Origin components in permuted order (a `Vec3A`: written with one store, so the
-    /// walk's vector load of it is forwarded from that store instead of stalling).
-    pub permuted_origin: Vec3A,
+    /// Origin components in permuted order.
+    pub permuted_origin: Vec3,
 }
 
 impl TraversalRay {
@@ -893,7 +892,7 @@ impl TraversalRay {
             octant_inv,
             shear_axes,
             shear: Vec3::new(d.x * inv_dominant, d.y * inv_dominant, inv_dominant),
-            permuted_origin: o,
+            permuted_origin: o.into(),
         })
     }
 }
