@@ -782,7 +782,10 @@ impl GeometryBvh {
     }
 
     /// Full hit record for `slot` found by [`Self::closest_slot`] with `ray` (whose `t_max`
-    /// is now the hit) and the barycentrics it returned.
+    /// is now the hit) and the barycentrics it returned. Inline, so that the record's normal
+    /// reaches the caller in registers (a record returned through memory was reloaded with a
+    /// wider load than its stores, which stalls).
+    #[inline]
     pub(crate) fn hit_with_barycentrics(
         &self,
         slot: u32,

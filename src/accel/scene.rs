@@ -155,11 +155,17 @@ impl SceneBvh {
                     &mut transformed
                 }
             };
-            let (primitive_slot, bary) = placement.geometry.closest_slot(object)?;
-            let hit = placement
-                .geometry
-                .hit_with_barycentrics(primitive_slot, bary, object);
-            return Some(self.scene_hit(placement, hit));
+            let geometry = &placement.geometry;
+            let (primitive_slot, bary) = geometry.closest_slot(object)?;
+            let normal = geometry.triangle_normal(primitive_slot);
+            // Each branch finishes its own record: a merged one went through memory and was
+            // reloaded with a wider load than its stores (a stall on every ray).
+            return Some(
+                match geometry.triangle_hit_from_uv(primitive_slot, object.t_max, bary, normal) {
+                    Some(hit) => self.scene_hit(placement, hit),
+                    None => self.scene_hit(placement, geometry.hit_details(primitive_slot, object)),
+                },
+            );
         }
         traverse::<false, _>(self.top_level_nodes(), &mut world, |code, world| {
             let (first, count) = leaf_range(code);

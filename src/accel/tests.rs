@@ -861,6 +861,19 @@ fn random_triangles_match_brute_force() {
 }
 
 #[test]
+fn rays_with_negative_t_min_find_the_hits_behind_their_origin() {
+    // Single-ray walks over triangles take another box test for these rays; the hits (also
+    // those before the origin) must stay the brute-force ones, closest and any hit.
+    let mut rng = Rng::new(31);
+    let prims = random_triangles(&mut rng, 3000, 10.0, 1.5);
+    let rays: Vec<Ray> = random_rays(&mut rng, 2000, 10.0)
+        .into_iter()
+        .map(|ray| Ray::new(ray.origin, ray.direction, -20.0, ray.t_max))
+        .collect();
+    compare_geometry_with_brute_force(prims.into(), &rays, "triangles, t_min < 0");
+}
+
+#[test]
 fn random_quads_match_brute_force() {
     let mut rng = Rng::new(2);
     let prims = random_quads(&mut rng, 1500, 10.0, 1.5);
@@ -1569,15 +1582,101 @@ fn every_box_test_path_matches_the_scalar_reference() {
                 });
             }
             mismatches += paths.into_iter().filter(|path| !same(*path)).count();
-            // The single-ray walks' tests (`(origin - plane) * -inverse`, per octant).
-            mismatches += crate::accel::single_ray::test_paths::child_hits(node, &prepared)
-                .into_iter()
-                .filter(|path| !same(*path))
-                .count();
+            // The single-ray walks' tests (scaled distances, per octant) agree with each other;
+            // `single_ray_box_tests_keep_every_box_an_exact_test_reaches` checks them.
+            let single = crate::accel::single_ray::test_paths::child_hits(node, &prepared);
+            mismatches += single.iter().filter(|path| **path != single[0]).count();
         }
     }
     assert!(hits > 1000, "{hits}");
     assert_eq!(mismatches, 0);
+}
+
+#[test]
+fn single_ray_box_tests_keep_every_box_an_exact_test_reaches() {
+    // Rays aimed exactly at box corners (and at random points): the single-ray box test of each
+    // path must reach every child whose box the ray meets in exact arithmetic within
+    // `[t_min, t_max]`, at an entry distance no later than the exact one.
+    let mut rng = Rng::new(29);
+    let prims = random_triangles(&mut rng, 2000, 10.0, 1.0);
+    let GeometryPrims::Triangles { positions, indices } = &prims else {
+        unreachable!()
+    };
+    let boxes: Vec<obvhs::aabb::Aabb> = indices
+        .iter()
+        .map(|c| {
+            let [a, b, d] = c.to_array().map(|i| positions[i as usize]);
+            obvhs::aabb::Aabb::new(a.min(b).min(d).into(), a.max(b).max(d).into())
+        })
+        .collect();
+    let nodes =
+        crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group)
+            .nodes;
+    // Exact entry and exit of a child's box along the ray (f64: differences of f32 values are
+    // exact, one rounding per quotient), within the ray's interval.
+    let exact = |node: &crate::accel::wide_bvh::WideNode, slot: usize, ray: &Ray| {
+        let (mut near, mut far) = (f64::from(ray.t_min), f64::from(ray.t_max));
+        for axis in 0..3 {
+            let origin = f64::from(ray.origin[axis]);
+            let direction = f64::from(ray.direction[axis]);
+            let low = (f64::from(node.planes[2 * axis][slot]) - origin) / direction;
+            let high = (f64::from(node.planes[2 * axis + 1][slot]) - origin) / direction;
+            near = near.max(low.min(high));
+            far = far.min(low.max(high));
+        }
+        (near, far)
+    };
+    let (mut reached, mut missed, mut corner_rays) = (0, 0, 0);
+    for (n, node) in nodes.iter().enumerate().step_by(3) {
+        for slot in 0..8 {
+            if !crate::accel::wide_bvh::occupied(node, slot) {
+                continue;
+            }
+            for corner in 0..8 {
+                let point = Vec3::from_array(std::array::from_fn(|axis| {
+                    node.planes[2 * axis + ((corner >> axis) & 1)][slot]
+                }));
+                let origin = rng.point(-15.0, 15.0);
+                let direction = point - origin;
+                let t_min = if (n + corner) % 3 == 0 { 0.0 } else { 1.0e-3 };
+                let rays = [
+                    Ray::new(origin, direction, t_min, f32::INFINITY),
+                    Ray::new(origin, direction, t_min, 1.0),
+                    Ray::new(
+                        origin,
+                        rng.point(-10.0, 10.0) - origin,
+                        t_min,
+                        f32::INFINITY,
+                    ),
+                ];
+                for ray in rays {
+                    if ray.direction.abs().min_element() < 1.0e-3 {
+                        continue;
+                    }
+                    corner_rays += 1;
+                    let prepared = traversal_ray(&ray);
+                    for (mask, nears) in
+                        crate::accel::single_ray::test_paths::child_hits(node, &prepared)
+                    {
+                        for (child, &found_near) in nears.iter().enumerate() {
+                            let (near, far) = exact(node, child, &ray);
+                            if near <= far && crate::accel::wide_bvh::occupied(node, child) {
+                                reached += 1;
+                                if mask & (1 << child) == 0 || f64::from(found_near) > near {
+                                    missed += 1;
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        corner_rays > 10_000 && reached > 10_000,
+        "{corner_rays} {reached}"
+    );
+    assert_eq!(missed, 0, "of {reached}");
 }
 
 #[test]
