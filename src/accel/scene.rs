@@ -277,19 +277,30 @@ impl SceneBvh {
     ) -> Option<SceneHit> {
         let placement = &self.placements[slot as usize];
         let uv = Vec2::new(packet.hit_uv[0][lane], packet.hit_uv[1][lane]);
-        let hit = match placement.geometry.triangle_hit_from_uv(
-            primitive_slot,
-            packet.t_max[lane],
-            uv,
-            packet.hit_normal(lane),
-        ) {
-            Some(hit) => hit,
+        let (t, normal) = (packet.t_max[lane], packet.hit_normal(lane));
+        match placement
+            .geometry
+            .triangle_hit_from_uv(primitive_slot, t, uv, normal)
+        {
+            // The usual hit, finished from the values at hand: what `scene_hit` gives an
+            // untransformed placement, without reading the normal back through memory (a
+            // wide load of narrow stores stalled every lane).
+            Some(hit) if placement.world_to_object.is_none() => Some(SceneHit {
+                t,
+                instance: placement.instance,
+                geometry: placement.geometry_index,
+                primitive: hit.primitive,
+                uv: hit.uv,
+                normal,
+                object_normal: normal,
+            }),
+            Some(hit) => Some(self.scene_hit(placement, hit)),
             None => {
                 let object = placement.object_ray(&packet.ray(lane))?;
-                placement.geometry.hit_details(primitive_slot, &object)
+                let hit = placement.geometry.hit_details(primitive_slot, &object);
+                Some(self.scene_hit(placement, hit))
             }
-        };
-        Some(self.scene_hit(placement, hit))
+        }
     }
 
     /// Per ray of a frustum packet, the closest (placement slot, primitive slot).
