@@ -268,7 +268,10 @@ impl SceneBvh {
     }
 
     /// The full hit of a (placement slot, primitive slot) found for `lane` of a packet (its
-    /// `t_max` is the hit; triangle barycentrics come from the packet test).
+    /// `t_max` is the hit; triangle barycentrics come from the packet test). Inlined, so that
+    /// the record is written where the caller keeps it, not into a temporary copied with wider
+    /// loads than its stores (a stall per lane).
+    #[inline(always)]
     fn packet_hit(
         &self,
         (slot, primitive_slot): (u32, u32),
