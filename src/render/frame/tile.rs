@@ -74,6 +74,16 @@ pub(super) const NO_RAY: Ray = Ray {
     t_max: 0.0,
 };
 
+/// What a block's `rays` hold in debug builds when the block is shaded from its arrays and no
+/// one reads them: a NaN origin, so any reader fails loudly.
+#[cfg(debug_assertions)]
+const UNFILLED_RAY: Ray = Ray {
+    origin: Vec3::NAN,
+    direction: Vec3::ZERO,
+    t_min: 0.0,
+    t_max: 0.0,
+};
+
 /// Pixels in a full tile.
 pub(super) const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
 
@@ -401,6 +411,11 @@ pub(super) fn trace_blocks(
                     for (lane, ray) in rays.iter_mut().enumerate() {
                         *ray = traced_lane(&block, lane);
                     }
+                } else if block_rays.is_some() {
+                    // Unfilled: a reader added later must not silently get the previous
+                    // block's rays, so debug builds (tests) poison them.
+                    #[cfg(debug_assertions)]
+                    rays.fill(UNFILLED_RAY);
                 }
                 // Otherwise ray by ray.
                 let per_lane = if block_rays.is_some() {
