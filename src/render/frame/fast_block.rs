@@ -1,9 +1,10 @@
 //! The fast renderer's samples of a block whose rays were made together (one eye, a whole 8×8
 //! block; no cluster pass): shaded straight from the block's arrays, with what does not change
 //! between lanes (where the view looks from, the background, the surface hit) decided once.
-//! Where every hit of the block lies on one uniform surface and the view looks along the rays,
-//! the colours are computed over lane arrays (several lanes per instruction); otherwise lane by
-//! lane. Every lane's sample is bit for bit the per-ray path's.
+//! Where every hit of the block lies on one uniform surface, the colours are computed over lane
+//! arrays (several lanes per instruction), the view along the rays or from a stereo eye's
+//! cyclopean point; otherwise lane by lane. Every lane's sample is bit for bit the per-ray
+//! path's.
 
 use glam::{Vec2, Vec3, Vec4};
 
@@ -29,8 +30,8 @@ pub(super) struct FastBlock<'a> {
     pub(super) row_stride: usize,
 }
 
-/// The normals of a block's hits on its one surface, lane by lane (lanes without a hit hold
-/// zeros; which lanes hit is the block's `hits`).
+/// The normals and ray parameters `t` of a block's hits on its one surface, lane by lane
+/// (lanes without a hit hold zeros; which lanes hit is the block's `hits`).
 struct LaneHits {
     normal: [[f32; BLOCK_RAYS]; 3],
     t: [f32; BLOCK_RAYS],
