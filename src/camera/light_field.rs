@@ -18,7 +18,7 @@ use std::sync::Arc;
 use glam::{DVec2, DVec3, Vec3};
 
 use super::offaxis::ScreenFrame;
-use super::rays::{BLOCK_RAYS, BlockRays, ClipRange, EyeRays, ImageRegion, Pinhole};
+use super::rays::{BLOCK_RAYS, BlockRays, ClipRange, EyeRays, ImageRegion, Pinhole, with_clip};
 use super::validate;
 use super::{Camera, CameraError, Eye, EyeViewport, PixelSet, StereoMode};
 
@@ -337,18 +337,6 @@ fn fraction(x: f64) -> f64 {
     x - x.floor()
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-pub(super) fn light_field_block_avx2(
-    region: &ImageRegion,
-    rays: &LightFieldRays,
-    s: &[f32; BLOCK_RAYS],
-    t: &[f32; BLOCK_RAYS],
-    block: &mut BlockRays,
-) {
-    light_field_block(region, rays, s, t, block);
-}
-
 /// [`EyeRays::ray`]'s light-field rays for a block of subpixels, lane by lane with the same
 /// functions (no fused multiply-adds on the AVX2 path, where `floor` is one instruction).
 #[inline(always)]
@@ -368,22 +356,22 @@ pub(super) fn light_field_block(
         eyes[i] = rays.eye(st.x, st.y).to_array();
         targets[i] = rays.target(st).to_array();
     }
-    match rays.clip {
-        ClipRange {
-            near: None,
-            far: None,
-        } => {
-            for i in 0..BLOCK_RAYS {
-                block.set(i, eyes[i], targets[i], rays.forward, &ClipRange::default());
-            }
-        }
-        clip => {
-            for i in 0..BLOCK_RAYS {
-                block.set(i, eyes[i], targets[i], rays.forward, &clip);
-            }
-        }
-    }
+    with_clip!(rays.clip, clip => eye_lanes(&eyes, &targets, rays.forward, clip, block));
     block.set_cyclopean(None);
+}
+
+/// [`light_field_block`]'s lanes from `eyes` through `targets` with clip range `clip`.
+#[inline(always)]
+fn eye_lanes(
+    eyes: &[[f64; 3]; BLOCK_RAYS],
+    targets: &[[f64; 3]; BLOCK_RAYS],
+    forward: DVec3,
+    clip: &ClipRange,
+    block: &mut BlockRays,
+) {
+    for i in 0..BLOCK_RAYS {
+        block.set(i, eyes[i], targets[i], forward, clip);
+    }
 }
 
 #[cfg(test)]

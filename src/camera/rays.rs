@@ -7,8 +7,6 @@ use glam::{DMat4, DVec2, DVec3, DVec4, Vec2, Vec3};
 use super::CameraRay;
 use super::fisheye::DomeRays;
 use super::light_field::LightFieldRays;
-#[cfg(target_arch = "x86_64")]
-use super::light_field::light_field_block_avx2;
 use super::light_field::light_field_block;
 use super::offaxis::ScreenFrame;
 use super::omnidirectional::EquirectangularRays;
@@ -485,40 +483,48 @@ impl EyeRays {
         t: &[f32; BLOCK_RAYS],
         block: &mut BlockRays,
     ) -> bool {
-        if let Generator::Blended(b) = &self.generator {
-            #[cfg(target_arch = "x86_64")]
-            if avx2 && std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-                unsafe { blended_block_avx2(&self.region, b, s, t, block) };
-                return true;
-            }
-            blended_block(&self.region, b, s, t, block, false);
-            return true;
-        }
-        if let Generator::LightField(l) = &self.generator {
-            #[cfg(target_arch = "x86_64")]
-            if avx2 && std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-                unsafe { light_field_block_avx2(&self.region, l, s, t, block) };
-                return true;
-            }
-            light_field_block(&self.region, l, s, t, block);
-            return true;
-        }
-        let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
-            return false;
-        };
         #[cfg(target_arch = "x86_64")]
         if avx2 && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-            unsafe { pinhole_block_avx2(&self.region, pinhole, s, t, block) };
-            block.set_cyclopean(cyclopean);
-            return true;
+            return unsafe { self.block_rays_avx2(s, t, block) };
         }
         #[cfg(not(target_arch = "x86_64"))]
         let _ = avx2;
-        pinhole_block(&self.region, pinhole, s, t, block);
-        block.set_cyclopean(cyclopean);
+        self.block_rays_with(false, s, t, block)
+    }
+
+    /// [`Self::block_rays_with`] compiled for AVX2 (four f64 lanes per instruction).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn block_rays_avx2(
+        &self,
+        s: &[f32; BLOCK_RAYS],
+        t: &[f32; BLOCK_RAYS],
+        block: &mut BlockRays,
+    ) -> bool {
+        self.block_rays_with(true, s, t, block)
+    }
+
+    /// [`Self::block_rays`] by generator; `avx2` when compiled into [`Self::block_rays_avx2`].
+    #[inline(always)]
+    fn block_rays_with(
+        &self,
+        avx2: bool,
+        s: &[f32; BLOCK_RAYS],
+        t: &[f32; BLOCK_RAYS],
+        block: &mut BlockRays,
+    ) -> bool {
+        match &self.generator {
+            Generator::Blended(b) => blended_block(&self.region, b, s, t, block, avx2),
+            Generator::LightField(l) => light_field_block(&self.region, l, s, t, block),
+            _ => {
+                let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
+                    return false;
+                };
+                pinhole_block(&self.region, pinhole, s, t, block);
+                block.set_cyclopean(cyclopean);
+            }
+        }
         true
     }
 
@@ -868,17 +874,29 @@ impl BlockRays {
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn pinhole_block_avx2(
-    region: &ImageRegion,
-    pinhole: &Pinhole,
-    s: &[f32; BLOCK_RAYS],
-    t: &[f32; BLOCK_RAYS],
-    block: &mut BlockRays,
-) {
-    pinhole_block(region, pinhole, s, t, block);
+/// `$lanes` with `$clip` bound to the clip range `$range`, written out twice so that a range
+/// without planes is one known to be empty when compiled: over lane arrays the compiler
+/// otherwise computes the planes' division for every lane and drops it. A macro, not a
+/// function taking a closure: a closure called from two arms may stay out of line, where it
+/// loses both the known range and the caller's target features.
+macro_rules! with_clip {
+    ($range:expr, $clip:ident => $lanes:expr) => {
+        match $range {
+            ClipRange {
+                near: None,
+                far: None,
+            } => {
+                let $clip = &ClipRange::default();
+                $lanes
+            }
+            range => {
+                let $clip = &range;
+                $lanes
+            }
+        }
+    };
 }
+pub(super) use with_clip;
 
 /// [`clipped_ray`] from the pinhole's eye through the window points of `(s, t)`, lane by lane
 /// with the functions [`EyeRays::ray`] uses, so that every lane is bit for bit its ray (and no
@@ -891,15 +909,7 @@ fn pinhole_block(
     t: &[f32; BLOCK_RAYS],
     block: &mut BlockRays,
 ) {
-    // Without clip planes the loop is made for a clip range known to be empty: over lane
-    // arrays the compiler otherwise computes the planes' division for every lane and drops it.
-    match pinhole.clip {
-        ClipRange {
-            near: None,
-            far: None,
-        } => pinhole_lanes(region, pinhole, &ClipRange::default(), s, t, block),
-        clip => pinhole_lanes(region, pinhole, &clip, s, t, block),
-    }
+    with_clip!(pinhole.clip, clip => pinhole_lanes(region, pinhole, clip, s, t, block));
 }
 
 /// [`pinhole_block`]'s lanes with the pinhole's clip range `clip`.
@@ -917,18 +927,6 @@ fn pinhole_lanes(
         let target = window_point(pinhole, region.apply(s[i], t[i]));
         block.set(i, eye, target.to_array(), pinhole.forward, clip);
     }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn blended_block_avx2(
-    region: &ImageRegion,
-    b: &Blended,
-    s: &[f32; BLOCK_RAYS],
-    t: &[f32; BLOCK_RAYS],
-    block: &mut BlockRays,
-) {
-    blended_block(region, b, s, t, block, true);
 }
 
 /// [`EyeRays::rays4`]'s rays for a whole block: the camera positions for all its points at
@@ -951,20 +949,7 @@ fn blended_block(
     b.viewers
         .cameras_into(&targets, &st, stereo, avx2, &mut cameras);
     if !stereo {
-        // As in `pinhole_block`: a clip range known to be empty lets the loop skip its planes.
-        let lanes = |clip: &ClipRange, block: &mut BlockRays| {
-            for (i, target) in targets.iter().enumerate() {
-                let eye = [0, 1, 2].map(|axis| cameras.head[axis][i]);
-                block.set(i, eye, target.to_array(), b.forward, clip);
-            }
-        };
-        match b.clip {
-            ClipRange {
-                near: None,
-                far: None,
-            } => lanes(&ClipRange::default(), block),
-            clip => lanes(&clip, block),
-        }
+        with_clip!(b.clip, clip => head_lanes(&cameras, &targets, b.forward, clip, block));
         block.set_cyclopean(None);
         return;
     }
@@ -978,6 +963,21 @@ fn blended_block(
         }
     }
     block.cyclopean = Some(cyclopean);
+}
+
+/// [`blended_block`]'s lanes from the blended heads (no stereo offset) with clip range `clip`.
+#[inline(always)]
+fn head_lanes(
+    cameras: &CameraLanes<BLOCK_RAYS>,
+    targets: &[DVec3; BLOCK_RAYS],
+    forward: DVec3,
+    clip: &ClipRange,
+    block: &mut BlockRays,
+) {
+    for (i, target) in targets.iter().enumerate() {
+        let eye = [0, 1, 2].map(|axis| cameras.head[axis][i]);
+        block.set(i, eye, target.to_array(), forward, clip);
+    }
 }
 
 /// Window depth of eye-space distance `z` for a glFrustum-style projection; `far = None` is the

@@ -359,7 +359,9 @@ mod tests {
         // Lanes where normalizing fails, one in each of several groups of four and at each
         // position in a group: the hit point on the viewer, an offset whose square underflows
         // to zero, one whose square overflows, a NaN hit point.
-        let hit_point = |origin: &[[f32; BLOCK_RAYS]; 3], direction: &[[f32; BLOCK_RAYS]; 3], lane| {
+        let hit_point = |origin: &[[f32; BLOCK_RAYS]; 3],
+                         direction: &[[f32; BLOCK_RAYS]; 3],
+                         lane| {
             Vec3::new(origin[0][lane], origin[1][lane], origin[2][lane])
                 + Vec3::new(direction[0][lane], direction[1][lane], direction[2][lane]) * t[lane]
         };
@@ -381,7 +383,8 @@ mod tests {
         }
         let mut views = [[0.0; BLOCK_RAYS]; 3];
         cyclopean_views_into(&origin, &direction, &t, &viewer, &mut views);
-        let at = |v: &[[f32; BLOCK_RAYS]; 3], lane: usize| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
+        let at =
+            |v: &[[f32; BLOCK_RAYS]; 3], lane: usize| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
         let mut fallbacks = 0;
         for lane in 0..BLOCK_RAYS {
             let ray = Ray {
@@ -401,6 +404,9 @@ mod tests {
             fallbacks += usize::from(expected == ray.direction);
         }
         // The special lanes did take the fallback.
-        assert_eq!(fallbacks, 8, "{fallbacks} lanes fell back to the ray's direction");
+        assert_eq!(
+            fallbacks, 8,
+            "{fallbacks} lanes fell back to the ray's direction"
+        );
     }
 }
