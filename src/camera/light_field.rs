@@ -471,11 +471,7 @@ mod tests {
         // The frame makes a block's rays together (eyes of snapped views from a table): every
         // one must be the ray the definition gives alone, on either instruction-set path.
         let (w, h) = (2560u32, 1600u32);
-        let paths: &[bool] = if crate::isa::Isa::Avx2.supported() {
-            &[false, true]
-        } else {
-            &[false]
-        };
+        let paths = crate::isa::test_paths();
         let mut block = BlockRays::default();
         let mut checked = 0;
         let calibrations = [
