@@ -234,7 +234,8 @@ impl Camera for LightFieldCamera {
                 view_centre: self.view_centre(),
                 view_x: s.x * self.viewing_distance,
                 view_eyes: Vec::new(),
-            },
+            }
+            .with_view_eyes(),
         )
     }
 }
@@ -265,14 +266,15 @@ pub(crate) struct LightFieldRays {
     /// axis times the viewing distance.
     pub view_centre: DVec3,
     pub view_x: DVec3,
-    /// Filled by [`LightFieldRays::with_view_eyes`].
-    pub view_eyes: Vec<DVec3>,
+    /// The snapped views' eyes, made from the fields above by [`LightFieldRays::with_view_eyes`]
+    /// (so private: they cannot drift from `views`).
+    view_eyes: Vec<DVec3>,
 }
 
 impl LightFieldRays {
     /// The eyes of the `views` snapped views (view i at fraction (i+½)/N), when there are at
     /// most [`MAX_TABLED_VIEWS`]: each subpixel's eye is then looked up, not computed.
-    pub(crate) fn with_view_eyes(mut self) -> LightFieldRays {
+    fn with_view_eyes(mut self) -> LightFieldRays {
         self.view_eyes = if self.views > 0 && self.views <= MAX_TABLED_VIEWS {
             let n = f64::from(self.views);
             (0..self.views)

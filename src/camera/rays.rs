@@ -278,7 +278,7 @@ impl EyeRays {
     pub(crate) fn light_field(region: ImageRegion, rays: LightFieldRays) -> EyeRays {
         EyeRays {
             region,
-            generator: Generator::LightField(rays.with_view_eyes()),
+            generator: Generator::LightField(rays),
             stereo: None,
         }
     }
