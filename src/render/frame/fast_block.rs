@@ -378,22 +378,22 @@ mod tests {
         place_viewer(17, Vec3::new(-1e25, 1e25, 0.0));
         t[22] = f32::NAN;
         origin[1][27] = f32::NAN;
-        for axis in 0..3 {
-            origin[axis][33] = 1e30 * (axis as f32 + 1.0);
+        for (axis, lanes) in origin.iter_mut().enumerate() {
+            lanes[33] = 1e30 * (axis as f32 + 1.0);
         }
         let mut views = [[0.0; BLOCK_RAYS]; 3];
         cyclopean_views_into(&origin, &direction, &t, &viewer, &mut views);
         let at =
             |v: &[[f32; BLOCK_RAYS]; 3], lane: usize| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
         let mut fallbacks = 0;
-        for lane in 0..BLOCK_RAYS {
+        for (lane, &t) in t.iter().enumerate() {
             let ray = Ray {
                 origin: at(&origin, lane),
                 direction: at(&direction, lane),
                 t_min: 0.0,
                 t_max: f32::INFINITY,
             };
-            let point = UniformSurface::point(&ray, &hit_at(t[lane]));
+            let point = UniformSurface::point(&ray, &hit_at(t));
             let expected = settings.view_direction(&ray, point, Some(at(&viewer, lane)));
             let got = at(&views, lane);
             assert_eq!(
