@@ -108,6 +108,17 @@ impl Isa {
     }
 }
 
+/// The paths a test runs a kernel on, as "uses AVX2": the baseline, and AVX2 where this CPU
+/// has it.
+#[cfg(test)]
+pub(crate) fn test_paths() -> &'static [bool] {
+    if Isa::Avx2.supported() {
+        &[false, true]
+    } else {
+        &[false]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

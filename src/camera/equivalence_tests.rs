@@ -357,11 +357,7 @@ fn block_rays_are_the_rays_made_one_by_one_on_every_path() {
         .collect();
     points.extend((0..200).map(|_| (unit(), unit())));
     points.extend([(0.0, 0.0), (1.0, 1.0), (0.0, 1.0), (1.0, 0.0)]);
-    let paths: &[bool] = if crate::isa::Isa::Avx2.supported() {
-        &[false, true]
-    } else {
-        &[false]
-    };
+    let paths = crate::isa::test_paths();
     let mut block = BlockRays::default();
     let mut checked = 0;
     for screen in screens() {

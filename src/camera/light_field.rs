@@ -15,10 +15,10 @@
 
 use std::sync::Arc;
 
-use glam::{DVec3, Vec3};
+use glam::{DVec2, DVec3, Vec3};
 
 use super::offaxis::ScreenFrame;
-use super::rays::{ClipRange, EyeRays, ImageRegion, LightFieldRays, Pinhole};
+use super::rays::{BLOCK_RAYS, BlockRays, ClipRange, EyeRays, ImageRegion, Pinhole, with_clip};
 use super::validate;
 use super::{Camera, CameraError, Eye, EyeViewport, PixelSet, StereoMode};
 
@@ -234,15 +234,151 @@ impl Camera for LightFieldCamera {
                 view_centre: self.view_centre(),
                 view_x: s.x * self.viewing_distance,
                 view_eyes: Vec::new(),
-            },
+            }
+            .with_view_eyes(),
         )
+    }
+}
+
+/// Rays of a light-field display's subpixels (`lightField` camera): each from the eye of its
+/// view fraction through its subpixel's centre (see the module's documentation). Called with the
+/// subpixel's own viewport coordinates: s = (3x + k + ½) / 3W for subpixel k of pixel x.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) struct LightFieldRays {
+    pub window_origin: DVec3,
+    pub window_right: DVec3,
+    pub window_up: DVec3,
+    pub forward: DVec3,
+    pub clip: ClipRange,
+    pub tilt: f64,
+    pub pitch: f64,
+    /// One subpixel's share of the lenticular phase (pitch / 3W).
+    pub subpixel: f64,
+    pub center: f64,
+    pub inv_view: bool,
+    pub views: u32,
+    /// Radians.
+    pub view_cone: f64,
+    pub flip_x: bool,
+    pub flip_y: bool,
+    pub flip_subpixels: bool,
+    /// The eye of view fraction ½ (in front of the screen's centre), and the screen's unit x
+    /// axis times the viewing distance.
+    pub view_centre: DVec3,
+    pub view_x: DVec3,
+    /// The snapped views' eyes, made from the fields above by [`LightFieldRays::with_view_eyes`]
+    /// (so private: they cannot drift from `views`).
+    view_eyes: Vec<DVec3>,
+}
+
+impl LightFieldRays {
+    /// The eyes of the `views` snapped views (view i at fraction (i+½)/N), when there are at
+    /// most [`MAX_TABLED_VIEWS`]: each subpixel's eye is then looked up, not computed.
+    fn with_view_eyes(mut self) -> LightFieldRays {
+        self.view_eyes = if self.views > 0 && self.views <= MAX_TABLED_VIEWS {
+            let n = f64::from(self.views);
+            (0..self.views)
+                .map(|view| self.eye_of_fraction((f64::from(view) + 0.5) / n))
+                .collect()
+        } else {
+            Vec::new()
+        };
+        self
+    }
+
+    /// The view fraction of the subpixel at viewport coordinates (s, t), before snapping.
+    #[inline(always)]
+    fn view_fraction(&self, s: f64, t: f64) -> f64 {
+        // s is the subpixel's centre; the calibration's phase is written for the pixel's
+        // centre plus k subpixels, which is s plus one subpixel.
+        let f = fraction((s + t * self.tilt) * self.pitch - self.center + self.subpixel);
+        if self.inv_view { 1.0 - f } else { f }
+    }
+
+    /// The eye of the subpixel at viewport coordinates (s, t): of its view fraction, snapped
+    /// to the nearest of `views` views (i+½)/N when there are views.
+    #[inline(always)]
+    pub(super) fn eye(&self, s: f64, t: f64) -> DVec3 {
+        let f = self.view_fraction(s, t);
+        if self.views == 0 {
+            return self.eye_of_fraction(f);
+        }
+        let n = f64::from(self.views);
+        // `min` makes a NaN fraction view n − 1, in the table as in the formula.
+        let view = (f * n).floor().min(n - 1.0);
+        match self.view_eyes.get(view as usize) {
+            Some(eye) => *eye,
+            None => self.eye_of_fraction((view + 0.5) / n),
+        }
+    }
+
+    /// The eye of view fraction `f`.
+    #[inline(always)]
+    fn eye_of_fraction(&self, f: f64) -> DVec3 {
+        LightFieldCamera::view_eye(self.view_centre, self.view_x, self.view_cone, f)
+    }
+
+    /// The subpixel's centre on the screen for viewport coordinates `st`.
+    #[inline(always)]
+    pub(super) fn target(&self, st: DVec2) -> DVec3 {
+        let s = if self.flip_x { 1.0 - st.x } else { st.x };
+        let t = if self.flip_y { 1.0 - st.y } else { st.y };
+        self.window_origin + s * self.window_right + t * self.window_up
+    }
+}
+
+/// Most snapped views whose eyes a light-field generator keeps in a table (quilt drivers use
+/// 45 to 100).
+const MAX_TABLED_VIEWS: u32 = 4096;
+
+/// x − ⌊x⌋: bit for bit `x.rem_euclid(1.0)` but for the sign of a zero result (the remainder
+/// and the +1 of a negative x round the same exact value once), without a call to `fmod`. A
+/// view fraction's zero sign never reaches a ray: 1 − f, ⌊f·N⌋ + ½ and f − ½ drop it.
+#[inline(always)]
+fn fraction(x: f64) -> f64 {
+    x - x.floor()
+}
+
+/// [`EyeRays::ray`]'s light-field rays for a block of subpixels, lane by lane with the same
+/// functions (no fused multiply-adds on the AVX2 path, where `floor` is one instruction).
+#[inline(always)]
+pub(super) fn light_field_block(
+    region: &ImageRegion,
+    rays: &LightFieldRays,
+    s: &[f32; BLOCK_RAYS],
+    t: &[f32; BLOCK_RAYS],
+    block: &mut BlockRays,
+) {
+    // The eyes and targets first (branches, a table look-up), then the rays over lane arrays:
+    // their square roots and divisions several lanes per instruction.
+    let mut eyes = [[0.0; 3]; BLOCK_RAYS];
+    let mut targets = [[0.0; 3]; BLOCK_RAYS];
+    for i in 0..BLOCK_RAYS {
+        let st = region.apply(s[i], t[i]);
+        eyes[i] = rays.eye(st.x, st.y).to_array();
+        targets[i] = rays.target(st).to_array();
+    }
+    with_clip!(rays.clip, clip => eye_lanes(&eyes, &targets, rays.forward, clip, block));
+    block.set_cyclopean(None);
+}
+
+/// [`light_field_block`]'s lanes from `eyes` through `targets` with clip range `clip`.
+#[inline(always)]
+fn eye_lanes(
+    eyes: &[[f64; 3]; BLOCK_RAYS],
+    targets: &[[f64; 3]; BLOCK_RAYS],
+    forward: DVec3,
+    clip: &ClipRange,
+    block: &mut BlockRays,
+) {
+    for i in 0..BLOCK_RAYS {
+        block.set(i, eyes[i], targets[i], forward, clip);
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::{BLOCK_RAYS, BlockRays};
     use glam::{DVec3, Vec2};
 
     fn camera(desc: LightFieldDesc) -> LightFieldCamera {
@@ -337,11 +473,7 @@ mod tests {
         // The frame makes a block's rays together (eyes of snapped views from a table): every
         // one must be the ray the definition gives alone, on either instruction-set path.
         let (w, h) = (2560u32, 1600u32);
-        let paths: &[bool] = if crate::isa::Isa::Avx2.supported() {
-            &[false, true]
-        } else {
-            &[false]
-        };
+        let paths = crate::isa::test_paths();
         let mut block = BlockRays::default();
         let mut checked = 0;
         let calibrations = [
@@ -480,6 +612,48 @@ mod tests {
             })
             .unwrap_err();
             assert_eq!(error.parameter, parameter);
+        }
+    }
+
+    #[test]
+    fn fraction_is_rem_euclid_but_for_the_sign_of_zero() {
+        let mut values = vec![
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            0.25,
+            -0.25,
+            1e-20,
+            -1e-20,
+            -3.000_000_000_1,
+            12345.678,
+            -12345.678,
+            4_503_599_627_370_495.5,
+            -4_503_599_627_370_495.5,
+            1e300,
+            f64::MIN_POSITIVE,
+            -f64::MIN_POSITIVE,
+            f64::INFINITY,
+            f64::NAN,
+        ];
+        // Phases of every magnitude a calibration gives (up to a few thousand cycles).
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        for _ in 0..200_000 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            let unit = (state >> 11) as f64 / (1u64 << 53) as f64;
+            let scale = [1e-6, 1.0, 40.0, 5000.0][(state >> 3) as usize % 4];
+            values.push((2.0 * unit - 1.0) * scale);
+        }
+        for x in values {
+            let (fast, reference) = (fraction(x), x.rem_euclid(1.0));
+            let same_bits = fast.to_bits() == reference.to_bits();
+            assert!(
+                same_bits || fast == reference || (fast.is_nan() && reference.is_nan()),
+                "{x}: {fast} vs {reference}"
+            );
         }
     }
 }

@@ -6,7 +6,8 @@ use glam::{DMat4, DVec2, DVec3, DVec4, Vec2, Vec3};
 
 use super::CameraRay;
 use super::fisheye::DomeRays;
-use super::light_field::LightFieldCamera;
+use super::light_field::LightFieldRays;
+use super::light_field::light_field_block;
 use super::offaxis::ScreenFrame;
 use super::omnidirectional::EquirectangularRays;
 use super::viewers::{CameraLanes, ViewerSet};
@@ -38,7 +39,7 @@ impl ImageRegion {
     }
 
     #[inline]
-    fn apply(&self, s: f32, t: f32) -> DVec2 {
+    pub(super) fn apply(&self, s: f32, t: f32) -> DVec2 {
         self.lo + DVec2::new(f64::from(s), f64::from(t)) * self.extent
     }
 
@@ -112,104 +113,6 @@ pub(crate) struct Blended {
     pub viewers: Arc<ViewerSet>,
     /// This eye's offset from the blended head along the blended right vector, in meters.
     pub eye_offset: f64,
-}
-
-/// Rays of a light-field display's subpixels (`lightField` camera): each from the eye of its
-/// view fraction through its subpixel's centre (see `camera::light_field`). Called with the
-/// subpixel's own viewport coordinates: s = (3x + k + ½) / 3W for subpixel k of pixel x.
-#[derive(Clone, Debug, PartialEq)]
-pub(crate) struct LightFieldRays {
-    pub window_origin: DVec3,
-    pub window_right: DVec3,
-    pub window_up: DVec3,
-    pub forward: DVec3,
-    pub clip: ClipRange,
-    pub tilt: f64,
-    pub pitch: f64,
-    /// One subpixel's share of the lenticular phase (pitch / 3W).
-    pub subpixel: f64,
-    pub center: f64,
-    pub inv_view: bool,
-    pub views: u32,
-    /// Radians.
-    pub view_cone: f64,
-    pub flip_x: bool,
-    pub flip_y: bool,
-    pub flip_subpixels: bool,
-    /// The eye of view fraction ½ (in front of the screen's centre), and the screen's unit x
-    /// axis times the viewing distance.
-    pub view_centre: DVec3,
-    pub view_x: DVec3,
-    /// Filled by [`LightFieldRays::with_view_eyes`].
-    pub view_eyes: Vec<DVec3>,
-}
-
-impl LightFieldRays {
-    /// The eyes of the `views` snapped views (view i at fraction (i+½)/N), when there are at
-    /// most [`MAX_TABLED_VIEWS`]: each subpixel's eye is then looked up, not computed.
-    pub(crate) fn with_view_eyes(mut self) -> LightFieldRays {
-        self.view_eyes = if self.views > 0 && self.views <= MAX_TABLED_VIEWS {
-            let n = f64::from(self.views);
-            (0..self.views)
-                .map(|view| self.eye_of_fraction((f64::from(view) + 0.5) / n))
-                .collect()
-        } else {
-            Vec::new()
-        };
-        self
-    }
-
-    /// The view fraction of the subpixel at viewport coordinates (s, t), before snapping.
-    #[inline(always)]
-    fn view_fraction(&self, s: f64, t: f64) -> f64 {
-        // s is the subpixel's centre; the calibration's phase is written for the pixel's
-        // centre plus k subpixels, which is s plus one subpixel.
-        let f = fraction((s + t * self.tilt) * self.pitch - self.center + self.subpixel);
-        if self.inv_view { 1.0 - f } else { f }
-    }
-
-    /// The eye of the subpixel at viewport coordinates (s, t): of its view fraction, snapped
-    /// to the nearest of `views` views (i+½)/N when there are views.
-    #[inline(always)]
-    fn eye(&self, s: f64, t: f64) -> DVec3 {
-        let f = self.view_fraction(s, t);
-        if self.views == 0 {
-            return self.eye_of_fraction(f);
-        }
-        let n = f64::from(self.views);
-        // `min` makes a NaN fraction view n − 1, in the table as in the formula.
-        let view = (f * n).floor().min(n - 1.0);
-        match self.view_eyes.get(view as usize) {
-            Some(eye) => *eye,
-            None => self.eye_of_fraction((view + 0.5) / n),
-        }
-    }
-
-    /// The eye of view fraction `f`.
-    #[inline(always)]
-    fn eye_of_fraction(&self, f: f64) -> DVec3 {
-        LightFieldCamera::view_eye(self.view_centre, self.view_x, self.view_cone, f)
-    }
-
-    /// The subpixel's centre on the screen for viewport coordinates `st`.
-    #[inline(always)]
-    fn target(&self, st: DVec2) -> DVec3 {
-        let s = if self.flip_x { 1.0 - st.x } else { st.x };
-        let t = if self.flip_y { 1.0 - st.y } else { st.y };
-        self.window_origin + s * self.window_right + t * self.window_up
-    }
-}
-
-/// Most snapped views whose eyes a light-field generator keeps in a table (quilt drivers use
-/// 45 to 100).
-const MAX_TABLED_VIEWS: u32 = 4096;
-
-/// x − ⌊x⌋: bit for bit `x.rem_euclid(1.0)` but for the sign of a zero result (the remainder
-/// and the +1 of a negative x round the same exact value once), without a call to `fmod`. A
-/// view fraction's zero sign never reaches a ray: 1 − f, ⌊f·N⌋ + ½ and f − ½ drop it.
-#[inline(always)]
-fn fraction(x: f64) -> f64 {
-    x - x.floor()
 }
 
 /// Rays unprojected from NDC through proj⁻¹ then view⁻¹: matrix camera.
@@ -375,7 +278,7 @@ impl EyeRays {
     pub(crate) fn light_field(region: ImageRegion, rays: LightFieldRays) -> EyeRays {
         EyeRays {
             region,
-            generator: Generator::LightField(rays.with_view_eyes()),
+            generator: Generator::LightField(rays),
             stereo: None,
         }
     }
@@ -580,40 +483,48 @@ impl EyeRays {
         t: &[f32; BLOCK_RAYS],
         block: &mut BlockRays,
     ) -> bool {
-        if let Generator::Blended(b) = &self.generator {
-            #[cfg(target_arch = "x86_64")]
-            if avx2 && std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-                unsafe { blended_block_avx2(&self.region, b, s, t, block) };
-                return true;
-            }
-            blended_block(&self.region, b, s, t, block, false);
-            return true;
-        }
-        if let Generator::LightField(l) = &self.generator {
-            #[cfg(target_arch = "x86_64")]
-            if avx2 && std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-                unsafe { light_field_block_avx2(&self.region, l, s, t, block) };
-                return true;
-            }
-            light_field_block(&self.region, l, s, t, block);
-            return true;
-        }
-        let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
-            return false;
-        };
         #[cfg(target_arch = "x86_64")]
         if avx2 && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-            unsafe { pinhole_block_avx2(&self.region, pinhole, s, t, block) };
-            block.set_cyclopean(cyclopean);
-            return true;
+            return unsafe { self.block_rays_avx2(s, t, block) };
         }
         #[cfg(not(target_arch = "x86_64"))]
         let _ = avx2;
-        pinhole_block(&self.region, pinhole, s, t, block);
-        block.set_cyclopean(cyclopean);
+        self.block_rays_with(false, s, t, block)
+    }
+
+    /// [`Self::block_rays_with`] compiled for AVX2 (four f64 lanes per instruction).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn block_rays_avx2(
+        &self,
+        s: &[f32; BLOCK_RAYS],
+        t: &[f32; BLOCK_RAYS],
+        block: &mut BlockRays,
+    ) -> bool {
+        self.block_rays_with(true, s, t, block)
+    }
+
+    /// [`Self::block_rays`] by generator; `avx2` when compiled into [`Self::block_rays_avx2`].
+    #[inline(always)]
+    fn block_rays_with(
+        &self,
+        avx2: bool,
+        s: &[f32; BLOCK_RAYS],
+        t: &[f32; BLOCK_RAYS],
+        block: &mut BlockRays,
+    ) -> bool {
+        match &self.generator {
+            Generator::Blended(b) => blended_block(&self.region, b, s, t, block, avx2),
+            Generator::LightField(l) => light_field_block(&self.region, l, s, t, block),
+            _ => {
+                let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
+                    return false;
+                };
+                pinhole_block(&self.region, pinhole, s, t, block);
+                block.set_cyclopean(cyclopean);
+            }
+        }
         true
     }
 
@@ -931,7 +842,7 @@ impl BlockRays {
     }
 
     /// Every ray's cyclopean point `cyclopean`.
-    fn set_cyclopean(&mut self, cyclopean: Option<Vec3>) {
+    pub(super) fn set_cyclopean(&mut self, cyclopean: Option<Vec3>) {
         match cyclopean {
             Some(c) => self.cyclopean = Some(c.to_array().map(|v| [v; BLOCK_RAYS])),
             // Only the tag changes: assigning `None` wrote the whole option's bytes per block.
@@ -945,7 +856,14 @@ impl BlockRays {
 
     /// Lane `i`: the ray from `eye` through `target` that [`clipped_ray`] makes.
     #[inline(always)]
-    fn set(&mut self, i: usize, eye: [f64; 3], target: [f64; 3], forward: DVec3, clip: &ClipRange) {
+    pub(super) fn set(
+        &mut self,
+        i: usize,
+        eye: [f64; 3],
+        target: [f64; 3],
+        forward: DVec3,
+        clip: &ClipRange,
+    ) {
         let (direction, t_min, t_max) = unit_ray(eye, target, forward, clip);
         for (axis, (value, start)) in direction.into_iter().zip(eye).enumerate() {
             self.direction[axis][i] = value as f32;
@@ -956,17 +874,29 @@ impl BlockRays {
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn pinhole_block_avx2(
-    region: &ImageRegion,
-    pinhole: &Pinhole,
-    s: &[f32; BLOCK_RAYS],
-    t: &[f32; BLOCK_RAYS],
-    block: &mut BlockRays,
-) {
-    pinhole_block(region, pinhole, s, t, block);
+/// `$lanes` with `$clip` bound to the clip range `$range`, written out twice so that a range
+/// without planes is one known to be empty when compiled: over lane arrays the compiler
+/// otherwise computes the planes' division for every lane and drops it. A macro, not a
+/// function taking a closure: a closure called from two arms may stay out of line, where it
+/// loses both the known range and the caller's target features.
+macro_rules! with_clip {
+    ($range:expr, $clip:ident => $lanes:expr) => {
+        match $range {
+            ClipRange {
+                near: None,
+                far: None,
+            } => {
+                let $clip = &ClipRange::default();
+                $lanes
+            }
+            range => {
+                let $clip = &range;
+                $lanes
+            }
+        }
+    };
 }
+pub(super) use with_clip;
 
 /// [`clipped_ray`] from the pinhole's eye through the window points of `(s, t)`, lane by lane
 /// with the functions [`EyeRays::ray`] uses, so that every lane is bit for bit its ray (and no
@@ -979,15 +909,7 @@ fn pinhole_block(
     t: &[f32; BLOCK_RAYS],
     block: &mut BlockRays,
 ) {
-    // Without clip planes the loop is made for a clip range known to be empty: over lane
-    // arrays the compiler otherwise computes the planes' division for every lane and drops it.
-    match pinhole.clip {
-        ClipRange {
-            near: None,
-            far: None,
-        } => pinhole_lanes(region, pinhole, &ClipRange::default(), s, t, block),
-        clip => pinhole_lanes(region, pinhole, &clip, s, t, block),
-    }
+    with_clip!(pinhole.clip, clip => pinhole_lanes(region, pinhole, clip, s, t, block));
 }
 
 /// [`pinhole_block`]'s lanes with the pinhole's clip range `clip`.
@@ -1005,67 +927,6 @@ fn pinhole_lanes(
         let target = window_point(pinhole, region.apply(s[i], t[i]));
         block.set(i, eye, target.to_array(), pinhole.forward, clip);
     }
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn blended_block_avx2(
-    region: &ImageRegion,
-    b: &Blended,
-    s: &[f32; BLOCK_RAYS],
-    t: &[f32; BLOCK_RAYS],
-    block: &mut BlockRays,
-) {
-    blended_block(region, b, s, t, block, true);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn light_field_block_avx2(
-    region: &ImageRegion,
-    rays: &LightFieldRays,
-    s: &[f32; BLOCK_RAYS],
-    t: &[f32; BLOCK_RAYS],
-    block: &mut BlockRays,
-) {
-    light_field_block(region, rays, s, t, block);
-}
-
-/// [`EyeRays::ray`]'s light-field rays for a block of subpixels, lane by lane with the same
-/// functions (no fused multiply-adds on the AVX2 path, where `floor` is one instruction).
-#[inline(always)]
-fn light_field_block(
-    region: &ImageRegion,
-    rays: &LightFieldRays,
-    s: &[f32; BLOCK_RAYS],
-    t: &[f32; BLOCK_RAYS],
-    block: &mut BlockRays,
-) {
-    // The eyes and targets first (branches, a table look-up), then the rays over lane arrays:
-    // their square roots and divisions several lanes per instruction.
-    let mut eyes = [[0.0; 3]; BLOCK_RAYS];
-    let mut targets = [[0.0; 3]; BLOCK_RAYS];
-    for i in 0..BLOCK_RAYS {
-        let st = region.apply(s[i], t[i]);
-        eyes[i] = rays.eye(st.x, st.y).to_array();
-        targets[i] = rays.target(st).to_array();
-    }
-    match rays.clip {
-        ClipRange {
-            near: None,
-            far: None,
-        } => {
-            for i in 0..BLOCK_RAYS {
-                block.set(i, eyes[i], targets[i], rays.forward, &ClipRange::default());
-            }
-        }
-        clip => {
-            for i in 0..BLOCK_RAYS {
-                block.set(i, eyes[i], targets[i], rays.forward, &clip);
-            }
-        }
-    }
-    block.set_cyclopean(None);
 }
 
 /// [`EyeRays::rays4`]'s rays for a whole block: the camera positions for all its points at
@@ -1088,20 +949,7 @@ fn blended_block(
     b.viewers
         .cameras_into(&targets, &st, stereo, avx2, &mut cameras);
     if !stereo {
-        // As in `pinhole_block`: a clip range known to be empty lets the loop skip its planes.
-        let lanes = |clip: &ClipRange, block: &mut BlockRays| {
-            for (i, target) in targets.iter().enumerate() {
-                let eye = [0, 1, 2].map(|axis| cameras.head[axis][i]);
-                block.set(i, eye, target.to_array(), b.forward, clip);
-            }
-        };
-        match b.clip {
-            ClipRange {
-                near: None,
-                far: None,
-            } => lanes(&ClipRange::default(), block),
-            clip => lanes(&clip, block),
-        }
+        with_clip!(b.clip, clip => head_lanes(&cameras, &targets, b.forward, clip, block));
         block.set_cyclopean(None);
         return;
     }
@@ -1115,6 +963,21 @@ fn blended_block(
         }
     }
     block.cyclopean = Some(cyclopean);
+}
+
+/// [`blended_block`]'s lanes from the blended heads (no stereo offset) with clip range `clip`.
+#[inline(always)]
+fn head_lanes(
+    cameras: &CameraLanes<BLOCK_RAYS>,
+    targets: &[DVec3; BLOCK_RAYS],
+    forward: DVec3,
+    clip: &ClipRange,
+    block: &mut BlockRays,
+) {
+    for (i, target) in targets.iter().enumerate() {
+        let eye = [0, 1, 2].map(|axis| cameras.head[axis][i]);
+        block.set(i, eye, target.to_array(), forward, clip);
+    }
 }
 
 /// Window depth of eye-space distance `z` for a glFrustum-style projection; `far = None` is the
@@ -1150,48 +1013,6 @@ fn concentric_disk(sample: Vec2) -> DVec2 {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn fraction_is_rem_euclid_but_for_the_sign_of_zero() {
-        let mut values = vec![
-            0.0,
-            -0.0,
-            1.0,
-            -1.0,
-            0.25,
-            -0.25,
-            1e-20,
-            -1e-20,
-            -3.000_000_000_1,
-            12345.678,
-            -12345.678,
-            4_503_599_627_370_495.5,
-            -4_503_599_627_370_495.5,
-            1e300,
-            f64::MIN_POSITIVE,
-            -f64::MIN_POSITIVE,
-            f64::INFINITY,
-            f64::NAN,
-        ];
-        // Phases of every magnitude a calibration gives (up to a few thousand cycles).
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        for _ in 0..200_000 {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1);
-            let unit = (state >> 11) as f64 / (1u64 << 53) as f64;
-            let scale = [1e-6, 1.0, 40.0, 5000.0][(state >> 3) as usize % 4];
-            values.push((2.0 * unit - 1.0) * scale);
-        }
-        for x in values {
-            let (fast, reference) = (fraction(x), x.rem_euclid(1.0));
-            let same_bits = fast.to_bits() == reference.to_bits();
-            assert!(
-                same_bits || fast == reference || (fast.is_nan() && reference.is_nan()),
-                "{x}: {fast} vs {reference}"
-            );
-        }
-    }
 
     #[test]
     fn concentric_disk_maps_square_edges_onto_the_unit_circle() {

@@ -509,10 +509,7 @@ fn rays_made_four_at_a_time_equal_rays_made_one_by_one() {
                 for _ in 0..10 {
                     let points: [(f32, f32); BLOCK_RAYS] = std::array::from_fn(|_| pick());
                     let (s, t) = (points.map(|p| p.0), points.map(|p| p.1));
-                    for avx2 in [false, true] {
-                        if avx2 && !crate::isa::Isa::Avx2.supported() {
-                            continue;
-                        }
+                    for &avx2 in crate::isa::test_paths() {
                         assert!(rays.block_rays_on_path(avx2, &s, &t, &mut block));
                         for (i, (s, t)) in points.into_iter().enumerate() {
                             let one = ray_at(&rays, s, t);
@@ -650,10 +647,7 @@ fn block_rays_of_any_number_of_viewers_are_the_rays_made_one_by_one() {
                 let rays = rays(&camera, eye);
                 let s: [f32; BLOCK_RAYS] = std::array::from_fn(|_| unit());
                 let t: [f32; BLOCK_RAYS] = std::array::from_fn(|_| unit());
-                for avx2 in [false, true] {
-                    if avx2 && !crate::isa::Isa::Avx2.supported() {
-                        continue;
-                    }
+                for &avx2 in crate::isa::test_paths() {
                     assert!(rays.block_rays_on_path(avx2, &s, &t, &mut block));
                     for i in 0..BLOCK_RAYS {
                         let one = ray_at(&rays, s[i], t[i]);

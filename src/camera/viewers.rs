@@ -146,13 +146,13 @@ impl<const N: usize> Default for CameraLanes<N> {
 impl<const N: usize> CameraLanes<N> {
     /// Lane `l`'s camera position.
     #[inline(always)]
-    pub fn head(&self, l: usize) -> DVec3 {
+    pub fn head_at(&self, l: usize) -> DVec3 {
         DVec3::new(self.head[0][l], self.head[1][l], self.head[2][l])
     }
 
     /// Lane `l`'s right vector.
     #[inline(always)]
-    pub fn right(&self, l: usize) -> DVec3 {
+    pub fn right_at(&self, l: usize) -> DVec3 {
         DVec3::new(self.right[0][l], self.right[1][l], self.right[2][l])
     }
 
@@ -500,7 +500,7 @@ impl ViewerSet {
     ) -> [CameraAt; N] {
         let mut lanes = CameraLanes::default();
         self.cameras_into(points, st, needs_right, avx2, &mut lanes);
-        std::array::from_fn(|l| (lanes.head(l), lanes.right(l)))
+        std::array::from_fn(|l| (lanes.head_at(l), lanes.right_at(l)))
     }
 
     /// The camera positions and right vectors (blended ones unused, and not computed, when
@@ -566,7 +566,7 @@ impl ViewerSet {
     fn camera_at_point(&self, point: DVec3, needs_right: bool) -> (DVec3, DVec3) {
         let mut lanes = CameraLanes::<4>::default();
         self.cameras_at_points(&[point; 4], needs_right, &mut lanes);
-        (lanes.head(0), lanes.right(0))
+        (lanes.head_at(0), lanes.right_at(0))
     }
 
     /// The cameras for the weights at `N` screen points: `Σ ŵ_i H_i` in f32; exactly `H_i`
@@ -638,7 +638,7 @@ impl ViewerSet {
             // Usually no point is one viewer's alone: one vector test spares the selects.
             if weight
                 .iter()
-                .fold(0u32, |any, w| any | u32::from(*w == 1.0))
+                .fold(0u32, |found, w| found | u32::from(*w == 1.0))
                 != 0
             {
                 cameras.set_where(|l| weight[l] == 1.0, self.heads[index], self.rights[index]);

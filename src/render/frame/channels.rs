@@ -142,6 +142,7 @@ impl ChannelFormat {
             (ChannelKind::Depth, _) => match records.depth.get(..colors.len()) {
                 // Every pixel recorded (the usual case): a plain copy.
                 Some(depths) => {
+                    debug_assert_eq!(self.pixel_bytes, 4, "pixel size of {:?}", self.data_type);
                     for (chunk, depth) in out.chunks_exact_mut(4).zip(depths) {
                         chunk.copy_from_slice(&depth.to_ne_bytes());
                     }

@@ -1,9 +1,10 @@
 //! The fast renderer's samples of a block whose rays were made together (one eye, a whole 8×8
 //! block; no cluster pass): shaded straight from the block's arrays, with what does not change
 //! between lanes (where the view looks from, the background, the surface hit) decided once.
-//! Where every hit of the block lies on one uniform surface and the view looks along the rays,
-//! the colours are computed over lane arrays (several lanes per instruction); otherwise lane by
-//! lane. Every lane's sample is bit for bit the per-ray path's.
+//! Where every hit of the block lies on one uniform surface, the colours are computed over lane
+//! arrays (several lanes per instruction), the view along the rays or from a stereo eye's
+//! cyclopean point; otherwise lane by lane. Every lane's sample is bit for bit the per-ray
+//! path's.
 
 use glam::{Vec2, Vec3, Vec4};
 
@@ -29,8 +30,8 @@ pub(super) struct FastBlock<'a> {
     pub(super) row_stride: usize,
 }
 
-/// The normals of a block's hits on its one surface, lane by lane (lanes without a hit hold
-/// zeros; which lanes hit is the block's `hits`).
+/// The normals and ray parameters `t` of a block's hits on its one surface, lane by lane
+/// (lanes without a hit hold zeros; which lanes hit is the block's `hits`).
 struct LaneHits {
     normal: [[f32; BLOCK_RAYS]; 3],
     t: [f32; BLOCK_RAYS],
@@ -309,5 +310,103 @@ fn cyclopean_views_into(
             Vec4::select(normalizable, offset[axis] * scale, along[axis])
                 .write_to_slice(&mut views[axis][lanes.clone()]);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::Ray;
+
+    /// A hit at ray parameter `t` (only `t` places the hit point).
+    fn hit_at(t: f32) -> SceneHit {
+        SceneHit {
+            t,
+            instance: 0,
+            geometry: 0,
+            primitive: 0,
+            uv: Vec2::ZERO,
+            normal: Vec3::Z,
+            object_normal: Vec3::Z,
+        }
+    }
+
+    #[test]
+    fn cyclopean_views_match_the_per_ray_view_direction_bit_for_bit() {
+        let settings = RendererSettings {
+            cyclopean_lighting: true,
+            ..RendererSettings::default()
+        };
+        let mut origin = [[0.0; BLOCK_RAYS]; 3];
+        let mut direction = [[0.0; BLOCK_RAYS]; 3];
+        let mut t = [0.0; BLOCK_RAYS];
+        let mut viewer = [[0.0; BLOCK_RAYS]; 3];
+        // Ordinary lanes from a fixed pseudo-random sequence.
+        let mut state = 0x2545_f491_u32;
+        let mut next = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1 << 24) as f32 * 8.0 - 4.0
+        };
+        for lane in 0..BLOCK_RAYS {
+            let along = Vec3::new(next(), next(), next()).normalize_or(Vec3::Z);
+            for axis in 0..3 {
+                origin[axis][lane] = next();
+                direction[axis][lane] = along[axis];
+                viewer[axis][lane] = next() * 0.1;
+            }
+            t[lane] = next().abs() * 3.0;
+        }
+        // Lanes where normalizing fails, one in each of several groups of four and at each
+        // position in a group: the hit point on the viewer, an offset whose square underflows
+        // to zero, one whose square overflows, a NaN hit point.
+        let hit_point = |origin: &[[f32; BLOCK_RAYS]; 3],
+                         direction: &[[f32; BLOCK_RAYS]; 3],
+                         lane| {
+            Vec3::new(origin[0][lane], origin[1][lane], origin[2][lane])
+                + Vec3::new(direction[0][lane], direction[1][lane], direction[2][lane]) * t[lane]
+        };
+        let mut place_viewer = |lane: usize, offset: Vec3| {
+            let point = hit_point(&origin, &direction, lane);
+            for axis in 0..3 {
+                viewer[axis][lane] = point[axis] - offset[axis];
+            }
+        };
+        place_viewer(0, Vec3::ZERO);
+        place_viewer(5, Vec3::new(1e-25, 0.0, 0.0));
+        place_viewer(10, Vec3::new(0.0, -1e-25, 1e-25));
+        place_viewer(15, Vec3::new(0.0, 0.0, 1e25));
+        place_viewer(17, Vec3::new(-1e25, 1e25, 0.0));
+        t[22] = f32::NAN;
+        origin[1][27] = f32::NAN;
+        for (axis, lanes) in origin.iter_mut().enumerate() {
+            lanes[33] = 1e30 * (axis as f32 + 1.0);
+        }
+        let mut views = [[0.0; BLOCK_RAYS]; 3];
+        cyclopean_views_into(&origin, &direction, &t, &viewer, &mut views);
+        let at =
+            |v: &[[f32; BLOCK_RAYS]; 3], lane: usize| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
+        let mut fallbacks = 0;
+        for (lane, &t) in t.iter().enumerate() {
+            let ray = Ray {
+                origin: at(&origin, lane),
+                direction: at(&direction, lane),
+                t_min: 0.0,
+                t_max: f32::INFINITY,
+            };
+            let point = UniformSurface::point(&ray, &hit_at(t));
+            let expected = settings.view_direction(&ray, point, Some(at(&viewer, lane)));
+            let got = at(&views, lane);
+            assert_eq!(
+                got.to_array().map(f32::to_bits),
+                expected.to_array().map(f32::to_bits),
+                "lane {lane}: {got} vs {expected}"
+            );
+            fallbacks += usize::from(expected == ray.direction);
+        }
+        // The special lanes did take the fallback.
+        assert_eq!(
+            fallbacks, 8,
+            "{fallbacks} lanes fell back to the ray's direction"
+        );
     }
 }

@@ -74,6 +74,16 @@ pub(super) const NO_RAY: Ray = Ray {
     t_max: 0.0,
 };
 
+/// What a block's `rays` hold in debug builds when the block is shaded from its arrays and no
+/// one reads them: a NaN origin, so any reader fails loudly.
+#[cfg(debug_assertions)]
+const UNFILLED_RAY: Ray = Ray {
+    origin: Vec3::NAN,
+    direction: Vec3::ZERO,
+    t_min: 0.0,
+    t_max: 0.0,
+};
+
 /// Pixels in a full tile.
 pub(super) const TILE_PIXELS: usize = (TILE_SIZE * TILE_SIZE) as usize;
 
@@ -271,7 +281,7 @@ impl PixelRays {
     /// The viewport coordinate s of column `x`'s ray in `viewport` (`offset`: the sample's
     /// offset within the pixel).
     #[inline(always)]
-    fn s(self, x: u32, viewport: &crate::camera::EyeViewport, offset: f32) -> f32 {
+    fn viewport_s(self, x: u32, viewport: &crate::camera::EyeViewport, offset: f32) -> f32 {
         match self {
             PixelRays::All => ((x - viewport.x) as f32 + offset) / viewport.width as f32,
             // The subpixel as a pixel of a frame three times as wide.
@@ -352,7 +362,7 @@ pub(super) fn trace_blocks(
                     let mut t_lanes = [0.0; BLOCK_RAYS];
                     let height = viewport.height as f32;
                     // As below, ray by ray.
-                    let s_of = |x: u32| pixel_rays.s(x, viewport, offset.x);
+                    let s_of = |x: u32| pixel_rays.viewport_s(x, viewport, offset.x);
                     let t_of = |y: u32| ((y - viewport.y) as f32 + offset.y) / height;
                     if rectangle {
                         // A pixel's s depends on its column only and t on its row: 16
@@ -401,6 +411,11 @@ pub(super) fn trace_blocks(
                     for (lane, ray) in rays.iter_mut().enumerate() {
                         *ray = traced_lane(&block, lane);
                     }
+                } else if block_rays.is_some() {
+                    // Unfilled: a reader added later must not silently get the previous
+                    // block's rays, so debug builds (tests) poison them.
+                    #[cfg(debug_assertions)]
+                    rays.fill(UNFILLED_RAY);
                 }
                 // Otherwise ray by ray.
                 let per_lane = if block_rays.is_some() {
@@ -423,7 +438,7 @@ pub(super) fn trace_blocks(
                     let Some((viewport, eye_rays)) = eye else {
                         continue;
                     };
-                    let u = pixel_rays.s(x, viewport, offset.x);
+                    let u = pixel_rays.viewport_s(x, viewport, offset.x);
                     let v = ((y - viewport.y) as f32 + offset.y) / viewport.height as f32;
                     if batched.is_some() {
                         batch[lane] = Some((u, v));
