@@ -97,7 +97,7 @@ fn trace(scene: &SceneBvh, rays: &[Ray], threads: usize, one_by_one: bool) -> (f
                             let chunk = &rays[packet * 64..((packet + 1) * 64).min(rays.len())];
                             if one_by_one {
                                 for (hit, ray) in hits.iter_mut().zip(chunk) {
-                                    *hit = scene.intersect(ray);
+                                    scene.intersect_into(ray, hit);
                                 }
                             } else {
                                 scene.intersect_packet_with(&mut scratch, chunk, &mut hits);

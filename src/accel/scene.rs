@@ -140,6 +140,20 @@ impl SceneBvh {
 
     /// Closest hit with world `t` in `[t_min, t_max]`.
     pub fn intersect(&self, ray: &Ray) -> Option<SceneHit> {
+        self.closest_hit(ray)
+    }
+
+    /// [`Self::intersect`] written into `hit`, for loops that keep hits in an array: the
+    /// record is stored where it is kept, not returned through a temporary that the caller
+    /// copies with wider loads than its stores (a stall per ray).
+    #[inline(never)]
+    pub fn intersect_into(&self, ray: &Ray, hit: &mut Option<SceneHit>) {
+        *hit = self.closest_hit(ray);
+    }
+
+    /// The body of [`Self::intersect`] and [`Self::intersect_into`].
+    #[inline(always)]
+    fn closest_hit(&self, ray: &Ray) -> Option<SceneHit> {
         let mut world = prepare(ray)?;
         // (placement slot, primitive slot, barycentrics)
         let mut closest: Option<(u32, u32, Vec2)> = None;
@@ -256,7 +270,7 @@ impl SceneBvh {
             let prepared = std::array::from_fn(|lane| rays.get(lane).and_then(prepare));
             let Some(mut packet) = RayPacket::new(&prepared) else {
                 for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
-                    *hit = self.intersect(ray);
+                    self.intersect_into(ray, hit);
                 }
                 continue;
             };

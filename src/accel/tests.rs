@@ -3337,3 +3337,41 @@ fn frustum_packets_filled_from_lane_arrays_match_those_filled_from_rays() {
     assert!((100..200).contains(&formed), "{formed}");
     assert!(hit_count > 200 * 6, "{hit_count} {formed}");
 }
+
+#[test]
+fn hits_written_in_place_are_the_returned_hits() {
+    // Random triangles, and two placements (one moved) so the two-level walk is used too.
+    let mut rng = Rng::new(0x1a7e);
+    let prims = random_triangles(&mut rng, 400, 2.0, 0.4);
+    let bvh = Arc::new(GeometryBvh::build(prims));
+    let single = SceneBvh::build(vec![identity_instance(vec![bvh.clone()])]);
+    let mut moved = identity_instance(vec![bvh.clone()]);
+    moved.transform = glam::Affine3A::from_translation(vec3(0.3, -0.2, 0.1));
+    let two = SceneBvh::build(vec![identity_instance(vec![bvh]), moved]);
+    let stale = SceneHit {
+        t: -1.0,
+        instance: 7,
+        geometry: 7,
+        primitive: 7,
+        uv: Vec2::ZERO,
+        normal: Vec3::Z,
+        object_normal: Vec3::Z,
+    };
+    let (mut hit_count, mut miss_count) = (0, 0);
+    for scene in [&single, &two] {
+        for ray in random_rays(&mut rng, 2000, 3.0) {
+            let mut written = Some(stale);
+            scene.intersect_into(&ray, &mut written);
+            let returned = scene.intersect(&ray);
+            assert_eq!(written, returned, "{ray:?}");
+            match returned {
+                Some(_) => hit_count += 1,
+                None => miss_count += 1,
+            }
+        }
+    }
+    assert!(
+        hit_count > 200 && miss_count > 200,
+        "{hit_count} hits, {miss_count} misses"
+    );
+}

@@ -473,7 +473,7 @@ pub(super) fn trace_blocks(
                     // Sparse lattices make incoherent packets, and a light field's neighbouring
                     // subpixels look from eyes centimetres apart: ray by ray is cheaper there.
                     for (hit, ray) in hits.iter_mut().zip(&rays) {
-                        *hit = setup.scene.bvh.intersect(ray);
+                        setup.scene.bvh.intersect_into(ray, hit);
                     }
                 } else if block_rays.is_some() {
                     // The packet is filled straight from the block's lanes.
