@@ -1540,12 +1540,9 @@ fn memory_stays_within_budget_for_a_grid() {
     );
 }
 
-#[test]
-fn every_box_test_path_matches_the_scalar_reference() {
-    use crate::accel::wide_bvh::{BoxRay, child_hits, child_hits_four_wide, child_hits_scalar};
-    let mut rng = Rng::new(17);
-    let prims = random_triangles(&mut rng, 4000, 10.0, 1.0);
-    // Reach into a real BVH for realistic nodes.
+/// The nodes of a real BVH over `count` random triangles, for tests of the box tests.
+fn random_wide_nodes(rng: &mut Rng, count: usize) -> Vec<crate::accel::wide_bvh::WideNode> {
+    let prims = random_triangles(rng, count, 10.0, 1.0);
     let GeometryPrims::Triangles { positions, indices } = &prims else {
         unreachable!()
     };
@@ -1556,9 +1553,14 @@ fn every_box_test_path_matches_the_scalar_reference() {
             obvhs::aabb::Aabb::new(a.min(b).min(d).into(), a.max(b).max(d).into())
         })
         .collect();
-    let nodes =
-        crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group)
-            .nodes;
+    crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group).nodes
+}
+
+#[test]
+fn every_box_test_path_matches_the_scalar_reference() {
+    use crate::accel::wide_bvh::{BoxRay, child_hits, child_hits_four_wide, child_hits_scalar};
+    let mut rng = Rng::new(17);
+    let nodes = random_wide_nodes(&mut rng, 4000);
     let mut mismatches = 0;
     let mut hits = 0;
     for test_ray in random_rays(&mut rng, 500, 10.0) {
@@ -1598,20 +1600,7 @@ fn single_ray_box_tests_keep_every_box_an_exact_test_reaches() {
     // path must reach every child whose box the ray meets in exact arithmetic within
     // `[t_min, t_max]`, at an entry distance no later than the exact one.
     let mut rng = Rng::new(29);
-    let prims = random_triangles(&mut rng, 2000, 10.0, 1.0);
-    let GeometryPrims::Triangles { positions, indices } = &prims else {
-        unreachable!()
-    };
-    let boxes: Vec<obvhs::aabb::Aabb> = indices
-        .iter()
-        .map(|c| {
-            let [a, b, d] = c.to_array().map(|i| positions[i as usize]);
-            obvhs::aabb::Aabb::new(a.min(b).min(d).into(), a.max(b).max(d).into())
-        })
-        .collect();
-    let nodes =
-        crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group)
-            .nodes;
+    let nodes = random_wide_nodes(&mut rng, 2000);
     // Exact entry and exit of a child's box along the ray (f64: differences of f32 values are
     // exact, one rounding per quotient), within the ray's interval.
     let exact = |node: &crate::accel::wide_bvh::WideNode, slot: usize, ray: &Ray| {
