@@ -33,7 +33,7 @@ pub use offaxis::{OffAxisError, PerspectiveFit};
 pub use omnidirectional::{OmnidirectionalDesc, OmnidirectionalLayout};
 pub use orthographic::OrthographicDesc;
 pub use perspective::PerspectiveDesc;
-pub(crate) use rays::BLOCK_RAYS;
+pub(crate) use rays::{BLOCK_RAYS, lane_vec3};
 pub use rays::{
     BlockRays, DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR, DEFAULT_WINDOW_DEPTH_NEAR, EyeRays,
 };

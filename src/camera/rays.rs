@@ -803,6 +803,12 @@ fn window_point(pinhole: &Pinhole, st: DVec2) -> DVec3 {
 /// Rays a block of pixels traces together (an 8×8 packet).
 pub(crate) const BLOCK_RAYS: usize = 64;
 
+/// Lane `lane` of x, y and z lane arrays as a vector.
+#[inline(always)]
+pub(crate) fn lane_vec3<const N: usize>(v: &[[f32; N]; 3], lane: usize) -> Vec3 {
+    Vec3::new(v[0][lane], v[1][lane], v[2][lane])
+}
+
 /// The rays of a block ([`EyeRays::block_rays`]), x, y and z by lane.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BlockRays {
@@ -831,7 +837,7 @@ impl BlockRays {
     /// Lane `i`'s ray.
     #[inline(always)]
     pub fn ray(&self, i: usize) -> CameraRay {
-        let lane = |v: &[[f32; BLOCK_RAYS]; 3]| Vec3::new(v[0][i], v[1][i], v[2][i]);
+        let lane = |v: &[[f32; BLOCK_RAYS]; 3]| lane_vec3(v, i);
         CameraRay {
             origin: lane(&self.origin),
             direction: lane(&self.direction),

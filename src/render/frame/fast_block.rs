@@ -6,10 +6,10 @@
 //! cyclopean point; otherwise lane by lane. Every lane's sample is bit for bit the per-ray
 //! path's.
 
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec4};
 
 use crate::accel::SceneHit;
-use crate::camera::{BLOCK_RAYS, BlockRays, EyeRays};
+use crate::camera::{BLOCK_RAYS, BlockRays, EyeRays, lane_vec3};
 use crate::render::integrator::{UniformSurface, fast_surface_color, fast_surface_sample};
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
@@ -129,8 +129,7 @@ impl FastBlock<'_> {
         let direction = &self.block.direction;
         let mut normal = [[0.0; BLOCK_RAYS]; 3];
         let mut color = [[0.0; BLOCK_RAYS]; 3];
-        let at =
-            |v: &[[f32; BLOCK_RAYS]; 3], lane: usize| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
+        let at = lane_vec3::<BLOCK_RAYS>;
         let mut shade = |views: &[[f32; BLOCK_RAYS]; 3]| {
             for lane in 0..BLOCK_RAYS {
                 let along = at(direction, lane);
@@ -166,11 +165,11 @@ impl FastBlock<'_> {
                     background.unwrap_or_else(|| self.settings.background_at(screen(lane)));
                 continue;
             };
-            colors[k] += Vec4::new(color[0][lane], color[1][lane], color[2][lane], 1.0);
+            colors[k] += lane_vec3(&color, lane).extend(1.0);
             if depth_is_all && let Some(records) = records.as_deref_mut() {
                 records.record_depth(k, hit.t);
             } else if let Some(records) = records.as_deref_mut() {
-                let shading = Vec3::new(normal[0][lane], normal[1][lane], normal[2][lane]);
+                let shading = lane_vec3(&normal, lane);
                 let point = UniformSurface::point(&traced_lane(self.block, lane), hit);
                 let primary = surface.primary_hit(hit, point, shading);
                 let depth = |t| self.depth(lane, t, depth_is_t);
@@ -211,12 +210,7 @@ impl FastBlock<'_> {
         mut records: Option<&mut TileRecords>,
     ) {
         let (scene, settings, block) = (self.scene, self.settings, self.block);
-        let cyclopean = |lane: usize| {
-            block
-                .cyclopean
-                .as_ref()
-                .map(|c| Vec3::new(c[0][lane], c[1][lane], c[2][lane]))
-        };
+        let cyclopean = |lane: usize| block.cyclopean.as_ref().map(|c| lane_vec3(c, lane));
         // The view looks along the ray unless a stereo eye's shading looks from its cyclopean
         // point.
         let cyclopean_view = self.cyclopean_view().is_some();
@@ -317,6 +311,7 @@ fn cyclopean_views_into(
 mod tests {
     use super::*;
     use crate::accel::Ray;
+    use glam::Vec3;
 
     /// A hit at ray parameter `t` (only `t` places the hit point).
     fn hit_at(t: f32) -> SceneHit {
@@ -359,12 +354,10 @@ mod tests {
         // Lanes where normalizing fails, one in each of several groups of four and at each
         // position in a group: the hit point on the viewer, an offset whose square underflows
         // to zero, one whose square overflows, a NaN hit point.
-        let hit_point = |origin: &[[f32; BLOCK_RAYS]; 3],
-                         direction: &[[f32; BLOCK_RAYS]; 3],
-                         lane| {
-            Vec3::new(origin[0][lane], origin[1][lane], origin[2][lane])
-                + Vec3::new(direction[0][lane], direction[1][lane], direction[2][lane]) * t[lane]
-        };
+        let hit_point =
+            |origin: &[[f32; BLOCK_RAYS]; 3], direction: &[[f32; BLOCK_RAYS]; 3], lane| {
+                lane_vec3(origin, lane) + lane_vec3(direction, lane) * t[lane]
+            };
         let mut place_viewer = |lane: usize, offset: Vec3| {
             let point = hit_point(&origin, &direction, lane);
             for axis in 0..3 {
@@ -383,8 +376,7 @@ mod tests {
         }
         let mut views = [[0.0; BLOCK_RAYS]; 3];
         cyclopean_views_into(&origin, &direction, &t, &viewer, &mut views);
-        let at =
-            |v: &[[f32; BLOCK_RAYS]; 3], lane: usize| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
+        let at = lane_vec3::<BLOCK_RAYS>;
         let mut fallbacks = 0;
         for (lane, &t) in t.iter().enumerate() {
             let ray = Ray {

@@ -4,7 +4,7 @@
 use glam::{Vec2, Vec3, Vec4};
 
 use crate::accel::{PacketScratch, Ray, RayArrays};
-use crate::camera::{BLOCK_RAYS, BlockRays, CameraRay, EyeRays, PixelSet};
+use crate::camera::{BLOCK_RAYS, BlockRays, CameraRay, EyeRays, PixelSet, lane_vec3};
 use crate::render::block_shadows::BlockShadows;
 use crate::render::cluster;
 use crate::render::integrator::{fast_surface_color, fast_surface_sample, shade_primary_at};
@@ -102,10 +102,9 @@ pub(super) fn traced(camera_ray: &CameraRay) -> Ray {
 /// from the block's arrays.
 #[inline(always)]
 pub(super) fn traced_lane(block: &BlockRays, lane: usize) -> Ray {
-    let at = |v: &[[f32; BLOCK_RAYS]; 3]| Vec3::new(v[0][lane], v[1][lane], v[2][lane]);
     Ray {
-        origin: at(&block.origin),
-        direction: at(&block.direction),
+        origin: lane_vec3(&block.origin, lane),
+        direction: lane_vec3(&block.direction, lane),
         t_min: block.t_min[lane],
         t_max: block.t_max[lane],
     }
