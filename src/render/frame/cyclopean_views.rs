@@ -1,0 +1,244 @@
+//! A block's views from a stereo eye's cyclopean point (cyclopean lighting), over lane arrays:
+//! per lane [`RendererSettings::view_direction`] of the lane's hit, bit for bit. Four lanes
+//! per vector on every x86-64 CPU, eight with AVX2 (chosen at run time, `crate::isa`); both
+//! with the scalar operations in the same order and no fused multiply-adds.
+//!
+//! [`RendererSettings::view_direction`]: crate::render::renderer::RendererSettings::view_direction
+
+use glam::Vec4;
+
+use crate::camera::BLOCK_RAYS;
+
+/// x, y and z lane arrays of a block.
+type Lanes3 = [[f32; BLOCK_RAYS]; 3];
+
+/// Per lane, the view of the hit at ray parameter `t` seen from the cyclopean point `viewer`:
+/// `(point − viewer).try_normalize()`, else the ray's direction (lanes without a hit get a
+/// view that is not used). The hit point is `origin + direction · t` as
+/// `UniformSurface::point` has it; glam's `try_normalize` is a length, its reciprocal and a
+/// product, kept where the reciprocal is finite and positive. Written without its branch, which
+/// kept the compiler from vectorizing.
+#[inline(always)]
+pub(super) fn cyclopean_views_into(
+    origin: &Lanes3,
+    direction: &Lanes3,
+    t: &[f32; BLOCK_RAYS],
+    viewer: &Lanes3,
+    views: &mut Lanes3,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if crate::isa::avx2_selected() {
+        // SAFETY: the AVX2 path is selected only on a CPU that has AVX2.
+        unsafe { avx2::views_into(origin, direction, t, viewer, views) };
+        return;
+    }
+    views_into(origin, direction, t, viewer, views);
+}
+
+/// [`cyclopean_views_into`] four lanes per vector.
+#[inline(always)]
+fn views_into(
+    origin: &Lanes3,
+    direction: &Lanes3,
+    t: &[f32; BLOCK_RAYS],
+    viewer: &Lanes3,
+    views: &mut Lanes3,
+) {
+    for first in (0..BLOCK_RAYS).step_by(4) {
+        let lanes = first..first + 4;
+        let load = |values: &[f32; BLOCK_RAYS]| Vec4::from_slice(&values[lanes.clone()]);
+        let t = load(t);
+        let along = direction.each_ref().map(load);
+        let offset: [Vec4; 3] = std::array::from_fn(|axis| {
+            (load(&origin[axis]) + along[axis] * t) - load(&viewer[axis])
+        });
+        let length_squared = offset[0] * offset[0] + offset[1] * offset[1] + offset[2] * offset[2];
+        let scale = Vec4::ONE / length_squared.sqrt();
+        let normalizable = scale.is_finite_mask() & scale.cmpgt(Vec4::ZERO);
+        for axis in 0..3 {
+            Vec4::select(normalizable, offset[axis] * scale, along[axis])
+                .write_to_slice(&mut views[axis][lanes.clone()]);
+        }
+    }
+}
+
+/// [`cyclopean_views_into`] eight lanes per vector.
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::Lanes3;
+    use crate::camera::BLOCK_RAYS;
+    use std::arch::x86_64::*;
+
+    /// Lanes `first..first + 8` of `values`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn load(values: &[f32; BLOCK_RAYS], first: usize) -> __m256 {
+        let lanes: &[f32; 8] = values[first..first + 8].try_into().expect("eight lanes");
+        // SAFETY: `lanes` holds eight floats; the load is unaligned.
+        unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
+    }
+
+    #[target_feature(enable = "avx2")]
+    pub(super) fn views_into(
+        origin: &Lanes3,
+        direction: &Lanes3,
+        t: &[f32; BLOCK_RAYS],
+        viewer: &Lanes3,
+        views: &mut Lanes3,
+    ) {
+        let one = _mm256_set1_ps(1.0);
+        let infinity = _mm256_set1_ps(f32::INFINITY);
+        let magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX));
+        let zero = _mm256_setzero_ps();
+        for first in (0..BLOCK_RAYS).step_by(8) {
+            let t = load(t, first);
+            let along = [0, 1, 2].map(|axis| load(&direction[axis], first));
+            let offset = [0, 1, 2].map(|axis| {
+                let point =
+                    _mm256_add_ps(load(&origin[axis], first), _mm256_mul_ps(along[axis], t));
+                _mm256_sub_ps(point, load(&viewer[axis], first))
+            });
+            let square = |v: __m256| _mm256_mul_ps(v, v);
+            let length_squared = _mm256_add_ps(
+                _mm256_add_ps(square(offset[0]), square(offset[1])),
+                square(offset[2]),
+            );
+            let scale = _mm256_div_ps(one, _mm256_sqrt_ps(length_squared));
+            // Finite (|scale| below infinity, NaN failing) and positive, as glam asks.
+            let finite = _mm256_cmp_ps::<_CMP_LT_OQ>(_mm256_and_ps(scale, magnitude), infinity);
+            let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(scale, zero);
+            let normalizable = _mm256_and_ps(finite, positive);
+            for axis in 0..3 {
+                let normalized = _mm256_mul_ps(offset[axis], scale);
+                let view = _mm256_blendv_ps(along[axis], normalized, normalizable);
+                let lanes: &mut [f32; 8] = (&mut views[axis][first..first + 8])
+                    .try_into()
+                    .expect("eight lanes");
+                // SAFETY: `lanes` holds eight floats; the store is unaligned.
+                unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), view) };
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::{Ray, SceneHit};
+    use crate::camera::lane_vec3;
+    use crate::render::integrator::UniformSurface;
+    use crate::render::renderer::RendererSettings;
+    use glam::{Vec2, Vec3};
+
+    /// A hit at ray parameter `t` (only `t` places the hit point).
+    fn hit_at(t: f32) -> SceneHit {
+        SceneHit {
+            t,
+            instance: 0,
+            geometry: 0,
+            primitive: 0,
+            uv: Vec2::ZERO,
+            normal: Vec3::Z,
+            object_normal: Vec3::Z,
+        }
+    }
+
+    /// Ordinary lanes from a fixed pseudo-random sequence, and lanes where normalizing fails
+    /// spread over every position of a vector of four and of eight: the hit point on the
+    /// viewer, an offset whose square underflows to zero, one whose square overflows, NaN and
+    /// huge hit points.
+    fn lanes() -> (Lanes3, Lanes3, [f32; BLOCK_RAYS], Lanes3, usize) {
+        let mut origin = [[0.0; BLOCK_RAYS]; 3];
+        let mut direction = [[0.0; BLOCK_RAYS]; 3];
+        let mut t = [0.0; BLOCK_RAYS];
+        let mut viewer = [[0.0; BLOCK_RAYS]; 3];
+        let mut state = 0x2545_f491_u32;
+        let mut next = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1 << 24) as f32 * 8.0 - 4.0
+        };
+        for lane in 0..BLOCK_RAYS {
+            let along = Vec3::new(next(), next(), next()).normalize_or(Vec3::Z);
+            for axis in 0..3 {
+                origin[axis][lane] = next();
+                direction[axis][lane] = along[axis];
+                viewer[axis][lane] = next() * 0.1;
+            }
+            t[lane] = next().abs() * 3.0;
+        }
+        let hit_point = |origin: &Lanes3, direction: &Lanes3, lane| {
+            lane_vec3(origin, lane) + lane_vec3(direction, lane) * t[lane]
+        };
+        let mut place_viewer = |lane: usize, offset: Vec3| {
+            let point = hit_point(&origin, &direction, lane);
+            for axis in 0..3 {
+                viewer[axis][lane] = point[axis] - offset[axis];
+            }
+        };
+        place_viewer(0, Vec3::ZERO);
+        place_viewer(5, Vec3::new(1e-25, 0.0, 0.0));
+        place_viewer(10, Vec3::new(0.0, -1e-25, 1e-25));
+        place_viewer(15, Vec3::new(0.0, 0.0, 1e25));
+        place_viewer(17, Vec3::new(-1e25, 1e25, 0.0));
+        place_viewer(44, Vec3::new(0.0, 1e-30, 0.0));
+        t[22] = f32::NAN;
+        origin[1][27] = f32::NAN;
+        for (axis, lanes) in origin.iter_mut().enumerate() {
+            lanes[33] = 1e30 * (axis as f32 + 1.0);
+        }
+        (origin, direction, t, viewer, 9)
+    }
+
+    /// `views_into`'s views against the per-ray view direction, lane by lane.
+    fn assert_views_match(
+        views_into: impl Fn(&Lanes3, &Lanes3, &[f32; BLOCK_RAYS], &Lanes3, &mut Lanes3),
+    ) {
+        let settings = RendererSettings {
+            cyclopean_lighting: true,
+            ..RendererSettings::default()
+        };
+        let (origin, direction, t, viewer, special) = lanes();
+        let mut views = [[0.0; BLOCK_RAYS]; 3];
+        views_into(&origin, &direction, &t, &viewer, &mut views);
+        let at = lane_vec3::<BLOCK_RAYS>;
+        let mut fallbacks = 0;
+        for (lane, &t) in t.iter().enumerate() {
+            let ray = Ray {
+                origin: at(&origin, lane),
+                direction: at(&direction, lane),
+                t_min: 0.0,
+                t_max: f32::INFINITY,
+            };
+            let point = UniformSurface::point(&ray, &hit_at(t));
+            let expected = settings.view_direction(&ray, point, Some(at(&viewer, lane)));
+            let got = at(&views, lane);
+            assert_eq!(
+                got.to_array().map(f32::to_bits),
+                expected.to_array().map(f32::to_bits),
+                "lane {lane}: {got} vs {expected}"
+            );
+            fallbacks += usize::from(expected == ray.direction);
+        }
+        // The special lanes did take the fallback.
+        assert_eq!(
+            fallbacks, special,
+            "{fallbacks} lanes fell back to the ray's direction"
+        );
+    }
+
+    #[test]
+    fn cyclopean_views_match_the_per_ray_view_direction_bit_for_bit() {
+        assert_views_match(views_into);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_cyclopean_views_match_the_per_ray_view_direction_bit_for_bit() {
+        if !crate::isa::Isa::Avx2.supported() {
+            eprintln!("no AVX2 on this CPU: the AVX2 views are not run");
+            return;
+        }
+        // SAFETY: this CPU has AVX2.
+        assert_views_match(|o, d, t, v, views| unsafe { avx2::views_into(o, d, t, v, views) });
+    }
+}
