@@ -14,7 +14,7 @@ use crate::render::integrator::{UniformSurface, fast_surface_color, fast_surface
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
 
-use super::cyclopean_views::cyclopean_views_into;
+use super::cyclopean_views::{CyclopeanLanes, cyclopean_views_into, shade_cyclopean_avx2};
 use super::records::TileRecords;
 use super::tile::{PACKET_ORDER, PACKET_SIDE, traced_lane};
 
@@ -130,6 +130,20 @@ impl FastBlock<'_> {
         let direction = &self.block.direction;
         let mut normal = [[0.0; BLOCK_RAYS]; 3];
         let mut color = [[0.0; BLOCK_RAYS]; 3];
+        let viewer = self.cyclopean_view();
+        // With AVX2 a stereo eye's views, normals and colours go eight lanes per vector, the
+        // views kept in registers.
+        let vectorized = viewer.is_some_and(|viewer| {
+            let inputs = CyclopeanLanes {
+                origin: &self.block.origin,
+                direction,
+                t: &lanes.t,
+                viewer,
+                normal: &lanes.normal,
+            };
+            let lit = surface.base_and_emissive();
+            shade_cyclopean_avx2(&inputs, lit, &mut normal, &mut color)
+        });
         let at = lane_vec3::<BLOCK_RAYS>;
         let mut shade = |views: &[[f32; BLOCK_RAYS]; 3]| {
             for lane in 0..BLOCK_RAYS {
@@ -144,7 +158,8 @@ impl FastBlock<'_> {
         };
         // The view looks along the rays (the block's directions, as traced), or from a stereo
         // eye's cyclopean point.
-        match self.cyclopean_view() {
+        match viewer {
+            _ if vectorized => {}
             Some(viewer) => {
                 let mut views = [[0.0; BLOCK_RAYS]; 3];
                 cyclopean_views_into(&self.block.origin, direction, &lanes.t, viewer, &mut views);
