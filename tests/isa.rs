@@ -1,6 +1,7 @@
 //! The ray kernels' instruction-set paths (device parameter `isa`): a frame rendered on the
 //! AVX2 path equals the baseline's bit for bit — a light-field frame (one single ray per
-//! subpixel) and a `default` frame with shadow rays and a mirror — and bad values are reported.
+//! subpixel), a `default` frame with shadow rays and a mirror, and `fast` stereo frames (eyes
+//! shaded from their cyclopean point) — and bad values are reported.
 
 mod common;
 use common::*;
@@ -67,6 +68,21 @@ fn light_field_camera(dev: ANARIDevice) -> ANARICamera {
     camera
 }
 
+/// A perspective stereo camera in `mode` (both eyes in one frame), eyes 6.4 cm apart.
+fn stereo_camera(dev: ANARIDevice, mode: &str) -> ANARICamera {
+    let camera = perspective_camera(dev, [0.1, 0.2, 1.5], [-0.05, -0.1, -1.0], 0.6);
+    set_string(dev, camera, "stereoMode", mode);
+    set(
+        dev,
+        camera,
+        "interpupillaryDistance",
+        ANARI_FLOAT32,
+        &0.064f32,
+    );
+    commit(dev, camera);
+    camera
+}
+
 /// Every channel of a render, as bits.
 fn render_bits(dev: ANARIDevice, frame: ANARIFrame) -> Vec<u32> {
     let (colors, _, _) = render_channel::<[f32; 4]>(dev, frame, "channel.color");
@@ -90,6 +106,9 @@ fn every_path_renders_the_baselines_frame_bit_for_bit() {
             perspective_camera(dev, [0.1, 0.2, 1.5], [-0.05, -0.1, -1.0], 0.6),
             "default",
         ),
+        // Stereo eyes shaded from their cyclopean point: eight lanes per vector with AVX2.
+        (stereo_camera(dev, "sideBySide"), "fast"),
+        (stereo_camera(dev, "checkerboard"), "fast"),
     ];
     for (camera, renderer_type) in cameras {
         let renderer = plain_renderer(dev, renderer_type);

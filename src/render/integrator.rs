@@ -1034,7 +1034,7 @@ fn eye_light(view: Vec3, sp: &ShadingPoint) -> Vec3 {
 
 /// [`eye_light`] of a surface point's shading `normal`, base colour and emission.
 #[inline(always)]
-fn eye_light_of(view: Vec3, normal: Vec3, base_color: Vec3, emissive: Vec3) -> Vec3 {
+pub(crate) fn eye_light_of(view: Vec3, normal: Vec3, base_color: Vec3, emissive: Vec3) -> Vec3 {
     let facing = (-view).dot(normal).max(0.0);
     base_color * (0.2 + 0.8 * facing) + emissive
 }
@@ -1093,6 +1093,12 @@ impl<'a> UniformSurface<'a> {
     #[inline(always)]
     pub fn point(ray: &Ray, hit: &SceneHit) -> Vec3 {
         ray.origin + ray.direction * hit.t
+    }
+
+    /// The constant base colour and emission [`Self::color`] lights.
+    #[inline(always)]
+    pub fn base_and_emissive(&self) -> (Vec3, Vec3) {
+        (self.base_color, self.emissive)
     }
 
     /// The colour of a hit of shading `normal` lit along `view`.

@@ -3,7 +3,7 @@
 //! side by side as in a mono frame.
 
 use crate::camera::PixelSet;
-use crate::render::progressive::{Area, Lattice, TileMap};
+use crate::render::progressive::{Area, BlockPixels, Lattice, TileMap};
 
 /// A rectangle `[s0, s1) × [t0, t1)` of the lattice of one eye's pixels of a `width`×`height`
 /// frame.
@@ -124,6 +124,17 @@ impl TileMap for InterleavedTile {
     fn pixels(&self) -> PixelSet {
         self.set
     }
+
+    /// A point's column is `across`·s plus a shift by its t's parity, its row `up`·t: both
+    /// grow with s and t, so the block's last column and row tell whether it leaves the frame.
+    #[inline]
+    fn block_pixels<const N: usize>(&self, s: u32, t: u32) -> Option<BlockPixels<N>> {
+        let columns = [t, t + 1].map(|t| std::array::from_fn(|i| self.pixel(s + i as u32, t).0));
+        let rows = std::array::from_fn(|j| self.pixel(s, t + j as u32).1);
+        let last_column = columns[0][N - 1].max(columns[1][N - 1]);
+        (last_column < self.width && rows[N - 1] < self.height)
+            .then_some(BlockPixels { columns, rows })
+    }
 }
 
 #[cfg(test)]
@@ -153,6 +164,41 @@ mod tests {
                 assert!(
                     seen.iter().all(|n| *n == 1),
                     "{width}x{height} {set_of:?}: {seen:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn block_pixels_are_each_points_pixel_and_none_where_a_point_is_skipped() {
+        let (width, height) = (21, 19);
+        for set_of in [PixelSet::Rows, PixelSet::Columns, PixelSet::Checkerboard] {
+            for parity in 0..2 {
+                let set = set_of(parity);
+                let (lw, lh) = lattice_size(set, width, height);
+                let tile = InterleavedTile::new(set, (0, 0), (lw, lh), (width, height));
+                let (mut whole, mut partial) = (0, 0);
+                for t in 0..lh {
+                    for s in 0..lw {
+                        let points = (0..4).flat_map(|j| (0..4).map(move |i| (s + i, t + j)));
+                        let skipped = points.clone().any(|(s, t)| tile.skips(s, t));
+                        let Some(block) = tile.block_pixels::<4>(s, t) else {
+                            assert!(skipped, "{set:?} ({s}, {t}): no block, no point skipped");
+                            partial += 1;
+                            continue;
+                        };
+                        assert!(!skipped, "{set:?} ({s}, {t}): a block over a skipped point");
+                        whole += 1;
+                        for (ps, pt) in points {
+                            let (i, j) = ((ps - s) as usize, (pt - t) as usize);
+                            let pixel = (block.columns[j % 2][i], block.rows[j]);
+                            assert_eq!(pixel, tile.pixel(ps, pt), "{set:?} ({ps}, {pt})");
+                        }
+                    }
+                }
+                assert!(
+                    whole > 0 && partial > 0,
+                    "{set:?}: {whole} whole, {partial}"
                 );
             }
         }

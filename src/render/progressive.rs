@@ -118,6 +118,22 @@ pub trait TileMap: Copy {
     fn pixels(&self) -> PixelSet {
         PixelSet::All
     }
+    /// The pixels of the N×N block of points from (s, t) by column and row, when a point's
+    /// pixel column depends only on its s and the parity of its t, and its pixel row only on
+    /// its t: the columns of points (s + i, t) and (s + i, t + 1), and the rows of points
+    /// (s, t + j). `None` when the map does not say so or skips a point of the block (then
+    /// the block is mapped point by point).
+    fn block_pixels<const N: usize>(&self, _s: u32, _t: u32) -> Option<BlockPixels<N>> {
+        None
+    }
+}
+
+/// [`TileMap::block_pixels`]: a block's pixel columns for its even and odd rows (counted from
+/// its first), and its pixel rows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BlockPixels<const N: usize> {
+    pub columns: [[u32; N]; 2],
+    pub rows: [u32; N],
 }
 
 impl TileMap for Area {

@@ -14,6 +14,7 @@ use crate::render::integrator::{UniformSurface, fast_surface_color, fast_surface
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
 
+use super::cyclopean_views::{CyclopeanLanes, cyclopean_views_into, shade_cyclopean_avx2};
 use super::records::TileRecords;
 use super::tile::{PACKET_ORDER, PACKET_SIDE, traced_lane};
 
@@ -129,6 +130,20 @@ impl FastBlock<'_> {
         let direction = &self.block.direction;
         let mut normal = [[0.0; BLOCK_RAYS]; 3];
         let mut color = [[0.0; BLOCK_RAYS]; 3];
+        let viewer = self.cyclopean_view();
+        // With AVX2 a stereo eye's views, normals and colours go eight lanes per vector, the
+        // views kept in registers.
+        let vectorized = viewer.is_some_and(|viewer| {
+            let inputs = CyclopeanLanes {
+                origin: &self.block.origin,
+                direction,
+                t: &lanes.t,
+                viewer,
+                normal: &lanes.normal,
+            };
+            let lit = surface.base_and_emissive();
+            shade_cyclopean_avx2(&inputs, lit, &mut normal, &mut color)
+        });
         let at = lane_vec3::<BLOCK_RAYS>;
         let mut shade = |views: &[[f32; BLOCK_RAYS]; 3]| {
             for lane in 0..BLOCK_RAYS {
@@ -143,7 +158,8 @@ impl FastBlock<'_> {
         };
         // The view looks along the rays (the block's directions, as traced), or from a stereo
         // eye's cyclopean point.
-        match self.cyclopean_view() {
+        match viewer {
+            _ if vectorized => {}
             Some(viewer) => {
                 let mut views = [[0.0; BLOCK_RAYS]; 3];
                 cyclopean_views_into(&self.block.origin, direction, &lanes.t, viewer, &mut views);
@@ -273,132 +289,5 @@ impl FastBlock<'_> {
                 records.record(k, Some(&primary), || block.ray(lane), depth, self.eye);
             }
         }
-    }
-}
-
-/// Per lane, [`RendererSettings::view_direction`] of the hit at ray parameter `t` seen from
-/// the cyclopean point `viewer`: `(point − viewer).try_normalize()`, else the ray's direction
-/// (lanes without a hit get a view that is not used). Four lanes per vector with the scalar
-/// operations in the same order (the hit point as `UniformSurface::point` has it): the same
-/// bits as lane by lane, where glam's branch kept the compiler from vectorizing.
-#[inline(always)]
-fn cyclopean_views_into(
-    origin: &[[f32; BLOCK_RAYS]; 3],
-    direction: &[[f32; BLOCK_RAYS]; 3],
-    t: &[f32; BLOCK_RAYS],
-    viewer: &[[f32; BLOCK_RAYS]; 3],
-    views: &mut [[f32; BLOCK_RAYS]; 3],
-) {
-    for first in (0..BLOCK_RAYS).step_by(4) {
-        let lanes = first..first + 4;
-        let load = |values: &[f32; BLOCK_RAYS]| Vec4::from_slice(&values[lanes.clone()]);
-        let t = load(t);
-        let along = direction.each_ref().map(load);
-        let offset: [Vec4; 3] = std::array::from_fn(|axis| {
-            (load(&origin[axis]) + along[axis] * t) - load(&viewer[axis])
-        });
-        let length_squared = offset[0] * offset[0] + offset[1] * offset[1] + offset[2] * offset[2];
-        let scale = Vec4::ONE / length_squared.sqrt();
-        let normalizable = scale.is_finite_mask() & scale.cmpgt(Vec4::ZERO);
-        for axis in 0..3 {
-            Vec4::select(normalizable, offset[axis] * scale, along[axis])
-                .write_to_slice(&mut views[axis][lanes.clone()]);
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::accel::Ray;
-    use glam::Vec3;
-
-    /// A hit at ray parameter `t` (only `t` places the hit point).
-    fn hit_at(t: f32) -> SceneHit {
-        SceneHit {
-            t,
-            instance: 0,
-            geometry: 0,
-            primitive: 0,
-            uv: Vec2::ZERO,
-            normal: Vec3::Z,
-            object_normal: Vec3::Z,
-        }
-    }
-
-    #[test]
-    fn cyclopean_views_match_the_per_ray_view_direction_bit_for_bit() {
-        let settings = RendererSettings {
-            cyclopean_lighting: true,
-            ..RendererSettings::default()
-        };
-        let mut origin = [[0.0; BLOCK_RAYS]; 3];
-        let mut direction = [[0.0; BLOCK_RAYS]; 3];
-        let mut t = [0.0; BLOCK_RAYS];
-        let mut viewer = [[0.0; BLOCK_RAYS]; 3];
-        // Ordinary lanes from a fixed pseudo-random sequence.
-        let mut state = 0x2545_f491_u32;
-        let mut next = || {
-            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-            (state >> 8) as f32 / (1 << 24) as f32 * 8.0 - 4.0
-        };
-        for lane in 0..BLOCK_RAYS {
-            let along = Vec3::new(next(), next(), next()).normalize_or(Vec3::Z);
-            for axis in 0..3 {
-                origin[axis][lane] = next();
-                direction[axis][lane] = along[axis];
-                viewer[axis][lane] = next() * 0.1;
-            }
-            t[lane] = next().abs() * 3.0;
-        }
-        // Lanes where normalizing fails, one in each of several groups of four and at each
-        // position in a group: the hit point on the viewer, an offset whose square underflows
-        // to zero, one whose square overflows, a NaN hit point.
-        let hit_point =
-            |origin: &[[f32; BLOCK_RAYS]; 3], direction: &[[f32; BLOCK_RAYS]; 3], lane| {
-                lane_vec3(origin, lane) + lane_vec3(direction, lane) * t[lane]
-            };
-        let mut place_viewer = |lane: usize, offset: Vec3| {
-            let point = hit_point(&origin, &direction, lane);
-            for axis in 0..3 {
-                viewer[axis][lane] = point[axis] - offset[axis];
-            }
-        };
-        place_viewer(0, Vec3::ZERO);
-        place_viewer(5, Vec3::new(1e-25, 0.0, 0.0));
-        place_viewer(10, Vec3::new(0.0, -1e-25, 1e-25));
-        place_viewer(15, Vec3::new(0.0, 0.0, 1e25));
-        place_viewer(17, Vec3::new(-1e25, 1e25, 0.0));
-        t[22] = f32::NAN;
-        origin[1][27] = f32::NAN;
-        for (axis, lanes) in origin.iter_mut().enumerate() {
-            lanes[33] = 1e30 * (axis as f32 + 1.0);
-        }
-        let mut views = [[0.0; BLOCK_RAYS]; 3];
-        cyclopean_views_into(&origin, &direction, &t, &viewer, &mut views);
-        let at = lane_vec3::<BLOCK_RAYS>;
-        let mut fallbacks = 0;
-        for (lane, &t) in t.iter().enumerate() {
-            let ray = Ray {
-                origin: at(&origin, lane),
-                direction: at(&direction, lane),
-                t_min: 0.0,
-                t_max: f32::INFINITY,
-            };
-            let point = UniformSurface::point(&ray, &hit_at(t));
-            let expected = settings.view_direction(&ray, point, Some(at(&viewer, lane)));
-            let got = at(&views, lane);
-            assert_eq!(
-                got.to_array().map(f32::to_bits),
-                expected.to_array().map(f32::to_bits),
-                "lane {lane}: {got} vs {expected}"
-            );
-            fallbacks += usize::from(expected == ray.direction);
-        }
-        // The special lanes did take the fallback.
-        assert_eq!(
-            fallbacks, 8,
-            "{fallbacks} lanes fell back to the ray's direction"
-        );
     }
 }

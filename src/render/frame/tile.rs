@@ -110,6 +110,25 @@ pub(super) fn traced_lane(block: &BlockRays, lane: usize) -> Ray {
     }
 }
 
+/// A block's viewport coordinates by lane from those of its pixel columns (for its even and
+/// its odd rows) and rows, quad by quad ([`PACKET_ORDER`]'s 2×2 quads of consecutive lanes).
+#[inline(always)]
+fn fill_block_lanes(
+    [even, odd]: [&[f32; PACKET_SIDE as usize]; 2],
+    rows: &[f32; PACKET_SIDE as usize],
+    s_lanes: &mut [f32; BLOCK_RAYS],
+    t_lanes: &mut [f32; BLOCK_RAYS],
+) {
+    let quads = s_lanes.chunks_exact_mut(4).zip(t_lanes.chunks_exact_mut(4));
+    for (quad, (s4, t4)) in quads.enumerate() {
+        // Quads start on even rows.
+        let (c, r) = PACKET_ORDER[4 * quad];
+        let (c, r) = (c as usize, r as usize);
+        s4.copy_from_slice(&[even[c], even[c + 1], odd[c], odd[c + 1]]);
+        t4.copy_from_slice(&[rows[r], rows[r], rows[r + 1], rows[r + 1]]);
+    }
+}
+
 /// A worker's working memory, kept from one tile to the next.
 #[derive(Default)]
 pub(super) struct TileScratch {
@@ -366,23 +385,16 @@ pub(super) fn trace_blocks(
                     if rectangle {
                         // A pixel's s depends on its column only and t on its row: 16
                         // divisions for the block's 64 rays.
-                        let columns: [f32; PACKET_SIDE as usize] =
+                        let columns =
                             std::array::from_fn(|dx| s_of(map.pixel(bx + dx as u32, by).0));
-                        let rows: [f32; PACKET_SIDE as usize] =
-                            std::array::from_fn(|dy| t_of(map.pixel(bx, by + dy as u32).1));
-                        // Quad by quad (PACKET_ORDER's 2×2 quads of consecutive lanes).
-                        let quads = s_lanes.chunks_exact_mut(4).zip(t_lanes.chunks_exact_mut(4));
-                        for (quad, (s4, t4)) in quads.enumerate() {
-                            let (c, r) = PACKET_ORDER[4 * quad];
-                            let (c, r) = (c as usize, r as usize);
-                            s4.copy_from_slice(&[
-                                columns[c],
-                                columns[c + 1],
-                                columns[c],
-                                columns[c + 1],
-                            ]);
-                            t4.copy_from_slice(&[rows[r], rows[r], rows[r + 1], rows[r + 1]]);
-                        }
+                        let rows = std::array::from_fn(|dy| t_of(map.pixel(bx, by + dy as u32).1));
+                        fill_block_lanes([&columns; 2], &rows, &mut s_lanes, &mut t_lanes);
+                    } else if let Some(pixels) = map.block_pixels(bx, by) {
+                        // An interleaved eye's lattice: s depends on the column and the row's
+                        // parity, t on the row (24 divisions).
+                        let [even, odd] = pixels.columns.map(|columns| columns.map(s_of));
+                        let rows = pixels.rows.map(t_of);
+                        fill_block_lanes([&even, &odd], &rows, &mut s_lanes, &mut t_lanes);
                     } else {
                         for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
                             let (sx, sy) = (bx + dx, by + dy);

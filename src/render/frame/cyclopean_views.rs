@@ -1,0 +1,359 @@
+//! A stereo block's views from its eye's cyclopean point (cyclopean lighting), over lane
+//! arrays: per lane [`RendererSettings::view_direction`] of the lane's hit, bit for bit, four
+//! lanes per vector; with AVX2 (chosen at run time, `crate::isa`) the views, shading normals
+//! and colours of a block on one uniform surface eight lanes per vector, the views kept in
+//! registers. Both with the scalar operations in the same order and no fused multiply-adds.
+//!
+//! [`RendererSettings::view_direction`]: crate::render::renderer::RendererSettings::view_direction
+
+use glam::Vec4;
+
+use crate::camera::BLOCK_RAYS;
+
+/// x, y and z lane arrays of a block.
+type Lanes3 = [[f32; BLOCK_RAYS]; 3];
+
+/// Per lane, the view of the hit at ray parameter `t` seen from the cyclopean point `viewer`:
+/// `(point − viewer).try_normalize()`, else the ray's direction (lanes without a hit get a
+/// view that is not used). The hit point is `origin + direction · t` as
+/// `UniformSurface::point` has it; glam's `try_normalize` is a length, its reciprocal and a
+/// product, kept where the reciprocal is finite and positive. Written without its branch, which
+/// kept the compiler from vectorizing.
+#[inline(always)]
+pub(super) fn cyclopean_views_into(
+    origin: &Lanes3,
+    direction: &Lanes3,
+    t: &[f32; BLOCK_RAYS],
+    viewer: &Lanes3,
+    views: &mut Lanes3,
+) {
+    for first in (0..BLOCK_RAYS).step_by(4) {
+        let lanes = first..first + 4;
+        let load = |values: &[f32; BLOCK_RAYS]| Vec4::from_slice(&values[lanes.clone()]);
+        let t = load(t);
+        let along = direction.each_ref().map(load);
+        let offset: [Vec4; 3] = std::array::from_fn(|axis| {
+            (load(&origin[axis]) + along[axis] * t) - load(&viewer[axis])
+        });
+        let length_squared = offset[0] * offset[0] + offset[1] * offset[1] + offset[2] * offset[2];
+        let scale = Vec4::ONE / length_squared.sqrt();
+        let normalizable = scale.is_finite_mask() & scale.cmpgt(Vec4::ZERO);
+        for axis in 0..3 {
+            Vec4::select(normalizable, offset[axis] * scale, along[axis])
+                .write_to_slice(&mut views[axis][lanes.clone()]);
+        }
+    }
+}
+
+/// The views and shading of a stereo block eight lanes per vector.
+#[cfg(target_arch = "x86_64")]
+mod avx2 {
+    use super::Lanes3;
+    use crate::camera::BLOCK_RAYS;
+    use std::arch::x86_64::*;
+
+    /// Lanes `first..first + 8` of `values`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn load(values: &[f32; BLOCK_RAYS], first: usize) -> __m256 {
+        let lanes: &[f32; 8] = values[first..first + 8].try_into().expect("eight lanes");
+        // SAFETY: `lanes` holds eight floats; the load is unaligned.
+        unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
+    }
+
+    /// Lanes `first..first + 8` of `lanes` set to `values`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn store(lanes: &mut [f32; BLOCK_RAYS], first: usize, values: __m256) {
+        let lanes: &mut [f32; 8] = (&mut lanes[first..first + 8])
+            .try_into()
+            .expect("eight lanes");
+        // SAFETY: `lanes` holds eight floats; the store is unaligned.
+        unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), values) };
+    }
+
+    /// `(a·b)` of three lane vectors, summed as glam's `Vec3::dot`: `(x + y) + z`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn dot(a: &[__m256; 3], b: &[__m256; 3]) -> __m256 {
+        let xy = _mm256_add_ps(_mm256_mul_ps(a[0], b[0]), _mm256_mul_ps(a[1], b[1]));
+        _mm256_add_ps(xy, _mm256_mul_ps(a[2], b[2]))
+    }
+
+    /// Lanes `first..first + 8` of the views (see [`super::cyclopean_views_into`]).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn views(
+        origin: &Lanes3,
+        along: &[__m256; 3],
+        t: __m256,
+        viewer: &Lanes3,
+        first: usize,
+    ) -> [__m256; 3] {
+        let offset = [0, 1, 2].map(|axis| {
+            let point = _mm256_add_ps(load(&origin[axis], first), _mm256_mul_ps(along[axis], t));
+            _mm256_sub_ps(point, load(&viewer[axis], first))
+        });
+        let scale = _mm256_div_ps(_mm256_set1_ps(1.0), _mm256_sqrt_ps(dot(&offset, &offset)));
+        // Finite (|scale| below infinity, NaN failing) and positive, as glam asks.
+        let magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX));
+        let finite = _mm256_cmp_ps::<_CMP_LT_OQ>(
+            _mm256_and_ps(scale, magnitude),
+            _mm256_set1_ps(f32::INFINITY),
+        );
+        let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(scale, _mm256_setzero_ps());
+        let normalizable = _mm256_and_ps(finite, positive);
+        [0, 1, 2].map(|axis| {
+            let normalized = _mm256_mul_ps(offset[axis], scale);
+            _mm256_blendv_ps(along[axis], normalized, normalizable)
+        })
+    }
+
+    /// [`super::shade_cyclopean_avx2`].
+    #[target_feature(enable = "avx2")]
+    pub(super) fn shade_into(
+        lanes: &super::CyclopeanLanes,
+        (base, emissive): ([f32; 3], [f32; 3]),
+        normal_out: &mut Lanes3,
+        color_out: &mut Lanes3,
+    ) {
+        let sign = _mm256_set1_ps(-0.0);
+        for first in (0..BLOCK_RAYS).step_by(8) {
+            let along = [0, 1, 2].map(|axis| load(&lanes.direction[axis], first));
+            let view = views(
+                lanes.origin,
+                &along,
+                load(lanes.t, first),
+                lanes.viewer,
+                first,
+            );
+            // The normal facing the ray: negated where it points along the ray.
+            let normal = [0, 1, 2].map(|axis| load(&lanes.normal[axis], first));
+            let back_face = _mm256_cmp_ps::<_CMP_GT_OQ>(dot(&normal, &along), _mm256_setzero_ps());
+            let flip = _mm256_and_ps(back_face, sign);
+            let normal = normal.map(|n| _mm256_xor_ps(n, flip));
+            // Lit from the eye: base · (0.2 + 0.8 · max(−view · normal, 0)) + emission.
+            let toward = view.map(|v| _mm256_xor_ps(v, sign));
+            let facing = _mm256_max_ps(dot(&toward, &normal), _mm256_setzero_ps());
+            let light = _mm256_add_ps(
+                _mm256_set1_ps(0.2),
+                _mm256_mul_ps(_mm256_set1_ps(0.8), facing),
+            );
+            for axis in 0..3 {
+                let lit = _mm256_mul_ps(_mm256_set1_ps(base[axis]), light);
+                let rgb = _mm256_add_ps(lit, _mm256_set1_ps(emissive[axis]));
+                store(&mut normal_out[axis], first, normal[axis]);
+                store(&mut color_out[axis], first, rgb);
+            }
+        }
+    }
+}
+
+/// The lane arrays a stereo block's shading on one uniform surface reads: the rays, the hits'
+/// ray parameters `t` and geometric normals, and the cyclopean points.
+pub(super) struct CyclopeanLanes<'a> {
+    pub origin: &'a Lanes3,
+    pub direction: &'a Lanes3,
+    pub t: &'a [f32; BLOCK_RAYS],
+    pub viewer: &'a Lanes3,
+    pub normal: &'a Lanes3,
+}
+
+/// With AVX2 (`crate::isa`), per lane the shading normal (`UniformSurface::normal`) and the
+/// colour (`UniformSurface::color` of base colour `base` and emission `emissive`) of a stereo
+/// block's hit lit along its view from the cyclopean point, eight lanes per vector without
+/// writing the views out: the same operations in the same order as lane by lane, bit for bit.
+/// `false` (nothing written) without AVX2.
+#[inline(always)]
+pub(super) fn shade_cyclopean_avx2(
+    lanes: &CyclopeanLanes,
+    (base, emissive): (glam::Vec3, glam::Vec3),
+    normal: &mut Lanes3,
+    color: &mut Lanes3,
+) -> bool {
+    #[cfg(target_arch = "x86_64")]
+    if crate::isa::avx2_selected() {
+        let surface = (base.to_array(), emissive.to_array());
+        // SAFETY: the AVX2 path is selected only on a CPU that has AVX2.
+        unsafe { avx2::shade_into(lanes, surface, normal, color) };
+        return true;
+    }
+    let _ = (lanes, base, emissive, normal, color);
+    false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::{Ray, SceneHit};
+    use crate::camera::lane_vec3;
+    use crate::render::integrator::{UniformSurface, eye_light_of};
+    use crate::render::renderer::RendererSettings;
+    use glam::{Vec2, Vec3};
+
+    /// A hit at ray parameter `t` (only `t` places the hit point).
+    fn hit_at(t: f32) -> SceneHit {
+        SceneHit {
+            t,
+            instance: 0,
+            geometry: 0,
+            primitive: 0,
+            uv: Vec2::ZERO,
+            normal: Vec3::Z,
+            object_normal: Vec3::Z,
+        }
+    }
+
+    /// Ordinary lanes from a fixed pseudo-random sequence, and lanes where normalizing fails
+    /// spread over every position of a vector of four and of eight: the hit point on the
+    /// viewer, an offset whose square underflows to zero, one whose square overflows, NaN and
+    /// huge hit points.
+    fn lanes() -> (Lanes3, Lanes3, [f32; BLOCK_RAYS], Lanes3, usize) {
+        let mut origin = [[0.0; BLOCK_RAYS]; 3];
+        let mut direction = [[0.0; BLOCK_RAYS]; 3];
+        let mut t = [0.0; BLOCK_RAYS];
+        let mut viewer = [[0.0; BLOCK_RAYS]; 3];
+        let mut state = 0x2545_f491_u32;
+        let mut next = || {
+            state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (state >> 8) as f32 / (1 << 24) as f32 * 8.0 - 4.0
+        };
+        for lane in 0..BLOCK_RAYS {
+            let along = Vec3::new(next(), next(), next()).normalize_or(Vec3::Z);
+            for axis in 0..3 {
+                origin[axis][lane] = next();
+                direction[axis][lane] = along[axis];
+                viewer[axis][lane] = next() * 0.1;
+            }
+            t[lane] = next().abs() * 3.0;
+        }
+        let hit_point = |origin: &Lanes3, direction: &Lanes3, lane| {
+            lane_vec3(origin, lane) + lane_vec3(direction, lane) * t[lane]
+        };
+        let mut place_viewer = |lane: usize, offset: Vec3| {
+            let point = hit_point(&origin, &direction, lane);
+            for axis in 0..3 {
+                viewer[axis][lane] = point[axis] - offset[axis];
+            }
+        };
+        place_viewer(0, Vec3::ZERO);
+        place_viewer(5, Vec3::new(1e-25, 0.0, 0.0));
+        place_viewer(10, Vec3::new(0.0, -1e-25, 1e-25));
+        place_viewer(15, Vec3::new(0.0, 0.0, 1e25));
+        place_viewer(17, Vec3::new(-1e25, 1e25, 0.0));
+        place_viewer(44, Vec3::new(0.0, 1e-30, 0.0));
+        t[22] = f32::NAN;
+        origin[1][27] = f32::NAN;
+        for (axis, lanes) in origin.iter_mut().enumerate() {
+            lanes[33] = 1e30 * (axis as f32 + 1.0);
+        }
+        (origin, direction, t, viewer, 9)
+    }
+
+    fn settings() -> RendererSettings {
+        RendererSettings {
+            cyclopean_lighting: true,
+            ..RendererSettings::default()
+        }
+    }
+
+    /// Lane `lane`'s ray.
+    fn ray(origin: &Lanes3, direction: &Lanes3, lane: usize) -> Ray {
+        Ray {
+            origin: lane_vec3(origin, lane),
+            direction: lane_vec3(direction, lane),
+            t_min: 0.0,
+            t_max: f32::INFINITY,
+        }
+    }
+
+    #[test]
+    fn cyclopean_views_match_the_per_ray_view_direction_bit_for_bit() {
+        let (origin, direction, t, viewer, special) = lanes();
+        let mut views = [[0.0; BLOCK_RAYS]; 3];
+        cyclopean_views_into(&origin, &direction, &t, &viewer, &mut views);
+        let mut fallbacks = 0;
+        for (lane, &t) in t.iter().enumerate() {
+            let ray = ray(&origin, &direction, lane);
+            let point = UniformSurface::point(&ray, &hit_at(t));
+            let expected = settings().view_direction(&ray, point, Some(lane_vec3(&viewer, lane)));
+            let got = lane_vec3(&views, lane);
+            assert_eq!(
+                got.to_array().map(f32::to_bits),
+                expected.to_array().map(f32::to_bits),
+                "lane {lane}: {got} vs {expected}"
+            );
+            fallbacks += usize::from(expected == ray.direction);
+        }
+        // The special lanes did take the fallback.
+        assert_eq!(
+            fallbacks, special,
+            "{fallbacks} lanes fell back to the ray's direction"
+        );
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn avx2_cyclopean_shading_matches_the_per_lane_shading_bit_for_bit() {
+        if !crate::isa::Isa::Avx2.supported() {
+            eprintln!("no AVX2 on this CPU: the AVX2 shading is not run");
+            return;
+        }
+        let (origin, direction, t, viewer, _) = lanes();
+        // Geometric normals facing the ray or away from it, by lane; one lane perpendicular.
+        let mut normal_in = [[0.0; BLOCK_RAYS]; 3];
+        for lane in 0..BLOCK_RAYS {
+            let along = lane_vec3(&direction, lane);
+            let tilt = Vec3::new(0.3, -0.2, 0.1) * (lane % 5) as f32;
+            let n = if lane % 3 == 0 {
+                along + tilt
+            } else {
+                tilt - along
+            };
+            for (axis, lanes) in normal_in.iter_mut().enumerate() {
+                lanes[lane] = n.normalize_or(Vec3::Z)[axis];
+            }
+        }
+        let perpendicular = lane_vec3(&direction, 9).any_orthonormal_vector();
+        for (axis, lanes) in normal_in.iter_mut().enumerate() {
+            lanes[9] = perpendicular[axis];
+        }
+        let (base, emissive) = (Vec3::new(0.8, 0.3, 0.55), Vec3::new(0.01, 0.0, 0.2));
+        let inputs = CyclopeanLanes {
+            origin: &origin,
+            direction: &direction,
+            t: &t,
+            viewer: &viewer,
+            normal: &normal_in,
+        };
+        let (mut normal, mut color) = ([[0.0; BLOCK_RAYS]; 3], [[0.0; BLOCK_RAYS]; 3]);
+        let lit = (base.to_array(), emissive.to_array());
+        // SAFETY: this CPU has AVX2.
+        unsafe { avx2::shade_into(&inputs, lit, &mut normal, &mut color) };
+        let mut back_faces = 0;
+        for (lane, &t) in t.iter().enumerate() {
+            let ray = ray(&origin, &direction, lane);
+            let point = UniformSurface::point(&ray, &hit_at(t));
+            let view = settings().view_direction(&ray, point, Some(lane_vec3(&viewer, lane)));
+            let shading = UniformSurface::normal(lane_vec3(&normal_in, lane), ray.direction);
+            let rgb = eye_light_of(view, shading, base, emissive);
+            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+            let (got_normal, got_color) = (lane_vec3(&normal, lane), lane_vec3(&color, lane));
+            assert_eq!(
+                bits(got_normal),
+                bits(shading),
+                "lane {lane}: normal {got_normal}"
+            );
+            assert_eq!(
+                bits(got_color),
+                bits(rgb),
+                "lane {lane}: colour {got_color} vs {rgb}"
+            );
+            back_faces += usize::from(shading != lane_vec3(&normal_in, lane));
+        }
+        assert!(
+            (10..BLOCK_RAYS - 10).contains(&back_faces),
+            "{back_faces} back faces"
+        );
+    }
+}
