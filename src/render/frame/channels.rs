@@ -4,9 +4,10 @@
 use glam::{Vec3, Vec4};
 
 use std::collections::HashMap;
+use std::ops::Range;
 
 use crate::device::datatype::*;
-use crate::render::color::{srgb8_encoder, srgb8_rgba_encoder, to_snorm16, to_unorm8};
+use crate::render::color::{encode_srgb8_rgba, srgb8_encoder, to_snorm16, to_unorm8};
 use crate::render::progressive::TileMap;
 
 use super::records::TileRecords;
@@ -117,11 +118,28 @@ impl ChannelFormat {
         }
     }
 
-    /// Encodes the pixels of a tile into `out` (`pixel_bytes` each, in the order of `colors`):
-    /// `colors` are their final colours, `records` the other channels' values. The match on
-    /// the type is made once per tile, not per pixel.
-    pub(super) fn encode(&self, colors: &[Vec4], records: &TileRecords, out: &mut [u8]) {
-        let out = &mut out[..colors.len() * self.pixel_bytes];
+    /// Encodes the pixels of a tile into `rows` (`pixel_bytes` each, in the order of
+    /// `colors`, `row_pixels` to a row): `colors` are their final colours, `records` the other
+    /// channels' values. The match on the type is made once per tile, not per pixel or row.
+    pub(super) fn encode(
+        &self,
+        colors: &[Vec4],
+        records: &TileRecords,
+        row_pixels: usize,
+        rows: &mut impl TileRows,
+    ) {
+        let pixels = colors.len();
+        let mut each_row = |write: &mut dyn FnMut(&mut [u8], Range<usize>)| {
+            let mut start = 0;
+            for row in 0.. {
+                if start >= pixels {
+                    break;
+                }
+                let end = (start + row_pixels).min(pixels);
+                write(rows.row(row, (end - start) * self.pixel_bytes), start..end);
+                start = end;
+            }
+        };
         let float = |values: &[f32], k: usize, nothing: f32| {
             f32_bytes::<1, 4>([values.get(k).copied().unwrap_or(nothing)])
         };
@@ -130,40 +148,51 @@ impl ChannelFormat {
             |values: &[Vec3], k: usize| values.get(k).map_or(Vec3::ZERO, |v| *v).to_array();
         match (self.kind, self.data_type) {
             (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB) => {
-                let srgba = srgb8_rgba_encoder();
-                self.encode_colors(out, colors, srgba)
+                each_row(&mut |out, range| encode_srgb8_rgba(&colors[range], out))
             }
-            (ChannelKind::Color, ANARI_UFIXED8_VEC4) => {
-                self.encode_colors(out, colors, |color| color.to_array().map(to_unorm8))
-            }
-            (ChannelKind::Color, _) => {
-                self.encode_colors(out, colors, |color| f32_bytes::<4, 16>(color.to_array()))
-            }
-            (ChannelKind::Depth, _) => match records.depth.get(..colors.len()) {
+            (ChannelKind::Color, ANARI_UFIXED8_VEC4) => each_row(&mut |out, range| {
+                self.encode_colors(out, &colors[range], |color| color.to_array().map(to_unorm8))
+            }),
+            (ChannelKind::Color, _) => each_row(&mut |out, range| {
+                self.encode_colors(out, &colors[range], |color| {
+                    f32_bytes::<4, 16>(color.to_array())
+                })
+            }),
+            (ChannelKind::Depth, _) => match records.depth.get(..pixels) {
                 // Every pixel recorded (the usual case): a plain copy.
                 Some(depths) => {
                     debug_assert_eq!(self.pixel_bytes, 4, "pixel size of {:?}", self.data_type);
-                    for (chunk, depth) in out.chunks_exact_mut(4).zip(depths) {
-                        chunk.copy_from_slice(&depth.to_ne_bytes());
-                    }
+                    each_row(&mut |out, range| {
+                        for (chunk, depth) in out.chunks_exact_mut(4).zip(&depths[range]) {
+                            chunk.copy_from_slice(&depth.to_ne_bytes());
+                        }
+                    })
                 }
-                None => self.encode_pixels(out, |k| float(&records.depth, k, f32::INFINITY)),
+                None => each_row(&mut |out, range| {
+                    self.encode_pixels(out, |k| {
+                        float(&records.depth, range.start + k, f32::INFINITY)
+                    })
+                }),
             },
-            (ChannelKind::WindowDepth, _) => {
-                self.encode_pixels(out, |k| float(&records.window_depth, k, 1.0))
-            }
-            (ChannelKind::Parallax, _) => {
-                self.encode_pixels(out, |k| float(&records.parallax, k, f32::NAN))
-            }
-            (ChannelKind::PrimitiveId, _) => {
-                self.encode_pixels(out, |k| id(&records.primitive_id, k))
-            }
-            (ChannelKind::ObjectId, _) => self.encode_pixels(out, |k| id(&records.object_id, k)),
-            (ChannelKind::InstanceId, _) => {
-                self.encode_pixels(out, |k| id(&records.instance_id, k))
-            }
-            (ChannelKind::Albedo, data_type) => {
-                let albedo = |k: usize| vector(&records.albedo, k);
+            (ChannelKind::WindowDepth, _) => each_row(&mut |out, range| {
+                self.encode_pixels(out, |k| float(&records.window_depth, range.start + k, 1.0))
+            }),
+            (ChannelKind::Parallax, _) => each_row(&mut |out, range| {
+                self.encode_pixels(out, |k| {
+                    float(&records.parallax, range.start + k, f32::NAN)
+                })
+            }),
+            (ChannelKind::PrimitiveId, _) => each_row(&mut |out, range| {
+                self.encode_pixels(out, |k| id(&records.primitive_id, range.start + k))
+            }),
+            (ChannelKind::ObjectId, _) => each_row(&mut |out, range| {
+                self.encode_pixels(out, |k| id(&records.object_id, range.start + k))
+            }),
+            (ChannelKind::InstanceId, _) => each_row(&mut |out, range| {
+                self.encode_pixels(out, |k| id(&records.instance_id, range.start + k))
+            }),
+            (ChannelKind::Albedo, data_type) => each_row(&mut |out, range| {
+                let albedo = |k: usize| vector(&records.albedo, range.start + k);
                 match data_type {
                     ANARI_UFIXED8_RGB_SRGB => {
                         let srgb = srgb8_encoder();
@@ -172,9 +201,9 @@ impl ChannelFormat {
                     ANARI_UFIXED8_VEC3 => self.encode_pixels(out, |k| albedo(k).map(to_unorm8)),
                     _ => self.encode_pixels(out, |k| f32_bytes::<3, 12>(albedo(k))),
                 }
-            }
-            (ChannelKind::Normal, data_type) => {
-                let normal = |k: usize| vector(&records.normal, k);
+            }),
+            (ChannelKind::Normal, data_type) => each_row(&mut |out, range| {
+                let normal = |k: usize| vector(&records.normal, range.start + k);
                 match data_type {
                     ANARI_FIXED16_VEC3 => self.encode_pixels(out, |k| {
                         let [x, y, z] = normal(k).map(|v| to_snorm16(v).to_ne_bytes());
@@ -182,8 +211,94 @@ impl ChannelFormat {
                     }),
                     _ => self.encode_pixels(out, |k| f32_bytes::<3, 12>(normal(k))),
                 }
-            }
+            }),
         }
+    }
+}
+
+/// Where a tile's encoded rows go: a buffer of the tile alone, or the frame's own rows.
+pub(super) trait TileRows {
+    /// The `bytes` bytes of the tile's row `row`.
+    fn row(&mut self, row: usize, bytes: usize) -> &mut [u8];
+}
+
+/// A tile encoded into a buffer of its own, row after row.
+pub(super) struct PackedRows<'a> {
+    pub(super) bytes: &'a mut [u8],
+    pub(super) row_bytes: usize,
+}
+
+impl TileRows for PackedRows<'_> {
+    #[inline(always)]
+    fn row(&mut self, row: usize, bytes: usize) -> &mut [u8] {
+        &mut self.bytes[row * self.row_bytes..][..bytes]
+    }
+}
+
+/// A channel's pixel buffer, written by the workers of a render straight from their tiles:
+/// each tile's rows go to their place in the frame with no tile buffer and no copy.
+pub(super) struct FrameTarget {
+    start: *mut u8,
+    len: usize,
+    pixel_bytes: usize,
+    row_bytes: usize,
+}
+
+// SAFETY: a FrameTarget only hands out the rows of tiles through `TileInFrame`, whose creation
+// requires that no two of them cover the same pixel and that nothing else touches the buffer
+// while they live; threads sharing it write disjoint bytes.
+unsafe impl Send for FrameTarget {}
+// SAFETY: as for Send.
+unsafe impl Sync for FrameTarget {}
+
+impl FrameTarget {
+    /// `channel`'s buffer for a frame `frame_width` pixels wide. The buffer must not be
+    /// moved, resized or read while tiles are written through the target.
+    pub(super) fn of(channel: &mut Channel, frame_width: u32) -> FrameTarget {
+        let pixel_bytes = channel.format.pixel_bytes;
+        FrameTarget {
+            start: channel.bytes.as_mut_ptr(),
+            len: channel.bytes.len(),
+            pixel_bytes,
+            row_bytes: frame_width as usize * pixel_bytes,
+        }
+    }
+
+    /// The rows of the tile `tile_width` pixels wide whose first pixel is (x0, y0).
+    ///
+    /// # Safety
+    /// While the returned value lives, no other `TileInFrame` of this target covers any of
+    /// its pixels and nothing else reads or writes the buffer.
+    pub(super) unsafe fn tile(&self, x0: u32, y0: u32, tile_width: u32) -> TileInFrame<'_> {
+        TileInFrame {
+            target: self,
+            first: y0 as usize * self.row_bytes + x0 as usize * self.pixel_bytes,
+            row_bytes: tile_width as usize * self.pixel_bytes,
+        }
+    }
+}
+
+/// One tile's rows in a [`FrameTarget`].
+pub(super) struct TileInFrame<'a> {
+    target: &'a FrameTarget,
+    /// Byte offset of the tile's first pixel.
+    first: usize,
+    /// Bytes of one of the tile's rows.
+    row_bytes: usize,
+}
+
+impl TileRows for TileInFrame<'_> {
+    #[inline(always)]
+    fn row(&mut self, row: usize, bytes: usize) -> &mut [u8] {
+        let start = self.first + row * self.target.row_bytes;
+        assert!(
+            bytes <= self.row_bytes && start + bytes <= self.target.len,
+            "tile row {row} outside its tile or the frame"
+        );
+        // SAFETY: the bytes lie inside the buffer (asserted) and inside this tile's row, so
+        // no other live TileInFrame covers them (`FrameTarget::tile`'s contract), and the
+        // slice borrows `self` mutably, so this tile hands out one row at a time.
+        unsafe { std::slice::from_raw_parts_mut(self.target.start.add(start), bytes) }
     }
 }
 

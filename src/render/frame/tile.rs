@@ -13,6 +13,7 @@ use crate::render::progressive::{FrameTile, SINGLE_RAY_STRIDE, TileMap};
 use crate::scene::light::LightSampling;
 
 use super::anaglyph::{anaglyph, anaglyph_eyes};
+use super::channels::PackedRows;
 use super::fast_block::FastBlock;
 use super::records::TileRecords;
 use super::samples::{jitter, lens_sample};
@@ -257,11 +258,31 @@ pub(super) fn render_tile(
         }
     }
     drop(color_sum);
+    let row_pixels = (area.s1 - area.s0) as usize;
+    if let Some(targets) = &job.frame_targets {
+        // Encoded straight into the frame's rows: no tile buffer, no copy, no lock.
+        let (x0, y0) = map
+            .rectangle_origin()
+            .expect("a render with frame targets traces squares of the frame");
+        for (format, target) in job.formats.iter().zip(targets) {
+            // SAFETY: a render has frame targets only when its tiles are distinct squares of
+            // the frame, each taken by one worker once, and nothing else touches the channels
+            // until the last worker has left (`Job::frame_targets`).
+            let mut rows = unsafe { target.tile(x0, y0, row_pixels as u32) };
+            format.encode(&colors[..pixel_count], &scratch.records, row_pixels, &mut rows);
+        }
+        return;
+    }
     // Encoded outside the lock; the lock is held only to copy the rows in.
     for (index, format) in job.formats.iter().enumerate() {
         let encoded = &mut scratch.encoded;
-        encoded.resize(pixel_count * format.pixel_bytes, 0);
-        format.encode(&colors[..pixel_count], &scratch.records, encoded);
+        let bytes = pixel_count * format.pixel_bytes;
+        encoded.resize(bytes, 0);
+        let mut rows = PackedRows {
+            bytes: encoded,
+            row_bytes: bytes,
+        };
+        format.encode(&colors[..pixel_count], &scratch.records, pixel_count, &mut rows);
         if let Some(channel) = lock(&job.channels).get_mut(index) {
             channel.write_area(&map, setup.width, encoded);
         }
