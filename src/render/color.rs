@@ -92,100 +92,6 @@ pub fn srgb8_rgba_encoder() -> impl Fn(glam::Vec4) -> [u8; 4] + Copy {
     }
 }
 
-/// Encodes `colors` as [`srgb8_rgba_encoder`] does, colour `k` into bytes `4k..4k + 4` of
-/// `out` (which must hold them all): on the AVX2 path four colours at a time, the table's
-/// bytes gathered eight indices per instruction; the same bytes either way.
-pub fn encode_srgb8_rgba(colors: &[glam::Vec4], out: &mut [u8]) {
-    encode_srgb8_rgba_on(crate::isa::avx2_selected(), colors, out)
-}
-
-/// [`encode_srgb8_rgba`] on the AVX2 path (where this CPU has it) or the plain one.
-#[inline(always)]
-fn encode_srgb8_rgba_on(avx2: bool, colors: &[glam::Vec4], out: &mut [u8]) {
-    let out = &mut out[..colors.len() * 4];
-    let mut done = 0;
-    #[cfg(target_arch = "x86_64")]
-    if avx2 && std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-        done = unsafe { encode_srgb8_rgba_avx2(srgb_table(), colors, out) };
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = avx2;
-    let rgba = srgb8_rgba_encoder();
-    for (chunk, color) in out[done * 4..]
-        .chunks_exact_mut(4)
-        .zip(&colors[done..])
-    {
-        chunk.copy_from_slice(&rgba(*color));
-    }
-}
-
-/// The AVX2 part of [`encode_srgb8_rgba`]: colours in groups of four (two per vector), the
-/// clamping, scaling and truncation of [`srgb8_rgba_encoder`] lane for lane (a multiply and
-/// an add, not fused, so each index rounds as there), R, G and B looked up with one gather
-/// per two colours, alpha the index itself. Returns how many colours it encoded (the leading
-/// multiple of four); `out` holds four bytes per colour.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-fn encode_srgb8_rgba_avx2(
-    table: &[u8; SRGB_TABLE_SLOTS],
-    colors: &[glam::Vec4],
-    out: &mut [u8],
-) -> usize {
-    use std::arch::x86_64::*;
-    const GROUP: usize = 4;
-    let steps = SRGB_TABLE_STEPS as f32;
-    let scale = _mm256_setr_ps(steps, steps, steps, 255.0, steps, steps, steps, 255.0);
-    let half = _mm256_set1_ps(0.5);
-    let one = _mm256_set1_ps(1.0);
-    let zero = _mm256_setzero_ps();
-    // Byte 0 of each 32-bit lane of a 128-bit half into bytes 0..4 (first pair) or 4..8
-    // (second pair) of that half; −1 clears the rest.
-    let first_bytes = _mm256_setr_epi8(
-        0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, //
-        0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
-    );
-    let second_bytes = _mm256_setr_epi8(
-        -1, -1, -1, -1, 0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, //
-        -1, -1, -1, -1, 0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1,
-    );
-    // Colours 0, 1, 2, 3 sit in 32-bit lanes 0, 4, 1, 5 after the byte shuffles.
-    let in_order = _mm256_setr_epi32(0, 4, 1, 5, 2, 3, 6, 7);
-    let byte_mask = _mm256_set1_epi32(0xff);
-    let groups = colors.len() / GROUP;
-    assert!(out.len() >= groups * GROUP * 4);
-    let indices = |pair: *const glam::Vec4| {
-        // SAFETY: `pair` points at two colours of `colors` (the caller's loop bound);
-        // glam's Vec4 is four packed f32 (16 bytes, SIMD-aligned).
-        let linear = unsafe { _mm256_loadu_ps(pair.cast::<f32>()) };
-        // max(NaN, 0) is 0 (the second operand), as in srgb8_rgba_encoder.
-        let clamped = _mm256_min_ps(_mm256_max_ps(linear, zero), one);
-        _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(clamped, scale), half))
-    };
-    let bytes = |index: __m256i| {
-        // SAFETY: every index is at most SRGB_TABLE_STEPS (clamped above), and the gather
-        // reads four bytes from each, all inside the table's SRGB_TABLE_SLOTS bytes; the
-        // byte at the index is the low byte of its lane.
-        let looked_up = unsafe { _mm256_i32gather_epi32::<1>(table.as_ptr().cast(), index) };
-        // Alpha (lanes 3 and 7) is the index itself, a byte already.
-        _mm256_and_si256(_mm256_blend_epi32::<0b1000_1000>(looked_up, index), byte_mask)
-    };
-    for group in 0..groups {
-        let first = colors[group * GROUP..].as_ptr();
-        let low = bytes(indices(first));
-        // SAFETY: the group's colours 2 and 3 are in `colors` (group < groups).
-        let high = bytes(indices(unsafe { first.add(2) }));
-        let packed = _mm256_or_si256(
-            _mm256_shuffle_epi8(low, first_bytes),
-            _mm256_shuffle_epi8(high, second_bytes),
-        );
-        let ordered = _mm256_castsi256_si128(_mm256_permutevar8x32_epi32(packed, in_order));
-        // SAFETY: bytes 16·group .. 16·group + 16 are in `out` (asserted above).
-        unsafe { _mm_storeu_si128(out[group * 16..].as_mut_ptr().cast(), ordered) };
-    }
-    groups * GROUP
-}
-
 /// Four non-negative values below 2³¹ truncated to integers, as `as` truncates them. One SSE2
 /// instruction on x86-64: `as` saturates and maps NaN to 0 lane by lane, which cost a sixth of
 /// the time a fast frame spends after tracing.
@@ -247,36 +153,6 @@ mod tests {
                 [srgb(v), srgb(w), srgb(0.25 * v), to_unorm8(w)],
                 "{v} {w}"
             );
-        }
-    }
-
-    #[test]
-    fn colours_encoded_a_block_at_a_time_give_each_colours_own_bytes() {
-        let rgba = srgb8_rgba_encoder();
-        // Every lane of every colour different (a lane or colour out of place changes the
-        // bytes), with NaNs, negatives, values past one and infinities among them.
-        let mut values = vec![f32::NAN, -0.0, -1.0, 2.0, f32::INFINITY, f32::NEG_INFINITY];
-        values.extend((0..=66_000).map(|i| i as f32 / 65_536.0));
-        let colors: Vec<glam::Vec4> = (0..values.len())
-            .map(|i| {
-                let lane = |k: usize| values[(i * 7919 + k * 104_729) % values.len()];
-                glam::Vec4::new(lane(0), lane(1), lane(2), lane(3))
-            })
-            .collect();
-        for &avx2 in crate::isa::test_paths() {
-            // Lengths around the groups of four, and offsets, so that the tail is covered.
-            for (start, length) in [(0, 0), (1, 1), (0, 3), (2, 4), (3, 5), (5, 11)]
-                .into_iter()
-                .chain([(0, colors.len()), (7, colors.len() - 9)])
-            {
-                let colors = &colors[start..start + length];
-                let mut out = vec![0xab; 4 * length + 4];
-                encode_srgb8_rgba_on(avx2, colors, &mut out);
-                for (k, color) in colors.iter().enumerate() {
-                    assert_eq!(out[4 * k..4 * k + 4], rgba(*color), "{avx2} {k} {color}");
-                }
-                assert_eq!(out[4 * length..], [0xab; 4], "bytes past the colours");
-            }
         }
     }
 

@@ -36,7 +36,8 @@ pub use budget::Budget;
 use budget::{BudgetedRun, Refinement, budgeted_run};
 pub use channels::CHANNELS;
 use channels::{
-    Channel, ChannelFormat, ChannelKind, FrameTarget, allocate_channels, new_buffer_bytes, value_range,
+    Channel, ChannelFormat, ChannelKind, FrameTarget, allocate_channels, new_buffer_bytes,
+    value_range,
 };
 #[doc(hidden)]
 pub use pixel_work::PLAIN_PER_PIXEL_PATH;

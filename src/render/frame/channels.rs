@@ -7,7 +7,7 @@ use std::collections::HashMap;
 use std::ops::Range;
 
 use crate::device::datatype::*;
-use crate::render::color::{encode_srgb8_rgba, srgb8_encoder, to_snorm16, to_unorm8};
+use crate::render::color::{srgb8_encoder, srgb8_rgba_encoder, to_snorm16, to_unorm8};
 use crate::render::progressive::TileMap;
 
 use super::records::TileRecords;
@@ -148,7 +148,8 @@ impl ChannelFormat {
             |values: &[Vec3], k: usize| values.get(k).map_or(Vec3::ZERO, |v| *v).to_array();
         match (self.kind, self.data_type) {
             (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB) => {
-                each_row(&mut |out, range| encode_srgb8_rgba(&colors[range], out))
+                let srgba = srgb8_rgba_encoder();
+                each_row(&mut |out, range| self.encode_colors(out, &colors[range], srgba))
             }
             (ChannelKind::Color, ANARI_UFIXED8_VEC4) => each_row(&mut |out, range| {
                 self.encode_colors(out, &colors[range], |color| color.to_array().map(to_unorm8))
@@ -178,9 +179,7 @@ impl ChannelFormat {
                 self.encode_pixels(out, |k| float(&records.window_depth, range.start + k, 1.0))
             }),
             (ChannelKind::Parallax, _) => each_row(&mut |out, range| {
-                self.encode_pixels(out, |k| {
-                    float(&records.parallax, range.start + k, f32::NAN)
-                })
+                self.encode_pixels(out, |k| float(&records.parallax, range.start + k, f32::NAN))
             }),
             (ChannelKind::PrimitiveId, _) => each_row(&mut |out, range| {
                 self.encode_pixels(out, |k| id(&records.primitive_id, range.start + k))
@@ -462,5 +461,83 @@ pub(super) fn value_range(bytes: &[u8]) -> [f32; 2] {
         [f32::NAN; 2]
     } else {
         [low, high]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn channel(kind: ChannelKind, data_type: ANARIDataType, pixels: usize) -> Channel {
+        let pixel_bytes = element_size(data_type).expect("a channel type");
+        Channel {
+            name: "channel",
+            format: ChannelFormat {
+                kind,
+                data_type,
+                pixel_bytes,
+            },
+            bytes: vec![0xab; pixels * pixel_bytes],
+        }
+    }
+
+    #[test]
+    fn tiles_encoded_into_the_frame_land_on_their_pixels_as_copied_tiles_do() {
+        // A 7×5 frame in tiles of 3×2 (the last column and row narrower), pixel (x, y)'s
+        // depth y·7 + x, its primitive id 1000 more, its colour from the same number.
+        let (width, height) = (7u32, 5u32);
+        let pixels = (width * height) as usize;
+        let kinds = [
+            (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB),
+            (ChannelKind::Color, ANARI_FLOAT32_VEC4),
+            (ChannelKind::Depth, ANARI_FLOAT32),
+            (ChannelKind::PrimitiveId, ANARI_UINT32),
+        ];
+        let color_of =
+            |index: u32| Vec4::new(index as f32 / 40.0, 0.5, 1.0 - index as f32 / 40.0, 1.0);
+        for (kind, data_type) in kinds {
+            let mut direct = channel(kind, data_type, pixels);
+            let mut copied = channel(kind, data_type, pixels);
+            let format = direct.format;
+            let target = FrameTarget::of(&mut direct, width);
+            for y0 in (0..height).step_by(2) {
+                for x0 in (0..width).step_by(3) {
+                    let (x1, y1) = ((x0 + 3).min(width), (y0 + 2).min(height));
+                    let index = |k: u32| (y0 + k / (x1 - x0)) * width + x0 + k % (x1 - x0);
+                    let count = (x1 - x0) * (y1 - y0);
+                    let colors: Vec<Vec4> = (0..count).map(|k| color_of(index(k))).collect();
+                    let mut records = TileRecords::default();
+                    records.depth = (0..count).map(|k| index(k) as f32).collect();
+                    records.primitive_id = (0..count).map(|k| 1000 + index(k)).collect();
+                    let row_pixels = (x1 - x0) as usize;
+                    // SAFETY: the tiles are disjoint and the rows are written one tile at a
+                    // time; `direct` is read only after the last.
+                    let mut rows = unsafe { target.tile(x0, y0, x1 - x0) };
+                    format.encode(&colors, &records, row_pixels, &mut rows);
+                    let mut tile = vec![0; colors.len() * format.pixel_bytes];
+                    let row_bytes = tile.len();
+                    let mut packed = PackedRows {
+                        bytes: &mut tile,
+                        row_bytes,
+                    };
+                    format.encode(&colors, &records, colors.len(), &mut packed);
+                    copied.write_tile(x0, y0, x1 - x0, width, &tile);
+                }
+            }
+            assert_eq!(direct.bytes, copied.bytes, "{kind:?} {data_type}");
+            let pixel =
+                |index: usize| &direct.bytes[index * format.pixel_bytes..][..format.pixel_bytes];
+            for index in 0..pixels {
+                let expected: Vec<u8> = match kind {
+                    ChannelKind::Depth => (index as f32).to_ne_bytes().to_vec(),
+                    ChannelKind::PrimitiveId => (1000 + index as u32).to_ne_bytes().to_vec(),
+                    _ if data_type == ANARI_FLOAT32_VEC4 => {
+                        f32_bytes::<4, 16>(color_of(index as u32).to_array()).to_vec()
+                    }
+                    _ => srgb8_rgba_encoder()(color_of(index as u32)).to_vec(),
+                };
+                assert_eq!(pixel(index), expected, "{kind:?} pixel {index}");
+            }
+        }
     }
 }

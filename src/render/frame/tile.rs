@@ -269,7 +269,12 @@ pub(super) fn render_tile(
             // the frame, each taken by one worker once, and nothing else touches the channels
             // until the last worker has left (`Job::frame_targets`).
             let mut rows = unsafe { target.tile(x0, y0, row_pixels as u32) };
-            format.encode(&colors[..pixel_count], &scratch.records, row_pixels, &mut rows);
+            format.encode(
+                &colors[..pixel_count],
+                &scratch.records,
+                row_pixels,
+                &mut rows,
+            );
         }
         return;
     }
@@ -282,7 +287,12 @@ pub(super) fn render_tile(
             bytes: encoded,
             row_bytes: bytes,
         };
-        format.encode(&colors[..pixel_count], &scratch.records, pixel_count, &mut rows);
+        format.encode(
+            &colors[..pixel_count],
+            &scratch.records,
+            pixel_count,
+            &mut rows,
+        );
         if let Some(channel) = lock(&job.channels).get_mut(index) {
             channel.write_area(&map, setup.width, encoded);
         }
