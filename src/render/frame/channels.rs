@@ -263,16 +263,23 @@ impl FrameTarget {
         }
     }
 
-    /// The rows of the tile `tile_width` pixels wide whose first pixel is (x0, y0).
+    /// The rows of the tile `tile_width` × `tile_height` pixels whose first pixel is (x0, y0).
     ///
     /// # Safety
     /// While the returned value lives, no other `TileInFrame` of this target covers any of
     /// its pixels and nothing else reads or writes the buffer.
-    pub(super) unsafe fn tile(&self, x0: u32, y0: u32, tile_width: u32) -> TileInFrame<'_> {
+    pub(super) unsafe fn tile(
+        &self,
+        x0: u32,
+        y0: u32,
+        tile_width: u32,
+        tile_height: u32,
+    ) -> TileInFrame<'_> {
         TileInFrame {
             target: self,
             first: y0 as usize * self.row_bytes + x0 as usize * self.pixel_bytes,
             row_bytes: tile_width as usize * self.pixel_bytes,
+            rows: tile_height as usize,
         }
     }
 }
@@ -284,6 +291,8 @@ pub(super) struct TileInFrame<'a> {
     first: usize,
     /// Bytes of one of the tile's rows.
     row_bytes: usize,
+    /// The tile's rows.
+    rows: usize,
 }
 
 impl TileRows for TileInFrame<'_> {
@@ -291,10 +300,10 @@ impl TileRows for TileInFrame<'_> {
     fn row(&mut self, row: usize, bytes: usize) -> &mut [u8] {
         let start = self.first + row * self.target.row_bytes;
         assert!(
-            bytes <= self.row_bytes && start + bytes <= self.target.len,
+            row < self.rows && bytes <= self.row_bytes && start + bytes <= self.target.len,
             "tile row {row} outside its tile or the frame"
         );
-        // SAFETY: the bytes lie inside the buffer (asserted) and inside this tile's row, so
+        // SAFETY: the bytes lie inside the buffer and inside one of this tile's rows (asserted), so
         // no other live TileInFrame covers them (`FrameTarget::tile`'s contract), and the
         // slice borrows `self` mutably, so this tile hands out one row at a time.
         unsafe { std::slice::from_raw_parts_mut(self.target.start.add(start), bytes) }
@@ -512,7 +521,7 @@ mod tests {
                     let row_pixels = (x1 - x0) as usize;
                     // SAFETY: the tiles are disjoint and the rows are written one tile at a
                     // time; `direct` is read only after the last.
-                    let mut rows = unsafe { target.tile(x0, y0, x1 - x0) };
+                    let mut rows = unsafe { target.tile(x0, y0, x1 - x0, y1 - y0) };
                     format.encode(&colors, &records, row_pixels, &mut rows);
                     let mut tile = vec![0; colors.len() * format.pixel_bytes];
                     let row_bytes = tile.len();

@@ -272,7 +272,7 @@ pub(super) fn render_tile(
             // SAFETY: a render has frame targets only when its tiles are distinct squares of
             // the frame, each taken by one worker once, and nothing else touches the channels
             // until the last worker has left (`Job::frame_targets`).
-            let mut rows = unsafe { target.tile(x0, y0, row_pixels as u32) };
+            let mut rows = unsafe { target.tile(x0, y0, area.s1 - area.s0, area.t1 - area.t0) };
             format.encode(
                 &colors[..pixel_count],
                 &scratch.records,
