@@ -37,7 +37,8 @@ pub use budget::Budget;
 use budget::{BudgetedRun, Refinement, budgeted_run};
 pub use channels::CHANNELS;
 use channels::{
-    Channel, ChannelFormat, ChannelKind, allocate_channels, new_buffer_bytes, value_range,
+    Channel, ChannelFormat, ChannelKind, FrameTarget, allocate_channels, new_buffer_bytes,
+    value_range,
 };
 #[doc(hidden)]
 pub use pixel_work::PLAIN_PER_PIXEL_PATH;
@@ -102,6 +103,11 @@ struct Job {
     /// Threads rendering this job.
     workers: usize,
     channels: Mutex<Vec<Channel>>,
+    /// `channels`' buffers written by the workers straight from their tiles, in the same
+    /// order: only for renders whose tiles are distinct squares of the frame (not budgeted,
+    /// not interleaved), each traced once by one worker; `channels` is then not locked until
+    /// the last worker has left.
+    frame_targets: Option<Vec<FrameTarget>>,
     /// The formats of `channels`, in the same order, readable without the lock.
     formats: Vec<ChannelFormat>,
     /// What every pixel needs done, decided when the render starts.
@@ -226,8 +232,15 @@ impl FrameState {
             };
             (pass, sum, previous, budgeted)
         };
-        let channels = allocate_channels(&setup, previous_output)?;
+        let mut channels = allocate_channels(&setup, previous_output)?;
         let interleave = interleaved_sets(&setup);
+        let frame_targets = (budgeted.is_none() && interleave.is_none()).then(|| {
+            let width = setup.width;
+            channels
+                .iter_mut()
+                .map(|channel| FrameTarget::of(channel, width))
+                .collect()
+        });
         // Interleaved eyes are traced as lattices of their own pixels, both of one size.
         let (lattice_width, lattice_height, eyes) = match interleave {
             Some(sets) => {
@@ -253,6 +266,7 @@ impl FrameState {
             workers,
             formats,
             channels: Mutex::new(channels),
+            frame_targets,
             pass,
             color_sum: color_sum.map(Mutex::new),
             started: Instant::now(),

@@ -4,6 +4,7 @@
 use glam::{Vec3, Vec4};
 
 use std::collections::HashMap;
+use std::ops::Range;
 
 use crate::device::datatype::*;
 use crate::render::color::{srgb8_encoder, srgb8_rgba_encoder, to_snorm16, to_unorm8};
@@ -117,11 +118,28 @@ impl ChannelFormat {
         }
     }
 
-    /// Encodes the pixels of a tile into `out` (`pixel_bytes` each, in the order of `colors`):
-    /// `colors` are their final colours, `records` the other channels' values. The match on
-    /// the type is made once per tile, not per pixel.
-    pub(super) fn encode(&self, colors: &[Vec4], records: &TileRecords, out: &mut [u8]) {
-        let out = &mut out[..colors.len() * self.pixel_bytes];
+    /// Encodes the pixels of a tile into `rows` (`pixel_bytes` each, in the order of
+    /// `colors`, `row_pixels` to a row): `colors` are their final colours, `records` the other
+    /// channels' values. The match on the type is made once per tile, not per pixel or row.
+    pub(super) fn encode(
+        &self,
+        colors: &[Vec4],
+        records: &TileRecords,
+        row_pixels: usize,
+        rows: &mut impl TileRows,
+    ) {
+        let pixels = colors.len();
+        let mut each_row = |write: &mut dyn FnMut(&mut [u8], Range<usize>)| {
+            let mut start = 0;
+            for row in 0.. {
+                if start >= pixels {
+                    break;
+                }
+                let end = (start + row_pixels).min(pixels);
+                write(rows.row(row, (end - start) * self.pixel_bytes), start..end);
+                start = end;
+            }
+        };
         let float = |values: &[f32], k: usize, nothing: f32| {
             f32_bytes::<1, 4>([values.get(k).copied().unwrap_or(nothing)])
         };
@@ -131,39 +149,49 @@ impl ChannelFormat {
         match (self.kind, self.data_type) {
             (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB) => {
                 let srgba = srgb8_rgba_encoder();
-                self.encode_colors(out, colors, srgba)
+                each_row(&mut |out, range| self.encode_colors(out, &colors[range], srgba))
             }
-            (ChannelKind::Color, ANARI_UFIXED8_VEC4) => {
-                self.encode_colors(out, colors, |color| color.to_array().map(to_unorm8))
-            }
-            (ChannelKind::Color, _) => {
-                self.encode_colors(out, colors, |color| f32_bytes::<4, 16>(color.to_array()))
-            }
-            (ChannelKind::Depth, _) => match records.depth.get(..colors.len()) {
+            (ChannelKind::Color, ANARI_UFIXED8_VEC4) => each_row(&mut |out, range| {
+                self.encode_colors(out, &colors[range], |color| color.to_array().map(to_unorm8))
+            }),
+            (ChannelKind::Color, _) => each_row(&mut |out, range| {
+                self.encode_colors(out, &colors[range], |color| {
+                    f32_bytes::<4, 16>(color.to_array())
+                })
+            }),
+            (ChannelKind::Depth, _) => match records.depth.get(..pixels) {
                 // Every pixel recorded (the usual case): a plain copy.
                 Some(depths) => {
                     debug_assert_eq!(self.pixel_bytes, 4, "pixel size of {:?}", self.data_type);
-                    for (chunk, depth) in out.chunks_exact_mut(4).zip(depths) {
-                        chunk.copy_from_slice(&depth.to_ne_bytes());
-                    }
+                    each_row(&mut |out, range| {
+                        for (chunk, depth) in out.chunks_exact_mut(4).zip(&depths[range]) {
+                            chunk.copy_from_slice(&depth.to_ne_bytes());
+                        }
+                    })
                 }
-                None => self.encode_pixels(out, |k| float(&records.depth, k, f32::INFINITY)),
+                None => each_row(&mut |out, range| {
+                    self.encode_pixels(out, |k| {
+                        float(&records.depth, range.start + k, f32::INFINITY)
+                    })
+                }),
             },
-            (ChannelKind::WindowDepth, _) => {
-                self.encode_pixels(out, |k| float(&records.window_depth, k, 1.0))
-            }
-            (ChannelKind::Parallax, _) => {
-                self.encode_pixels(out, |k| float(&records.parallax, k, f32::NAN))
-            }
-            (ChannelKind::PrimitiveId, _) => {
-                self.encode_pixels(out, |k| id(&records.primitive_id, k))
-            }
-            (ChannelKind::ObjectId, _) => self.encode_pixels(out, |k| id(&records.object_id, k)),
-            (ChannelKind::InstanceId, _) => {
-                self.encode_pixels(out, |k| id(&records.instance_id, k))
-            }
-            (ChannelKind::Albedo, data_type) => {
-                let albedo = |k: usize| vector(&records.albedo, k);
+            (ChannelKind::WindowDepth, _) => each_row(&mut |out, range| {
+                self.encode_pixels(out, |k| float(&records.window_depth, range.start + k, 1.0))
+            }),
+            (ChannelKind::Parallax, _) => each_row(&mut |out, range| {
+                self.encode_pixels(out, |k| float(&records.parallax, range.start + k, f32::NAN))
+            }),
+            (ChannelKind::PrimitiveId, _) => each_row(&mut |out, range| {
+                self.encode_pixels(out, |k| id(&records.primitive_id, range.start + k))
+            }),
+            (ChannelKind::ObjectId, _) => each_row(&mut |out, range| {
+                self.encode_pixels(out, |k| id(&records.object_id, range.start + k))
+            }),
+            (ChannelKind::InstanceId, _) => each_row(&mut |out, range| {
+                self.encode_pixels(out, |k| id(&records.instance_id, range.start + k))
+            }),
+            (ChannelKind::Albedo, data_type) => each_row(&mut |out, range| {
+                let albedo = |k: usize| vector(&records.albedo, range.start + k);
                 match data_type {
                     ANARI_UFIXED8_RGB_SRGB => {
                         let srgb = srgb8_encoder();
@@ -172,9 +200,9 @@ impl ChannelFormat {
                     ANARI_UFIXED8_VEC3 => self.encode_pixels(out, |k| albedo(k).map(to_unorm8)),
                     _ => self.encode_pixels(out, |k| f32_bytes::<3, 12>(albedo(k))),
                 }
-            }
-            (ChannelKind::Normal, data_type) => {
-                let normal = |k: usize| vector(&records.normal, k);
+            }),
+            (ChannelKind::Normal, data_type) => each_row(&mut |out, range| {
+                let normal = |k: usize| vector(&records.normal, range.start + k);
                 match data_type {
                     ANARI_FIXED16_VEC3 => self.encode_pixels(out, |k| {
                         let [x, y, z] = normal(k).map(|v| to_snorm16(v).to_ne_bytes());
@@ -182,8 +210,103 @@ impl ChannelFormat {
                     }),
                     _ => self.encode_pixels(out, |k| f32_bytes::<3, 12>(normal(k))),
                 }
-            }
+            }),
         }
+    }
+}
+
+/// Where a tile's encoded rows go: a buffer of the tile alone, or the frame's own rows.
+pub(super) trait TileRows {
+    /// The `bytes` bytes of the tile's row `row`.
+    fn row(&mut self, row: usize, bytes: usize) -> &mut [u8];
+}
+
+/// A tile encoded into a buffer of its own, row after row.
+pub(super) struct PackedRows<'a> {
+    pub(super) bytes: &'a mut [u8],
+    pub(super) row_bytes: usize,
+}
+
+impl TileRows for PackedRows<'_> {
+    #[inline(always)]
+    fn row(&mut self, row: usize, bytes: usize) -> &mut [u8] {
+        &mut self.bytes[row * self.row_bytes..][..bytes]
+    }
+}
+
+/// A channel's pixel buffer, written by the workers of a render straight from their tiles:
+/// each tile's rows go to their place in the frame with no tile buffer and no copy.
+pub(super) struct FrameTarget {
+    start: *mut u8,
+    len: usize,
+    pixel_bytes: usize,
+    row_bytes: usize,
+}
+
+// SAFETY: a FrameTarget only hands out the rows of tiles through `TileInFrame`, whose creation
+// requires that no two of them cover the same pixel and that nothing else touches the buffer
+// while they live; threads sharing it write disjoint bytes.
+unsafe impl Send for FrameTarget {}
+// SAFETY: as for Send.
+unsafe impl Sync for FrameTarget {}
+
+impl FrameTarget {
+    /// `channel`'s buffer for a frame `frame_width` pixels wide. The buffer must not be
+    /// moved, resized or read while tiles are written through the target.
+    pub(super) fn of(channel: &mut Channel, frame_width: u32) -> FrameTarget {
+        let pixel_bytes = channel.format.pixel_bytes;
+        FrameTarget {
+            start: channel.bytes.as_mut_ptr(),
+            len: channel.bytes.len(),
+            pixel_bytes,
+            row_bytes: frame_width as usize * pixel_bytes,
+        }
+    }
+
+    /// The rows of the tile `tile_width` × `tile_height` pixels whose first pixel is (x0, y0).
+    ///
+    /// # Safety
+    /// While the returned value lives, no other `TileInFrame` of this target covers any of
+    /// its pixels and nothing else reads or writes the buffer.
+    pub(super) unsafe fn tile(
+        &self,
+        x0: u32,
+        y0: u32,
+        tile_width: u32,
+        tile_height: u32,
+    ) -> TileInFrame<'_> {
+        TileInFrame {
+            target: self,
+            first: y0 as usize * self.row_bytes + x0 as usize * self.pixel_bytes,
+            row_bytes: tile_width as usize * self.pixel_bytes,
+            rows: tile_height as usize,
+        }
+    }
+}
+
+/// One tile's rows in a [`FrameTarget`].
+pub(super) struct TileInFrame<'a> {
+    target: &'a FrameTarget,
+    /// Byte offset of the tile's first pixel.
+    first: usize,
+    /// Bytes of one of the tile's rows.
+    row_bytes: usize,
+    /// The tile's rows.
+    rows: usize,
+}
+
+impl TileRows for TileInFrame<'_> {
+    #[inline(always)]
+    fn row(&mut self, row: usize, bytes: usize) -> &mut [u8] {
+        let start = self.first + row * self.target.row_bytes;
+        assert!(
+            row < self.rows && bytes <= self.row_bytes && start + bytes <= self.target.len,
+            "tile row {row} outside its tile or the frame"
+        );
+        // SAFETY: the bytes lie inside the buffer and inside one of this tile's rows (asserted), so
+        // no other live TileInFrame covers them (`FrameTarget::tile`'s contract), and the
+        // slice borrows `self` mutably, so this tile hands out one row at a time.
+        unsafe { std::slice::from_raw_parts_mut(self.target.start.add(start), bytes) }
     }
 }
 
@@ -347,5 +470,83 @@ pub(super) fn value_range(bytes: &[u8]) -> [f32; 2] {
         [f32::NAN; 2]
     } else {
         [low, high]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn channel(kind: ChannelKind, data_type: ANARIDataType, pixels: usize) -> Channel {
+        let pixel_bytes = element_size(data_type).expect("a channel type");
+        Channel {
+            name: "channel",
+            format: ChannelFormat {
+                kind,
+                data_type,
+                pixel_bytes,
+            },
+            bytes: vec![0xab; pixels * pixel_bytes],
+        }
+    }
+
+    #[test]
+    fn tiles_encoded_into_the_frame_land_on_their_pixels_as_copied_tiles_do() {
+        // A 7×5 frame in tiles of 3×2 (the last column and row narrower), pixel (x, y)'s
+        // depth y·7 + x, its primitive id 1000 more, its colour from the same number.
+        let (width, height) = (7u32, 5u32);
+        let pixels = (width * height) as usize;
+        let kinds = [
+            (ChannelKind::Color, ANARI_UFIXED8_RGBA_SRGB),
+            (ChannelKind::Color, ANARI_FLOAT32_VEC4),
+            (ChannelKind::Depth, ANARI_FLOAT32),
+            (ChannelKind::PrimitiveId, ANARI_UINT32),
+        ];
+        let color_of =
+            |index: u32| Vec4::new(index as f32 / 40.0, 0.5, 1.0 - index as f32 / 40.0, 1.0);
+        for (kind, data_type) in kinds {
+            let mut direct = channel(kind, data_type, pixels);
+            let mut copied = channel(kind, data_type, pixels);
+            let format = direct.format;
+            let target = FrameTarget::of(&mut direct, width);
+            for y0 in (0..height).step_by(2) {
+                for x0 in (0..width).step_by(3) {
+                    let (x1, y1) = ((x0 + 3).min(width), (y0 + 2).min(height));
+                    let index = |k: u32| (y0 + k / (x1 - x0)) * width + x0 + k % (x1 - x0);
+                    let count = (x1 - x0) * (y1 - y0);
+                    let colors: Vec<Vec4> = (0..count).map(|k| color_of(index(k))).collect();
+                    let mut records = TileRecords::default();
+                    records.depth = (0..count).map(|k| index(k) as f32).collect();
+                    records.primitive_id = (0..count).map(|k| 1000 + index(k)).collect();
+                    let row_pixels = (x1 - x0) as usize;
+                    // SAFETY: the tiles are disjoint and the rows are written one tile at a
+                    // time; `direct` is read only after the last.
+                    let mut rows = unsafe { target.tile(x0, y0, x1 - x0, y1 - y0) };
+                    format.encode(&colors, &records, row_pixels, &mut rows);
+                    let mut tile = vec![0; colors.len() * format.pixel_bytes];
+                    let row_bytes = tile.len();
+                    let mut packed = PackedRows {
+                        bytes: &mut tile,
+                        row_bytes,
+                    };
+                    format.encode(&colors, &records, colors.len(), &mut packed);
+                    copied.write_tile(x0, y0, x1 - x0, width, &tile);
+                }
+            }
+            assert_eq!(direct.bytes, copied.bytes, "{kind:?} {data_type}");
+            let pixel =
+                |index: usize| &direct.bytes[index * format.pixel_bytes..][..format.pixel_bytes];
+            for index in 0..pixels {
+                let expected: Vec<u8> = match kind {
+                    ChannelKind::Depth => (index as f32).to_ne_bytes().to_vec(),
+                    ChannelKind::PrimitiveId => (1000 + index as u32).to_ne_bytes().to_vec(),
+                    _ if data_type == ANARI_FLOAT32_VEC4 => {
+                        f32_bytes::<4, 16>(color_of(index as u32).to_array()).to_vec()
+                    }
+                    _ => srgb8_rgba_encoder()(color_of(index as u32)).to_vec(),
+                };
+                assert_eq!(pixel(index), expected, "{kind:?} pixel {index}");
+            }
+        }
     }
 }

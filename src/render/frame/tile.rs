@@ -13,6 +13,7 @@ use crate::render::progressive::{FrameTile, SINGLE_RAY_STRIDE, TileMap};
 use crate::scene::light::LightSampling;
 
 use super::anaglyph::{anaglyph, anaglyph_eyes};
+use super::channels::PackedRows;
 use super::fast_block::FastBlock;
 use super::records::TileRecords;
 use super::samples::{jitter, lens_sample};
@@ -241,10 +242,14 @@ pub(super) fn render_tile(
     // Walked row by row: a division per pixel for its lattice point cost a tenth of this loop.
     let (s0, s1) = (area.s0, area.s1);
     let lattice_points = (area.t0..area.t1).flat_map(|sy| (s0..s1).map(move |sx| (sx, sy)));
-    // One sample of every pixel, not accumulated: the sums are the colours already.
+    // One sample of every pixel, not accumulated: the sums are the colours already. The
+    // coverage is folded without an early exit, so that it is checked many pixels per
+    // instruction (`all` stopped at each pixel: five instructions per pixel).
     let final_already = samples == 1
         && color_sum.is_none()
-        && covered[..pixel_count].iter().all(|covered| *covered);
+        && covered[..pixel_count]
+            .iter()
+            .fold(true, |all, covered| all & *covered);
     let pixels_to_finish = if final_already { 0 } else { pixel_count };
     for (k, (color, (sx, sy))) in colors[..pixels_to_finish]
         .iter_mut()
@@ -276,11 +281,41 @@ pub(super) fn render_tile(
         }
     }
     drop(color_sum);
+    let row_pixels = (area.s1 - area.s0) as usize;
+    if let Some(targets) = &job.frame_targets {
+        // Encoded straight into the frame's rows: no tile buffer, no copy, no lock.
+        let (x0, y0) = map
+            .rectangle_origin()
+            .expect("a render with frame targets traces squares of the frame");
+        for (format, target) in job.formats.iter().zip(targets) {
+            // SAFETY: a render has frame targets only when its tiles are distinct squares of
+            // the frame, each taken by one worker once, and nothing else touches the channels
+            // until the last worker has left (`Job::frame_targets`).
+            let mut rows = unsafe { target.tile(x0, y0, area.s1 - area.s0, area.t1 - area.t0) };
+            format.encode(
+                &colors[..pixel_count],
+                &scratch.records,
+                row_pixels,
+                &mut rows,
+            );
+        }
+        return;
+    }
     // Encoded outside the lock; the lock is held only to copy the rows in.
     for (index, format) in job.formats.iter().enumerate() {
         let encoded = &mut scratch.encoded;
-        encoded.resize(pixel_count * format.pixel_bytes, 0);
-        format.encode(&colors[..pixel_count], &scratch.records, encoded);
+        let bytes = pixel_count * format.pixel_bytes;
+        encoded.resize(bytes, 0);
+        let mut rows = PackedRows {
+            bytes: encoded,
+            row_bytes: bytes,
+        };
+        format.encode(
+            &colors[..pixel_count],
+            &scratch.records,
+            pixel_count,
+            &mut rows,
+        );
         if let Some(channel) = lock(&job.channels).get_mut(index) {
             channel.write_area(&map, setup.width, encoded);
         }
