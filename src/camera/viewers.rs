@@ -30,9 +30,6 @@ use glam::{DVec2, DVec3, Vec3};
 use super::CameraError;
 use super::offaxis::ScreenFrame;
 
-#[cfg(target_arch = "x86_64")]
-mod heads_avx2;
-
 /// Most viewers one camera blends (per-pixel work grows with their number).
 pub const MAX_VIEWERS: usize = 64;
 
@@ -529,13 +526,8 @@ impl ViewerSet {
         }
         #[cfg(target_arch = "x86_64")]
         if avx2 && std::arch::is_x86_feature_detected!("avx2") {
-            if self.blends_heads_eight_at_a_time(N, needs_right) {
-                // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-                unsafe { self.heads_avx2(points, cameras) };
-            } else {
-                // SAFETY: as above.
-                unsafe { self.cameras_avx2(points, needs_right, cameras) };
-            }
+            // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
+            unsafe { self.cameras_avx2(points, needs_right, cameras) };
             return;
         }
         #[cfg(not(target_arch = "x86_64"))]
@@ -715,27 +707,23 @@ fn min(a: f32, b: f32) -> f32 {
     if a < b { a } else { b }
 }
 
-/// The polynomial of [`acos`], highest power first (Abramowitz & Stegun 4.4.46; the published
-/// coefficients as printed, f32 rounds them).
-#[allow(clippy::excessive_precision)]
-const ACOS_POLYNOMIAL: [f32; 8] = [
-    -0.001_262_491_1,
-    0.006_670_090_1,
-    -0.017_088_125_6,
-    0.030_891_881,
-    -0.050_174_304_6,
-    0.088_978_987_4,
-    -0.214_598_801_6,
-    1.570_796_305,
-];
-
 /// `acos` of a value in `[-1, 1]`, absolute error below 5·10⁻⁷ (Abramowitz & Stegun 4.4.46
 /// on |x|, 2·10⁻⁸, mirrored for negative x; the rest is f32 rounding).
+// The published coefficients as printed (f32 rounds them).
+#[allow(clippy::excessive_precision)]
 #[inline(always)]
 fn acos(x: f32) -> f32 {
     let a = min(x.abs(), 1.0);
-    let mut poly = ACOS_POLYNOMIAL[0];
-    for coefficient in &ACOS_POLYNOMIAL[1..] {
+    let mut poly = -0.001_262_491_1f32;
+    for coefficient in [
+        0.006_670_090_1,
+        -0.017_088_125_6,
+        0.030_891_881,
+        -0.050_174_304_6,
+        0.088_978_987_4,
+        -0.214_598_801_6,
+        1.570_796_305,
+    ] {
         poly = poly * a + coefficient;
     }
     let positive = max(1.0 - a, 0.0).sqrt() * poly;
@@ -746,23 +734,19 @@ fn acos(x: f32) -> f32 {
     }
 }
 
-/// The Taylor series of [`cos`] in `x²`, highest power first.
-const COS_POLYNOMIAL: [f32; 7] = [
-    1.0 / 479_001_600.0,
-    -1.0 / 3_628_800.0,
-    1.0 / 40_320.0,
-    -1.0 / 720.0,
-    1.0 / 24.0,
-    -0.5,
-    1.0,
-];
-
 /// `cos` of a value in `[0, π/2]` (Taylor series to x¹², error below 10⁻⁸).
 #[inline(always)]
 fn cos(x: f32) -> f32 {
     let y = x * x;
-    let mut sum = COS_POLYNOMIAL[0];
-    for coefficient in &COS_POLYNOMIAL[1..] {
+    let mut sum = 1.0f32 / 479_001_600.0;
+    for coefficient in [
+        -1.0 / 3_628_800.0,
+        1.0 / 40_320.0,
+        -1.0 / 720.0,
+        1.0 / 24.0,
+        -0.5,
+        1.0,
+    ] {
         sum = sum * y + coefficient;
     }
     sum
