@@ -856,37 +856,29 @@ fn main() {
 
     // The sections run alone, on the height field.
     let section = |name: &str| std::env::args().skip(1).any(|a| a == name);
-    let section_run = if section("viewers") {
-        // `CAVETRACE_BENCH_SCENE=2`: on the 968-triangle height field (the stereo section's
-        // scene 2), where the camera's share of a frame is largest.
-        let small = (std::env::var("CAVETRACE_BENCH_SCENE").as_deref() == Ok("2")).then(|| {
+    // `CAVETRACE_BENCH_SCENE=2` runs the viewers and light-field sections on the 968-triangle
+    // height field (the stereo section's scene 2): its BVH stays in the caches, and the camera's
+    // share of a frame is largest there.
+    let small_field = || {
+        (std::env::var("CAVETRACE_BENCH_SCENE").as_deref() == Ok("2")).then(|| {
             let small = height_field(dev, 22).0;
             commit(dev, small);
-            println!("several viewers on the 968-triangle height field");
+            println!("on the 968-triangle height field");
             small
-        });
-        viewers_section(
-            dev,
-            small.unwrap_or(geometry),
-            size,
-            if quick { 4 } else { 15 },
-        );
+        })
+    };
+    let on_scene = |run: &dyn Fn(ANARIGeometry)| {
+        let small = small_field();
+        run(small.unwrap_or(geometry));
         if let Some(small) = small {
             anariRelease(dev, small);
         }
+    };
+    let section_run = if section("viewers") {
+        on_scene(&|scene| viewers_section(dev, scene, size, if quick { 4 } else { 15 }));
         true
     } else if section("lightfield") {
-        // `CAVETRACE_BENCH_SCENE=2` traces the 968-triangle height field instead (its BVH stays
-        // in the caches, so the light-field ratio there is the rays' cost without memory).
-        let small = std::env::var("CAVETRACE_BENCH_SCENE").is_ok_and(|v| v == "2");
-        let scene = if small { height_field(dev, 22).0 } else { geometry };
-        if small {
-            commit(dev, scene);
-        }
-        light_field_section(dev, scene, size, if quick { 3 } else { 7 });
-        if small {
-            anariRelease(dev, scene);
-        }
+        on_scene(&|scene| light_field_section(dev, scene, size, if quick { 3 } else { 7 }));
         true
     } else if section("depth") {
         // `-- depth default`: the same frames with the default renderer.
