@@ -100,10 +100,7 @@ impl GeometryBvh {
             node.children.iter().for_each(|&code| add(code));
         }
         if let PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) = &self.primitives {
-            groups
-                .iter()
-                .flat_map(|group| group.ids)
-                .for_each(|id| add(id));
+            groups.iter().flat_map(|group| group.ids).for_each(&mut add);
             for group in groups {
                 let coordinates = group
                     .vertices
