@@ -217,6 +217,16 @@ fn main() {
     );
     for &grid in grids {
         let geometry = height_field(dev, grid);
+        let geometry_bytes = cavetrace::device::registry::device(dev as usize)
+            .and_then(|d| d.lookup(geometry as usize))
+            .and_then(|o| o.derived_as::<cavetrace::scene::geometry::Geometry>())
+            .map_or(0, |g| g.memory_bytes());
+        println!(
+            "  {:>9} triangles: geometry memory (BVH, packed triangles, ids, indices) {:.1} bytes \
+             per triangle",
+            2 * grid * grid,
+            geometry_bytes as f64 / f64::from(2 * grid * grid)
+        );
         let scene = geometry_scene(dev, geometry);
         let surface = matte_surface(dev, geometry, [0.7, 0.7, 0.7]);
         let world = world_of(dev, &[surface]);

@@ -41,7 +41,8 @@ pub fn geometry_build_count() -> u64 {
 const QUAD_SECOND_HALF: u32 = 1 << 31;
 
 /// Primitive data in BVH slot order: triangles (and quads' halves) in groups of four slots, one
-/// group per leaf; spheres and tubes one per slot, each tested by its own intersector.
+/// group per leaf, each group holding its triangles' source ids; spheres and tubes one per
+/// slot, each tested by its own intersector.
 enum PrimitiveData {
     Triangles(Vec<TriangleGroup>),
     Quads(Vec<TriangleGroup>),
@@ -54,8 +55,9 @@ enum PrimitiveData {
 pub struct GeometryBvh {
     nodes: Vec<WideNode>,
     primitives: PrimitiveData,
-    /// Per BVH slot, the index of the source primitive (quads: plus `QUAD_SECOND_HALF`);
-    /// padding slots of a triangle group repeat the group's first.
+    /// Per BVH slot of spheres, tubes and procedural primitives, the index of the source
+    /// primitive; empty for triangles and quads, whose ids sit in their groups
+    /// ([`GeometryBvh::source_id`]).
     source_ids: Vec<u32>,
     bounds: (Vec3, Vec3),
     primitive_count: usize,
@@ -81,7 +83,8 @@ impl GeometryBvh {
     }
 
     /// FNV-1a over the layout: every node's planes (bits) and child codes, the source ids
-    /// per slot and, for triangles and quads, every group's vertex coordinates (bits).
+    /// per slot (quads: with `QUAD_SECOND_HALF`; padding slots repeat their group's first)
+    /// and, for triangles and quads, every group's vertex coordinates (bits).
     pub(crate) fn layout_fingerprint(&self) -> u64 {
         let mut hash = 0xcbf2_9ce4_8422_2325u64;
         let mut add = |word: u32| {
@@ -96,8 +99,8 @@ impl GeometryBvh {
                 .for_each(|plane| add(plane.to_bits()));
             node.children.iter().for_each(|&code| add(code));
         }
-        self.source_ids.iter().for_each(|&id| add(id));
         if let PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) = &self.primitives {
+            groups.iter().flat_map(|group| group.ids).for_each(&mut add);
             for group in groups {
                 let coordinates = group
                     .vertices
@@ -106,6 +109,8 @@ impl GeometryBvh {
                     .flat_map(|row| row.to_array());
                 coordinates.for_each(|coordinate| add(coordinate.to_bits()));
             }
+        } else {
+            self.source_ids.iter().for_each(|&id| add(id));
         }
         hash
     }
@@ -211,21 +216,23 @@ fn in_slot_order<T: Send>(order: &[u32], value: impl Fn(u32) -> T + Send + Sync)
         .collect()
 }
 
-/// Triangles in slot order as groups of four.
-fn triangle_groups(triangles: &[PackedTriangle]) -> Vec<TriangleGroup> {
+/// Triangles in slot order as groups of four, with their source ids.
+fn triangle_groups(triangles: &[PackedTriangle], source_ids: &[u32]) -> Vec<TriangleGroup> {
     triangles
         .par_chunks(GROUP_LANES)
-        .map(TriangleGroup::new)
+        .zip(source_ids.par_chunks(GROUP_LANES))
+        .map(|(triangles, ids)| TriangleGroup::new(triangles, ids))
         .collect()
 }
 
 /// Builds the BVH over the collected primitives, stores them in BVH slot order (wrapped by
-/// `wrap`) and counts `input_count - accepted` primitives as skipped.
+/// `wrap`, which also gets their source ids in slot order) and counts
+/// `input_count - accepted` primitives as skipped.
 fn bvh_over_collected<P: Copy + Send + Sync>(
     collected: Collected<P>,
     bounds_of: impl Fn(&P) -> Aabb + Send + Sync,
     (sizing, alignment): (LeafSizing, LeafAlignment),
-    wrap: impl FnOnce(Vec<P>) -> PrimitiveData,
+    wrap: impl FnOnce(Vec<P>, &[u32]) -> PrimitiveData,
     (accepted, input_count): (usize, usize),
 ) -> GeometryBvh {
     let boxes: Vec<Aabb> = collected.primitives.par_iter().map(bounds_of).collect();
@@ -237,9 +244,14 @@ fn bvh_over_collected<P: Copy + Send + Sync>(
     drop(boxes);
     let primitives = in_slot_order(&order, |i| collected.primitives[i as usize]);
     let source_ids = in_slot_order(&order, |i| collected.source_ids[i as usize]);
+    let primitives = wrap(primitives, &source_ids);
+    let source_ids = match primitives {
+        PrimitiveData::Triangles(_) | PrimitiveData::Quads(_) => Vec::new(),
+        _ => source_ids,
+    };
     GeometryBvh {
         nodes,
-        primitives: wrap(primitives),
+        primitives,
         source_ids,
         bounds,
         primitive_count: accepted,
@@ -287,13 +299,13 @@ impl GeometryBvh {
                                     .map(|corner| positions[corner as usize]);
                                 PackedTriangle::from_usable(v0, v1, v2)
                             });
-                        TriangleGroup::new(&triangles[..ids.len()])
+                        TriangleGroup::new(&triangles[..ids.len()], ids)
                     })
                     .collect();
                 GeometryBvh {
                     nodes,
                     primitives: PrimitiveData::Triangles(groups),
-                    source_ids,
+                    source_ids: Vec::new(),
                     bounds,
                     primitive_count: accepted,
                     skipped_primitive_count: input_count - accepted,
@@ -318,7 +330,7 @@ impl GeometryBvh {
                     collected,
                     PackedTriangle::bounds,
                     (LeafSizing::Whole, LeafAlignment::Group),
-                    |triangles| PrimitiveData::Quads(triangle_groups(&triangles)),
+                    |triangles, ids| PrimitiveData::Quads(triangle_groups(&triangles, ids)),
                     (accepted, indices.len()),
                 )
                 .checked()
@@ -338,7 +350,7 @@ impl GeometryBvh {
                     collected,
                     PackedSphere::bounds,
                     (LeafSizing::Split, LeafAlignment::Packed),
-                    PrimitiveData::Spheres,
+                    |spheres, _| PrimitiveData::Spheres(spheres),
                     (accepted, centers.len()),
                 )
             }
@@ -363,7 +375,7 @@ impl GeometryBvh {
             collected,
             PackedTube::bounds,
             (LeafSizing::Split, LeafAlignment::Packed),
-            PrimitiveData::Tubes,
+            |tubes, _| PrimitiveData::Tubes(tubes),
             (accepted, segments.len()),
         )
     }
@@ -390,7 +402,7 @@ impl GeometryBvh {
             collected,
             |&id| boxes[id as usize],
             (LeafSizing::Split, LeafAlignment::Packed),
-            |indices| {
+            |indices, _| {
                 PrimitiveData::Procedural(ProceduralSlots {
                     primitives,
                     indices,
@@ -633,8 +645,9 @@ impl GeometryBvh {
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
                 if let Some(group) = groups.get(group_leaf(code).0) {
+                    // Bytes 0, 64 and 128 of the 32-aligned group: each of its three lines.
                     prefetch(group);
-                    prefetch(&group.vertices[1]);
+                    prefetch(&group.vertices[1][1]);
                     prefetch(&group.vertices[2][2]);
                 }
             }
@@ -767,6 +780,18 @@ impl GeometryBvh {
         }
     }
 
+    /// The source id of the primitive in `slot` (quads: with `QUAD_SECOND_HALF`).
+    #[inline(always)]
+    fn source_id(&self, slot: u32) -> u32 {
+        match &self.primitives {
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                let lanes = GROUP_LANES as u32;
+                groups[(slot / lanes) as usize].ids[(slot % lanes) as usize]
+            }
+            _ => self.source_ids[slot as usize],
+        }
+    }
+
     /// The triangle in a triangle or quad slot.
     #[inline]
     fn triangle(groups: &[TriangleGroup], slot: u32) -> PackedTriangle {
@@ -819,31 +844,33 @@ impl GeometryBvh {
         bary: Vec2,
         normal: Vec3,
     ) -> Option<PrimHit> {
-        let source_id = self.source_ids[slot as usize];
-        match &self.primitives {
-            PrimitiveData::Triangles(_) => Some(PrimHit {
-                t,
-                primitive: source_id,
-                uv: bary,
-                normal,
-            }),
-            PrimitiveData::Quads(_) => Some(PrimHit {
+        let (PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups)) = &self.primitives
+        else {
+            return None;
+        };
+        let lanes = GROUP_LANES as u32;
+        let source_id = groups[(slot / lanes) as usize].ids[(slot % lanes) as usize];
+        Some(match &self.primitives {
+            PrimitiveData::Quads(_) => PrimHit {
                 t,
                 primitive: source_id & !QUAD_SECOND_HALF,
                 uv: quad_coordinates(bary, source_id),
                 normal,
-            }),
-            PrimitiveData::Spheres(_) | PrimitiveData::Tubes(_) | PrimitiveData::Procedural(_) => {
-                None
-            }
-        }
+            },
+            _ => PrimHit {
+                t,
+                primitive: source_id,
+                uv: bary,
+                normal,
+            },
+        })
     }
 
     /// Full hit record for the primitive in `slot`, found by [`Self::closest_slot`] with this
     /// `ray` (whose `t_max` now equals the hit). The primitive test is repeated: it is
     /// deterministic, so it finds the same `t`.
     pub(crate) fn hit_details(&self, slot: u32, ray: &TraversalRay) -> PrimHit {
-        let source_id = self.source_ids[slot as usize];
+        let source_id = self.source_id(slot);
         let slot = slot as usize;
         let miss = || PrimHit {
             t: ray.t_max,

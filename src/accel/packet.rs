@@ -18,7 +18,7 @@ use crate::accel::geometry::prepare as prepare_one;
 use crate::accel::primitives::{TriangleGroup, triangle_t_uv};
 use crate::accel::wide_bvh::{
     BoxRay, LEAF_BIT, MAX_INV_DIRECTION, ORDER, SLAB_ERROR, TraversalRay, TraversalStack, WideNode,
-    child_hits, prefetch,
+    child_hits, prefetch_node,
 };
 use crate::accel::{MAX_COORDINATE, Ray};
 use glam::{BVec4A, Vec3A, Vec4};
@@ -1353,7 +1353,7 @@ fn walk_frustum<const SPREAD: bool, const AVX2: bool, F, P>(
                 prefetch_leaf(node.children[slot as usize]);
             } else {
                 inner |= 1 << slot;
-                prefetch(&nodes[node.children[slot as usize] as usize]);
+                prefetch_node(&nodes[node.children[slot as usize] as usize]);
             }
         }
         if leaves != 0 {

@@ -92,16 +92,24 @@ fn unit_normal([v0, v1, v2]: [Vec3; 3]) -> Vec3 {
 pub(crate) const GROUP_LANES: usize = 4;
 
 /// Up to four triangles in SIMD lanes: `vertices[i][axis]` holds coordinate `axis` of vertex
-/// `i` of every lane's triangle (what the watertight test reads, nothing to gather). Lanes
-/// beyond a leaf's count repeat lane 0 and are masked off.
+/// `i` of every lane's triangle (what the watertight test reads, nothing to gather), and
+/// `ids[lane]` the lane's source id, on the cache line of the last vertex row, so a hit's id
+/// costs no miss of its own. Lanes beyond a leaf's count repeat lane 0 and are masked off.
+/// 160 bytes, aligned to 32 so that a group always spans exactly three cache lines.
 #[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
 pub(crate) struct TriangleGroup {
     pub vertices: [[Vec4; 3]; 3],
+    pub ids: [u32; GROUP_LANES],
 }
 
+const _: () = assert!(size_of::<TriangleGroup>() == 160);
+
 impl TriangleGroup {
-    /// Packs up to four triangles (at least one); missing lanes repeat the first.
-    pub fn new(triangles: &[PackedTriangle]) -> TriangleGroup {
+    /// Packs up to four triangles (at least one) with their source ids (as many);
+    /// missing lanes repeat the first.
+    pub fn new(triangles: &[PackedTriangle], ids: &[u32]) -> TriangleGroup {
+        debug_assert_eq!(triangles.len(), ids.len());
         let mut vertices = [[Vec4::ZERO; 3]; 3];
         for lane in 0..GROUP_LANES {
             let triangle = triangles.get(lane).unwrap_or(&triangles[0]);
@@ -111,7 +119,8 @@ impl TriangleGroup {
                 }
             }
         }
-        TriangleGroup { vertices }
+        let ids = std::array::from_fn(|lane| *ids.get(lane).unwrap_or(&ids[0]));
+        TriangleGroup { vertices, ids }
     }
 
     /// [`PackedTriangle::normal`] of the triangle in `lane`, read straight from the lanes.
