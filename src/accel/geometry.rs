@@ -785,11 +785,17 @@ impl GeometryBvh {
     fn source_id(&self, slot: u32) -> u32 {
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
-                let lanes = GROUP_LANES as u32;
-                groups[(slot / lanes) as usize].ids[(slot % lanes) as usize]
+                Self::triangle_source_id(groups, slot)
             }
             _ => self.source_ids[slot as usize],
         }
+    }
+
+    /// The source id of a triangle or quad slot (quads: with `QUAD_SECOND_HALF`).
+    #[inline(always)]
+    fn triangle_source_id(groups: &[TriangleGroup], slot: u32) -> u32 {
+        let lanes = GROUP_LANES as u32;
+        groups[(slot / lanes) as usize].ids[(slot % lanes) as usize]
     }
 
     /// The triangle in a triangle or quad slot.
@@ -848,8 +854,7 @@ impl GeometryBvh {
         else {
             return None;
         };
-        let lanes = GROUP_LANES as u32;
-        let source_id = groups[(slot / lanes) as usize].ids[(slot % lanes) as usize];
+        let source_id = Self::triangle_source_id(groups, slot);
         Some(match &self.primitives {
             PrimitiveData::Quads(_) => PrimHit {
                 t,

@@ -264,6 +264,8 @@ impl FrameTarget {
     }
 
     /// The rows of the tile `tile_width` × `tile_height` pixels whose first pixel is (x0, y0).
+    /// Panics when the tile's columns leave the frame: its rows would run on into the next
+    /// frame row, another tile's pixels.
     ///
     /// # Safety
     /// While the returned value lives, no other `TileInFrame` of this target covers any of
@@ -275,10 +277,18 @@ impl FrameTarget {
         tile_width: u32,
         tile_height: u32,
     ) -> TileInFrame<'_> {
+        let (column, row_bytes) = (
+            x0 as usize * self.pixel_bytes,
+            tile_width as usize * self.pixel_bytes,
+        );
+        assert!(
+            column + row_bytes <= self.row_bytes,
+            "tile columns from {x0}, {tile_width} wide, outside the frame"
+        );
         TileInFrame {
             target: self,
-            first: y0 as usize * self.row_bytes + x0 as usize * self.pixel_bytes,
-            row_bytes: tile_width as usize * self.pixel_bytes,
+            first: y0 as usize * self.row_bytes + column,
+            row_bytes,
             rows: tile_height as usize,
         }
     }
@@ -303,15 +313,17 @@ impl TileRows for TileInFrame<'_> {
             row < self.rows && bytes <= self.row_bytes && start + bytes <= self.target.len,
             "tile row {row} outside its tile or the frame"
         );
-        // SAFETY: the bytes lie inside the buffer and inside one of this tile's rows (asserted), so
-        // no other live TileInFrame covers them (`FrameTarget::tile`'s contract), and the
-        // slice borrows `self` mutably, so this tile hands out one row at a time.
+        // SAFETY: the bytes lie inside the buffer and inside one of this tile's rows, whose
+        // columns lie inside the frame (both asserted), so no other live TileInFrame covers
+        // them (`FrameTarget::tile`'s contract), and the slice borrows `self` mutably, so this
+        // tile hands out one row at a time.
         unsafe { std::slice::from_raw_parts_mut(self.target.start.add(start), bytes) }
     }
 }
 
 /// One requested channel of a render with its pixels. Tiles are encoded by the threads that
-/// render them and copied in row by row, so a finished render needs no encoding pass.
+/// render them, straight into the frame's rows ([`FrameTarget`]) or copied in row by row, so a
+/// finished render needs no encoding pass.
 pub(super) struct Channel {
     pub(super) name: &'static str,
     pub(super) format: ChannelFormat,
@@ -548,5 +560,15 @@ mod tests {
                 assert_eq!(pixel(index), expected, "{kind:?} pixel {index}");
             }
         }
+    }
+
+    #[test]
+    #[should_panic(expected = "outside the frame")]
+    fn a_tile_reaching_past_the_frames_right_edge_is_refused() {
+        // Columns 5..8 of a 7-pixel-wide frame: row 0's last pixel would be row 1's first.
+        let mut frame = channel(ChannelKind::Depth, ANARI_FLOAT32, 7 * 2);
+        let target = FrameTarget::of(&mut frame, 7);
+        // SAFETY: the only tile of this target; the call panics before any row is handed out.
+        let _rows = unsafe { target.tile(5, 0, 3, 1) };
     }
 }

@@ -18,7 +18,7 @@ type Lanes3 = [[f32; BLOCK_RAYS]; 3];
 /// view that is not used). The hit point is `origin + direction · t` as
 /// `UniformSurface::point` has it; glam's `try_normalize` is a length, its reciprocal and a
 /// product, kept where the reciprocal is finite and positive. Written without its branch, which
-/// kept the compiler from vectorizing.
+/// keeps the compiler from vectorizing.
 #[inline(always)]
 pub(super) fn cyclopean_views_into(
     origin: &Lanes3,

@@ -244,7 +244,7 @@ pub(super) fn render_tile(
     let lattice_points = (area.t0..area.t1).flat_map(|sy| (s0..s1).map(move |sx| (sx, sy)));
     // One sample of every pixel, not accumulated: the sums are the colours already. The
     // coverage is folded without an early exit, so that it is checked many pixels per
-    // instruction (`all` stopped at each pixel: five instructions per pixel).
+    // instruction (an exit per pixel costs five instructions per pixel).
     let final_already = samples == 1
         && color_sum.is_none()
         && covered[..pixel_count]
