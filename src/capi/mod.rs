@@ -35,11 +35,7 @@ pub(crate) fn guard<R>(
     match catch_unwind(AssertUnwindSafe(body)) {
         Ok(result) => result,
         Err(payload) => {
-            let what = payload
-                .downcast_ref::<&str>()
-                .map(|s| s.to_string())
-                .or_else(|| payload.downcast_ref::<String>().cloned())
-                .unwrap_or_else(|| "unknown panic".into());
+            let what = panic_text(payload.as_ref());
             let text = format!("{function}: internal error ({what}); the call had no effect");
             match registry::device(device as usize) {
                 Some(device) => device.error(ANARI_STATUS_UNKNOWN_ERROR, None, text),

@@ -127,6 +127,15 @@ impl StatusSink {
     }
 }
 
+/// The message a panic carried (`panic!` with a literal or a formatted string), for reports.
+pub fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".into())
+}
+
 pub fn severity_name(severity: ANARIStatusSeverity) -> &'static str {
     match severity {
         ANARI_SEVERITY_FATAL_ERROR => "fatal error",

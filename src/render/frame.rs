@@ -17,6 +17,7 @@ mod workers;
 use std::any::Any;
 use std::collections::HashMap;
 use std::ffi::c_void;
+use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::Instant;
@@ -28,6 +29,7 @@ use crate::device::datatype::*;
 use crate::device::frame::Frame;
 use crate::device::memory::{self, TooBig};
 use crate::device::property::PropertyValue;
+use crate::device::status::{Source, StatusSink};
 use crate::render::interleave::lattice_size;
 use crate::render::progressive::{ColorPixels, DeadlineControl, Plan, SurfaceGuide, Throughput};
 use crate::render::renderer::RendererSettings;
@@ -44,7 +46,8 @@ use channels::{
 pub use pixel_work::PLAIN_PER_PIXEL_PATH;
 use pixel_work::PixelWork;
 use tile::{TileScratch, render_tile};
-use workers::ActiveWorkers;
+pub use workers::FAIL_NEXT_TILE;
+use workers::{ActiveWorkers, FailureReport, fail_if_asked};
 
 /// Side of the square tiles the threads share out.
 pub const TILE_SIZE: u32 = 32;
@@ -72,6 +75,9 @@ pub struct RenderSetup {
     pub requested: Instant,
     /// Cluster hook: the tiles this rank traces of a frame shared out among MPI ranks.
     pub tile_split: Option<Arc<crate::render::cluster::TileSplit>>,
+    /// Where a render whose worker fails on an internal error says so: the device's status
+    /// sink and the frame (`None`: nowhere).
+    pub status: Option<(Arc<StatusSink>, Source)>,
 }
 
 /// Why a render could not start.
@@ -119,6 +125,8 @@ struct Job {
     started: Instant,
     /// A budgeted render: which units it traces (`next_tile` counts from `start`).
     budgeted: Option<BudgetedRun>,
+    /// Where a worker stopped by an internal error is reported.
+    failure: FailureReport,
 }
 
 fn lock<T>(mutex: &Mutex<T>) -> MutexGuard<'_, T> {
@@ -254,8 +262,10 @@ impl FrameState {
         let workers = threads;
         let formats: Vec<ChannelFormat> = channels.iter().map(|c| c.format).collect();
         let pixel_work = PixelWork::of(&setup, &formats);
+        let failure = FailureReport::new(setup.status.clone());
         let job = Arc::new(Job {
             pixel_work,
+            failure,
             setup,
             cancel: AtomicBool::new(false),
             next_tile: AtomicUsize::new(0),
@@ -286,9 +296,23 @@ impl FrameState {
         if !job.active_workers.join() {
             return;
         }
+        // A worker stopped by an internal error still leaves, so that the render finishes
+        // (without the tiles left, and says so) and nobody waits for it for ever.
+        if let Err(payload) = catch_unwind(AssertUnwindSafe(|| self.trace_tiles(job))) {
+            job.cancel.store(true, Ordering::Release);
+            job.failure.report(payload.as_ref());
+        }
+        if job.active_workers.leave() {
+            self.finish(job);
+        }
+    }
+
+    /// Takes tiles and traces them until none are left (or the render is cancelled).
+    fn trace_tiles(&self, job: &Job) {
         let eyes = prepare_eyes(&job.setup);
         let mut scratch = TileScratch::default();
         while !job.cancel.load(Ordering::Acquire) {
+            fail_if_asked();
             let next = job.next_tile.fetch_add(1, Ordering::AcqRel);
             match &job.budgeted {
                 None if next >= job.tile_count => break,
@@ -317,9 +341,6 @@ impl FrameState {
                     run.unit_traced(started.elapsed().as_nanos() as u64);
                 }
             }
-        }
-        if job.active_workers.leave() {
-            self.finish(job);
         }
     }
 

@@ -17,11 +17,11 @@ pub mod volume_lighting;
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use crate::device::Device;
 use crate::device::datatype::*;
 use crate::device::object::Object;
 use crate::device::spec::{ObjectSpec, ParamSpec, SpecValue};
 use crate::device::status::*;
+use crate::device::{Device, source_of};
 use crate::render::frame::{CHANNELS, FrameState, RenderSetup};
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
@@ -335,6 +335,7 @@ pub fn render_frame(device: &Device, frame: &Object) {
         budget: budget(&params),
         requested,
         tile_split: None,
+        status: Some((Arc::clone(&device.status), source_of(Some(frame)))),
     };
     // Cluster hook: a frame rendered across MPI ranks renders here, collectively.
     #[cfg(feature = "mpi")]

@@ -551,6 +551,7 @@ fn pass_of(setup: &RenderSetup) -> RenderSetup {
         budget: setup.budget,
         requested: setup.requested,
         tile_split: setup.tile_split.clone(),
+        status: setup.status.clone(),
     }
 }
 

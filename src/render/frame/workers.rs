@@ -1,8 +1,15 @@
 //! Which of a render's workers finishes it: the last one to leave of those that started. A
 //! worker the pool starts only after the work is gone (a loaded machine schedules it late)
-//! neither waits for nor delays the finish.
+//! neither waits for nor delays the finish. A worker stopped by an internal error still leaves,
+//! and the render says through the status callback that its image is incomplete.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::any::Any;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+use crate::device::status::{
+    ANARI_SEVERITY_ERROR, ANARI_STATUS_UNKNOWN_ERROR, Source, StatusMessage, StatusSink, panic_text,
+};
 
 /// Set once the render is finished: a worker that starts later has nothing to do.
 const CLOSED: usize = 1 << (usize::BITS - 1);
@@ -31,6 +38,54 @@ impl ActiveWorkers {
             })
             .unwrap_or(0);
         previous == 1
+    }
+}
+
+/// Makes the next tile any render takes fail with a panic, once: for the test that a render
+/// losing a worker still finishes and says why. Never set by the device.
+#[doc(hidden)]
+pub static FAIL_NEXT_TILE: AtomicBool = AtomicBool::new(false);
+
+/// Panics when a test asked the next tile to fail ([`FAIL_NEXT_TILE`]).
+#[inline]
+pub(super) fn fail_if_asked() {
+    if FAIL_NEXT_TILE.load(Ordering::Relaxed) && FAIL_NEXT_TILE.swap(false, Ordering::AcqRel) {
+        panic!("a tile failure injected by a test (FAIL_NEXT_TILE)");
+    }
+}
+
+/// Where a render's workers report an internal error: the device's status sink and the frame
+/// (`None`: nowhere). Reported once per render, however many workers fail.
+pub(super) struct FailureReport {
+    target: Option<(Arc<StatusSink>, Source)>,
+    reported: AtomicBool,
+}
+
+impl FailureReport {
+    pub(super) fn new(target: Option<(Arc<StatusSink>, Source)>) -> FailureReport {
+        FailureReport {
+            target,
+            reported: AtomicBool::new(false),
+        }
+    }
+
+    /// Reports the panic `payload` that stopped a worker (the first one only).
+    pub(super) fn report(&self, payload: &(dyn Any + Send)) {
+        if self.reported.swap(true, Ordering::AcqRel) {
+            return;
+        }
+        if let Some((sink, frame)) = &self.target {
+            sink.report(&StatusMessage {
+                severity: ANARI_SEVERITY_ERROR,
+                code: ANARI_STATUS_UNKNOWN_ERROR,
+                source: *frame,
+                text: format!(
+                    "anariRenderFrame: a render thread stopped on an internal error ({}); the \
+                     frame is finished without the tiles it had left, so its image is incomplete",
+                    panic_text(payload)
+                ),
+            });
+        }
     }
 }
 
