@@ -122,9 +122,17 @@ pub trait TileMap: Copy {
     /// pixel column depends only on its s and the parity of its t, and its pixel row only on
     /// its t: the columns of points (s + i, t) and (s + i, t + 1), and the rows of points
     /// (s, t + j). `None` when the map does not say so or skips a point of the block (then
-    /// the block is mapped point by point).
-    fn block_pixels<const N: usize>(&self, _s: u32, _t: u32) -> Option<BlockPixels<N>> {
-        None
+    /// the block is mapped point by point). Here: a plain rectangle's blocks (both parities'
+    /// columns the same), else `None`.
+    #[inline]
+    fn block_pixels<const N: usize>(&self, s: u32, t: u32) -> Option<BlockPixels<N>> {
+        self.rectangle_origin()?;
+        let columns = std::array::from_fn(|i| self.pixel(s + i as u32, t).0);
+        let rows = std::array::from_fn(|j| self.pixel(s, t + j as u32).1);
+        Some(BlockPixels {
+            columns: [columns; 2],
+            rows,
+        })
     }
 }
 

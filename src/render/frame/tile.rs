@@ -375,9 +375,6 @@ pub(super) fn trace_blocks(
     let clustered = setup.scene.cluster.is_some();
     let (width, height) = (setup.width as usize, setup.height as usize);
     let records = &mut scratch.records;
-    // The tile's points are a plain rectangle of pixels (none skipped; a point's column and
-    // row give its pixel's).
-    let rectangle = map.rectangle_origin().is_some();
     let mut rays = [NO_RAY; 64];
     // Viewport coordinates of a block's rays, for cameras that make them four at a time.
     let mut batch: [Option<(f32, f32)>; 64] = [None; 64];
@@ -417,17 +414,17 @@ pub(super) fn trace_blocks(
                     // As below, ray by ray.
                     let s_of = |x: u32| pixel_rays.viewport_s(x, viewport, offset.x);
                     let t_of = |y: u32| ((y - viewport.y) as f32 + offset.y) / height;
-                    if rectangle {
-                        // A pixel's s depends on its column only and t on its row: 16
-                        // divisions for the block's 64 rays.
-                        let columns =
-                            std::array::from_fn(|dx| s_of(map.pixel(bx + dx as u32, by).0));
-                        let rows = std::array::from_fn(|dy| t_of(map.pixel(bx, by + dy as u32).1));
-                        fill_block_lanes([&columns; 2], &rows, &mut s_lanes, &mut t_lanes);
-                    } else if let Some(pixels) = map.block_pixels(bx, by) {
-                        // An interleaved eye's lattice: s depends on the column and the row's
-                        // parity, t on the row (24 divisions).
-                        let [even, odd] = pixels.columns.map(|columns| columns.map(s_of));
+                    if let Some(pixels) = map.block_pixels(bx, by) {
+                        // s depends on a point's column (and in an interleaved lattice on its
+                        // row's parity), t on its row: 16 divisions for the block's 64 rays
+                        // (24 where the parities differ).
+                        let [even_columns, odd_columns] = pixels.columns;
+                        let even = even_columns.map(s_of);
+                        let odd = if odd_columns == even_columns {
+                            even
+                        } else {
+                            odd_columns.map(s_of)
+                        };
                         let rows = pixels.rows.map(t_of);
                         fill_block_lanes([&even, &odd], &rows, &mut s_lanes, &mut t_lanes);
                     } else {
