@@ -75,6 +75,8 @@
 
 #include <cavetrace.h>
 
+#include "example_support.h"
+
 #define WALLS 5
 #define EYES 2
 #define IPD 0.0635f
@@ -119,16 +121,6 @@ typedef struct {
 /* ----- status and small utilities -------------------------------------------------------- */
 
 static int error_count;
-
-static void print_status(const void *user_data, ANARIDevice device, ANARIObject source,
-                         ANARIDataType source_type, ANARIStatusSeverity severity,
-                         ANARIStatusCode code, const char *message) {
-  (void)user_data, (void)device, (void)source, (void)source_type, (void)code;
-  if (severity <= ANARI_SEVERITY_ERROR)
-    error_count++;
-  if (severity <= ANARI_SEVERITY_WARNING)
-    fprintf(stderr, "[cavetrace] %s\n", message);
-}
 
 static double seconds_now(void) {
   struct timespec t;
@@ -728,7 +720,7 @@ int main(int argc, char **argv) {
     return 2;
   }
 
-  ANARILibrary library = anariLoadLibrary("cavetrace", print_status, NULL);
+  ANARILibrary library = anariLoadLibrary("cavetrace", print_status, &error_count);
   ANARIDevice device = anariNewDevice(library, "default");
   if (!device)
     return 1;

@@ -15,16 +15,7 @@
 
 #include <cavetrace.h>
 
-static void print_status(const void *user_data, ANARIDevice device, ANARIObject source,
-                         ANARIDataType source_type, ANARIStatusSeverity severity,
-                         ANARIStatusCode code, const char *message) {
-  (void)device, (void)source, (void)source_type, (void)code;
-  int *errors = (int *)user_data;
-  if (severity <= ANARI_SEVERITY_ERROR)
-    ++*errors;
-  if (severity <= ANARI_SEVERITY_WARNING)
-    fprintf(stderr, "[cavetrace] %s\n", message);
-}
+#include "example_support.h"
 
 enum { SKY_WIDTH = 512, SKY_HEIGHT = 256 };
 
@@ -142,33 +133,8 @@ static ANARIMaterial glass(ANARIDevice device) {
  * and writes the colour to `path`. */
 static int render(ANARIDevice device, ANARIWorld world, ANARIRenderer renderer, const float eye[3],
                   const float forward[3], int frames, const char *path) {
-  ANARICamera camera = anariNewCamera(device, "perspective");
-  float up[] = {0, 1, 0}, aspect = 16.0f / 9.0f, fovy = 0.7f;
-  anariSetParameter(device, camera, "position", ANARI_FLOAT32_VEC3, eye);
-  anariSetParameter(device, camera, "direction", ANARI_FLOAT32_VEC3, forward);
-  anariSetParameter(device, camera, "up", ANARI_FLOAT32_VEC3, up);
-  anariSetParameter(device, camera, "aspect", ANARI_FLOAT32, &aspect);
-  anariSetParameter(device, camera, "fovy", ANARI_FLOAT32, &fovy);
-  anariCommitParameters(device, camera);
-  ANARIFrame frame = anariNewFrame(device);
-  uint32_t size[] = {800, 450};
-  ANARIDataType color_type = ANARI_UFIXED8_RGBA_SRGB;
-  uint8_t accumulate = 1; /* ANARI_BOOL is one byte */
-  anariSetParameter(device, frame, "size", ANARI_UINT32_VEC2, size);
-  anariSetParameter(device, frame, "channel.color", ANARI_DATA_TYPE, &color_type);
-  anariSetParameter(device, frame, "accumulation", ANARI_BOOL, &accumulate);
-  anariSetParameter(device, frame, "world", ANARI_WORLD, &world);
-  anariSetParameter(device, frame, "camera", ANARI_CAMERA, &camera);
-  anariSetParameter(device, frame, "renderer", ANARI_RENDERER, &renderer);
-  anariCommitParameters(device, frame);
-  for (int f = 0; f < frames; f++) {
-    anariRenderFrame(device, frame);
-    anariFrameReady(device, frame, ANARI_WAIT);
-  }
-  int status = cavetraceWriteFramePNG(device, frame, "channel.color", path);
-  if (status == ANARI_STATUS_NO_ERROR)
-    printf("wrote %s\n", path);
-  anariRelease(device, frame);
+  ANARICamera camera = perspective_camera(device, eye, forward, 16.0f / 9.0f, 0.7f);
+  int status = render_to_png(device, world, camera, renderer, 800, 450, frames, path);
   anariRelease(device, camera);
   return status;
 }

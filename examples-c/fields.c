@@ -12,16 +12,7 @@
 
 #include <cavetrace.h>
 
-static void print_status(const void *user_data, ANARIDevice device, ANARIObject source,
-                         ANARIDataType source_type, ANARIStatusSeverity severity,
-                         ANARIStatusCode code, const char *message) {
-  (void)device, (void)source, (void)source_type, (void)code;
-  int *errors = (int *)user_data;
-  if (severity <= ANARI_SEVERITY_ERROR)
-    ++*errors;
-  if (severity <= ANARI_SEVERITY_WARNING)
-    fprintf(stderr, "[cavetrace] %s\n", message);
-}
+#include "example_support.h"
 
 enum { GRID = 48, MESH = 13 };
 
@@ -180,15 +171,8 @@ int main(int argc, char **argv) {
   anariSetParameter(device, world, "light", ANARI_ARRAY1D, &lights);
   anariCommitParameters(device, world);
 
-  ANARICamera camera = anariNewCamera(device, "perspective");
-  float eye[] = {0, 1.9f, 5.2f}, forward[] = {0, -0.36f, -1}, up[] = {0, 1, 0};
-  float aspect = 16.0f / 9.0f, fovy = 0.75f;
-  anariSetParameter(device, camera, "position", ANARI_FLOAT32_VEC3, eye);
-  anariSetParameter(device, camera, "direction", ANARI_FLOAT32_VEC3, forward);
-  anariSetParameter(device, camera, "up", ANARI_FLOAT32_VEC3, up);
-  anariSetParameter(device, camera, "aspect", ANARI_FLOAT32, &aspect);
-  anariSetParameter(device, camera, "fovy", ANARI_FLOAT32, &fovy);
-  anariCommitParameters(device, camera);
+  float eye[] = {0, 1.9f, 5.2f}, forward[] = {0, -0.36f, -1};
+  ANARICamera camera = perspective_camera(device, eye, forward, 16.0f / 9.0f, 0.75f);
 
   ANARIRenderer renderer = anariNewRenderer(device, "default");
   float background[] = {0.08f, 0.08f, 0.1f, 1}, ambient = 0.4f;
@@ -200,26 +184,12 @@ int main(int argc, char **argv) {
   anariSetParameter(device, renderer, "pixelSamples", ANARI_INT32, &samples);
   anariCommitParameters(device, renderer);
 
-  ANARIFrame frame = anariNewFrame(device);
-  uint32_t size[] = {800, 450};
-  ANARIDataType color_type = ANARI_UFIXED8_RGBA_SRGB;
-  anariSetParameter(device, frame, "size", ANARI_UINT32_VEC2, size);
-  anariSetParameter(device, frame, "channel.color", ANARI_DATA_TYPE, &color_type);
-  anariSetParameter(device, frame, "world", ANARI_WORLD, &world);
-  anariSetParameter(device, frame, "camera", ANARI_CAMERA, &camera);
-  anariSetParameter(device, frame, "renderer", ANARI_RENDERER, &renderer);
-  anariCommitParameters(device, frame);
-  anariRenderFrame(device, frame);
-  anariFrameReady(device, frame, ANARI_WAIT);
-  int status = cavetraceWriteFramePNG(device, frame, "channel.color", output);
-  if (status == ANARI_STATUS_NO_ERROR)
-    printf("wrote %s\n", output);
+  int status = render_to_png(device, world, camera, renderer, 800, 450, 1, output);
 
   ANARIObject objects[] = {layers,     isovalue_array, color_array, isosurface, material,
                            surface,    group,          surfaces,    instance,   tetrahedra,
                            ramp_array, opacity_array,  volume,      light,      world,
-                           instances,  volumes,        lights,      camera,     renderer,
-                           frame};
+                           instances,  volumes,        lights,      camera,     renderer};
   for (size_t i = 0; i < sizeof objects / sizeof objects[0]; i++)
     anariRelease(device, objects[i]);
   anariRelease(device, device);

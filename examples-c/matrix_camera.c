@@ -13,15 +13,7 @@
 
 #include <cavetrace.h>
 
-static void print_status(const void *user_data, ANARIDevice device, ANARIObject source,
-                         ANARIDataType source_type, ANARIStatusSeverity severity,
-                         ANARIStatusCode code, const char *message) {
-  (void)device, (void)source, (void)source_type, (void)code;
-  if (severity <= ANARI_SEVERITY_ERROR)
-    ++*(int *)user_data;
-  if (severity <= ANARI_SEVERITY_WARNING)
-    fprintf(stderr, "[cavetrace] %s\n", message);
-}
+#include "example_support.h"
 
 /* ----- OpenGL matrix math (column-major: m[column * 4 + row]) ---------------------------- */
 

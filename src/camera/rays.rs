@@ -465,24 +465,13 @@ impl EyeRays {
     /// bit the rays [`Self::ray`] makes, computed lane by lane over arrays so that several are
     /// made per instruction (four f64 lanes on the AVX2 path).
     #[inline]
-    pub fn block_rays(
-        &self,
-        s: &[f32; BLOCK_RAYS],
-        t: &[f32; BLOCK_RAYS],
-        block: &mut BlockRays,
-    ) -> bool {
+    pub fn block_rays(&self, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
         self.block_rays_on(crate::isa::avx2_selected(), s, t, block)
     }
 
     /// [`Self::block_rays`] on the AVX2 path (where this CPU has AVX2) or the baseline one.
     #[inline(always)]
-    fn block_rays_on(
-        &self,
-        avx2: bool,
-        s: &[f32; BLOCK_RAYS],
-        t: &[f32; BLOCK_RAYS],
-        block: &mut BlockRays,
-    ) -> bool {
+    fn block_rays_on(&self, avx2: bool, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
         #[cfg(target_arch = "x86_64")]
         if avx2 && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
@@ -496,24 +485,13 @@ impl EyeRays {
     /// [`Self::block_rays_with`] compiled for AVX2 (four f64 lanes per instruction).
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn block_rays_avx2(
-        &self,
-        s: &[f32; BLOCK_RAYS],
-        t: &[f32; BLOCK_RAYS],
-        block: &mut BlockRays,
-    ) -> bool {
+    fn block_rays_avx2(&self, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
         self.block_rays_with(true, s, t, block)
     }
 
     /// [`Self::block_rays`] by generator; `avx2` when compiled into [`Self::block_rays_avx2`].
     #[inline(always)]
-    fn block_rays_with(
-        &self,
-        avx2: bool,
-        s: &[f32; BLOCK_RAYS],
-        t: &[f32; BLOCK_RAYS],
-        block: &mut BlockRays,
-    ) -> bool {
+    fn block_rays_with(&self, avx2: bool, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
         match &self.generator {
             Generator::Blended(b) => blended_block(&self.region, b, s, t, block, avx2),
             Generator::LightField(l) => light_field_block(&self.region, l, s, t, block),
@@ -718,8 +696,8 @@ impl EyeRays {
     pub(crate) fn block_rays_on_path(
         &self,
         avx2: bool,
-        s: &[f32; BLOCK_RAYS],
-        t: &[f32; BLOCK_RAYS],
+        s: &Lanes,
+        t: &Lanes,
         block: &mut BlockRays,
     ) -> bool {
         assert!(
@@ -802,6 +780,9 @@ fn window_point(pinhole: &Pinhole, st: DVec2) -> DVec3 {
 
 /// Rays a block of pixels traces together (an 8×8 packet).
 pub(crate) const BLOCK_RAYS: usize = 64;
+
+/// One value per ray of a block: a viewport coordinate `s` or `t` of each of its points.
+type Lanes = [f32; BLOCK_RAYS];
 
 /// Lane `lane` of x, y and z lane arrays as a vector.
 #[inline(always)]
@@ -911,8 +892,8 @@ pub(super) use with_clip;
 fn pinhole_block(
     region: &ImageRegion,
     pinhole: &Pinhole,
-    s: &[f32; BLOCK_RAYS],
-    t: &[f32; BLOCK_RAYS],
+    s: &Lanes,
+    t: &Lanes,
     block: &mut BlockRays,
 ) {
     with_clip!(pinhole.clip, clip => pinhole_lanes(region, pinhole, clip, s, t, block));
@@ -924,8 +905,8 @@ fn pinhole_lanes(
     region: &ImageRegion,
     pinhole: &Pinhole,
     clip: &ClipRange,
-    s: &[f32; BLOCK_RAYS],
-    t: &[f32; BLOCK_RAYS],
+    s: &Lanes,
+    t: &Lanes,
     block: &mut BlockRays,
 ) {
     let eye = pinhole.eye.to_array();
@@ -943,8 +924,8 @@ fn pinhole_lanes(
 fn blended_block(
     region: &ImageRegion,
     b: &Blended,
-    s: &[f32; BLOCK_RAYS],
-    t: &[f32; BLOCK_RAYS],
+    s: &Lanes,
+    t: &Lanes,
     block: &mut BlockRays,
     avx2: bool,
 ) {

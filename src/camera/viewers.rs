@@ -479,17 +479,13 @@ impl ViewerSet {
         any
     }
 
-    /// The camera position and the right vector (unused, and not computed, when
-    /// `needs_right` is false) for screen point `point`, whose screen coordinates (after
-    /// imageRegion) are `st`.
+    /// [`Self::cameras`] for one screen point.
     #[cfg(test)]
     pub(crate) fn camera_at(&self, point: DVec3, st: DVec2, needs_right: bool) -> (DVec3, DVec3) {
         self.cameras(&[point], &[st], needs_right, false)[0]
     }
 
-    /// The camera position and right vector (unused, and not computed, when `needs_right` is
-    /// false) for `N` screen points at once (four for single rays), whose screen coordinates
-    /// (after imageRegion) are `st`: [`Self::cameras_into`] per point.
+    /// [`Self::cameras_into`], returned as (camera position, right vector) per point.
     #[inline]
     pub(crate) fn cameras<const N: usize>(
         &self,

@@ -6,6 +6,7 @@
 mod anaglyph;
 mod budget;
 mod channels;
+mod cyclopean_shading_avx2;
 mod cyclopean_views;
 mod fast_block;
 mod pixel_work;

@@ -198,54 +198,30 @@ const CURVE_PARAMS: &[ParamSpec] = &[
     .default(SpecValue::Float(1.0)),
 ];
 
-pub const TRIANGLE: ObjectSpec = ObjectSpec::new(
-    ANARI_GEOMETRY,
-    "triangle",
-    "triangle mesh, indexed or as consecutive triples",
-    TRIANGLE_PARAMS,
-)
-.shared(MESH_ATTRIBUTES)
-.extensions(&["ANARI_KHR_GEOMETRY_TRIANGLE"]);
-pub const QUAD: ObjectSpec = ObjectSpec::new(
-    ANARI_GEOMETRY,
-    "quad",
-    "quad mesh (each quad split into two triangles)",
-    QUAD_PARAMS,
-)
-.shared(MESH_ATTRIBUTES)
-.extensions(&["ANARI_KHR_GEOMETRY_QUAD"]);
-pub const SPHERE: ObjectSpec = ObjectSpec::new(
-    ANARI_GEOMETRY,
-    "sphere",
-    "spheres with a global or per-sphere radius",
-    SPHERE_PARAMS,
-)
-.shared(POINT_ATTRIBUTES)
-.extensions(&["ANARI_KHR_GEOMETRY_SPHERE"]);
-pub const CYLINDER: ObjectSpec = ObjectSpec::new(
-    ANARI_GEOMETRY,
-    "cylinder",
-    "cylinders between pairs of points, each end open or flat-capped",
-    CYLINDER_PARAMS,
-)
-.shared(POINT_ATTRIBUTES)
-.extensions(&["ANARI_KHR_GEOMETRY_CYLINDER"]);
-pub const CONE: ObjectSpec = ObjectSpec::new(
-    ANARI_GEOMETRY,
-    "cone",
-    "truncated cones between pairs of points with a radius per point, each end open or flat-capped",
-    CONE_PARAMS,
-)
-.shared(POINT_ATTRIBUTES)
-.extensions(&["ANARI_KHR_GEOMETRY_CONE"]);
-pub const CURVE: ObjectSpec = ObjectSpec::new(
-    ANARI_GEOMETRY,
-    "curve",
-    "round curves of linear segments with a radius per vertex and rounded joints",
-    CURVE_PARAMS,
-)
-.shared(POINT_ATTRIBUTES)
-.extensions(&["ANARI_KHR_GEOMETRY_CURVE"]);
+/// Declares each KHR geometry subtype's spec, one row each: its parameters, the attributes it
+/// shares with its family, the one extension it implements, and its description.
+macro_rules! khr_geometries {
+    ($(
+        $name:ident: $subtype:literal, $params:ident, $attributes:ident, $extension:literal,
+        $description:literal;
+    )*) => {
+        $(
+            pub const $name: ObjectSpec =
+                ObjectSpec::new(ANARI_GEOMETRY, $subtype, $description, $params)
+                    .shared($attributes)
+                    .extensions(&[$extension]);
+        )*
+    };
+}
+
+khr_geometries! {
+    TRIANGLE: "triangle", TRIANGLE_PARAMS, MESH_ATTRIBUTES, "ANARI_KHR_GEOMETRY_TRIANGLE", "triangle mesh, indexed or as consecutive triples";
+    QUAD: "quad", QUAD_PARAMS, MESH_ATTRIBUTES, "ANARI_KHR_GEOMETRY_QUAD", "quad mesh (each quad split into two triangles)";
+    SPHERE: "sphere", SPHERE_PARAMS, POINT_ATTRIBUTES, "ANARI_KHR_GEOMETRY_SPHERE", "spheres with a global or per-sphere radius";
+    CYLINDER: "cylinder", CYLINDER_PARAMS, POINT_ATTRIBUTES, "ANARI_KHR_GEOMETRY_CYLINDER", "cylinders between pairs of points, each end open or flat-capped";
+    CONE: "cone", CONE_PARAMS, POINT_ATTRIBUTES, "ANARI_KHR_GEOMETRY_CONE", "truncated cones between pairs of points with a radius per point, each end open or flat-capped";
+    CURVE: "curve", CURVE_PARAMS, POINT_ATTRIBUTES, "ANARI_KHR_GEOMETRY_CURVE", "round curves of linear segments with a radius per vertex and rounded joints";
+}
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Shape {

@@ -68,23 +68,29 @@ const fn wrap_mode(name: &'static str, description: &'static str) -> ParamSpec {
         .values(WRAP)
 }
 
+/// An image sampler's texel array, of ANARI array type `array`.
+const fn image(array: &'static [ANARIDataType]) -> ParamSpec {
+    ParamSpec::new("image", array, "texel array")
+        .required()
+        .elements(VALUE_ELEMENT_TYPES)
+}
+
+/// What every image sampler applies before and after its lookup, listed after its own
+/// parameters.
+const IMAGE_TRANSFORMS: &[ParamSpec] = &[IN_TRANSFORM, IN_OFFSET, OUT_TRANSFORM, OUT_OFFSET];
+
 pub const IMAGE1D: ObjectSpec = ObjectSpec::new(
     ANARI_SAMPLER,
     "image1D",
     "1D texture lookup, e.g. a colour map over a scalar attribute",
     &[
-        ParamSpec::new("image", &[ANARI_ARRAY1D], "texel array")
-            .required()
-            .elements(VALUE_ELEMENT_TYPES),
+        image(&[ANARI_ARRAY1D]),
         IN_ATTRIBUTE,
         FILTER,
         wrap_mode("wrapMode", "wrap mode"),
-        IN_TRANSFORM,
-        IN_OFFSET,
-        OUT_TRANSFORM,
-        OUT_OFFSET,
     ],
 )
+.shared(IMAGE_TRANSFORMS)
 .extensions(&["ANARI_KHR_SAMPLER_IMAGE1D"]);
 
 pub const IMAGE2D: ObjectSpec = ObjectSpec::new(
@@ -92,19 +98,14 @@ pub const IMAGE2D: ObjectSpec = ObjectSpec::new(
     "image2D",
     "2D texture lookup",
     &[
-        ParamSpec::new("image", &[ANARI_ARRAY2D], "texel array")
-            .required()
-            .elements(VALUE_ELEMENT_TYPES),
+        image(&[ANARI_ARRAY2D]),
         IN_ATTRIBUTE,
         FILTER,
         wrap_mode("wrapMode1", "wrap mode along the first axis"),
         wrap_mode("wrapMode2", "wrap mode along the second axis"),
-        IN_TRANSFORM,
-        IN_OFFSET,
-        OUT_TRANSFORM,
-        OUT_OFFSET,
     ],
 )
+.shared(IMAGE_TRANSFORMS)
 .extensions(&["ANARI_KHR_SAMPLER_IMAGE2D"]);
 
 pub const IMAGE3D: ObjectSpec = ObjectSpec::new(
@@ -112,20 +113,15 @@ pub const IMAGE3D: ObjectSpec = ObjectSpec::new(
     "image3D",
     "3D texture lookup (trilinear with filter linear)",
     &[
-        ParamSpec::new("image", &[ANARI_ARRAY3D], "texel array")
-            .required()
-            .elements(VALUE_ELEMENT_TYPES),
+        image(&[ANARI_ARRAY3D]),
         IN_ATTRIBUTE,
         FILTER,
         wrap_mode("wrapMode1", "wrap mode along the first axis"),
         wrap_mode("wrapMode2", "wrap mode along the second axis"),
         wrap_mode("wrapMode3", "wrap mode along the third axis"),
-        IN_TRANSFORM,
-        IN_OFFSET,
-        OUT_TRANSFORM,
-        OUT_OFFSET,
     ],
 )
+.shared(IMAGE_TRANSFORMS)
 .extensions(&["ANARI_KHR_SAMPLER_IMAGE3D"]);
 
 pub const PRIMITIVE: ObjectSpec = ObjectSpec::new(

@@ -1,8 +1,8 @@
 //! A stereo block's views from its eye's cyclopean point (cyclopean lighting), over lane
 //! arrays: per lane [`RendererSettings::view_direction`] of the lane's hit, bit for bit, four
-//! lanes per vector; with AVX2 (chosen at run time, `crate::isa`) the views, shading normals
-//! and colours of a block on one uniform surface eight lanes per vector, the views kept in
-//! registers. Both with the scalar operations in the same order and no fused multiply-adds.
+//! lanes per vector, with the scalar operations in the same order and no fused multiply-adds.
+//! The AVX2 shading pass that computes these views in registers is
+//! [`super::cyclopean_shading_avx2`].
 //!
 //! [`RendererSettings::view_direction`]: crate::render::renderer::RendererSettings::view_direction
 
@@ -11,7 +11,7 @@ use glam::Vec4;
 use crate::camera::BLOCK_RAYS;
 
 /// x, y and z lane arrays of a block.
-type Lanes3 = [[f32; BLOCK_RAYS]; 3];
+pub(super) type Lanes3 = [[f32; BLOCK_RAYS]; 3];
 
 /// Per lane, the view of the hit at ray parameter `t` seen from the cyclopean point `viewer`:
 /// `(point − viewer).try_normalize()`, else the ray's direction (lanes without a hit get a
@@ -45,154 +45,18 @@ pub(super) fn cyclopean_views_into(
     }
 }
 
-/// The views and shading of a stereo block eight lanes per vector.
-#[cfg(target_arch = "x86_64")]
-mod avx2 {
-    use super::Lanes3;
-    use crate::camera::BLOCK_RAYS;
-    use std::arch::x86_64::*;
-
-    /// Lanes `first..first + 8` of `values`.
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn load(values: &[f32; BLOCK_RAYS], first: usize) -> __m256 {
-        let lanes: &[f32; 8] = values[first..first + 8].try_into().expect("eight lanes");
-        // SAFETY: `lanes` holds eight floats; the load is unaligned.
-        unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
-    }
-
-    /// Lanes `first..first + 8` of `lanes` set to `values`.
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn store(lanes: &mut [f32; BLOCK_RAYS], first: usize, values: __m256) {
-        let lanes: &mut [f32; 8] = (&mut lanes[first..first + 8])
-            .try_into()
-            .expect("eight lanes");
-        // SAFETY: `lanes` holds eight floats; the store is unaligned.
-        unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), values) };
-    }
-
-    /// `(a·b)` of three lane vectors, summed as glam's `Vec3::dot`: `(x + y) + z`.
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn dot(a: &[__m256; 3], b: &[__m256; 3]) -> __m256 {
-        let xy = _mm256_add_ps(_mm256_mul_ps(a[0], b[0]), _mm256_mul_ps(a[1], b[1]));
-        _mm256_add_ps(xy, _mm256_mul_ps(a[2], b[2]))
-    }
-
-    /// Lanes `first..first + 8` of the views (see [`super::cyclopean_views_into`]).
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn views(
-        origin: &Lanes3,
-        along: &[__m256; 3],
-        t: __m256,
-        viewer: &Lanes3,
-        first: usize,
-    ) -> [__m256; 3] {
-        let offset = [0, 1, 2].map(|axis| {
-            let point = _mm256_add_ps(load(&origin[axis], first), _mm256_mul_ps(along[axis], t));
-            _mm256_sub_ps(point, load(&viewer[axis], first))
-        });
-        let scale = _mm256_div_ps(_mm256_set1_ps(1.0), _mm256_sqrt_ps(dot(&offset, &offset)));
-        // Finite (|scale| below infinity, NaN failing) and positive, as glam asks.
-        let magnitude = _mm256_castsi256_ps(_mm256_set1_epi32(i32::MAX));
-        let finite = _mm256_cmp_ps::<_CMP_LT_OQ>(
-            _mm256_and_ps(scale, magnitude),
-            _mm256_set1_ps(f32::INFINITY),
-        );
-        let positive = _mm256_cmp_ps::<_CMP_GT_OQ>(scale, _mm256_setzero_ps());
-        let normalizable = _mm256_and_ps(finite, positive);
-        [0, 1, 2].map(|axis| {
-            let normalized = _mm256_mul_ps(offset[axis], scale);
-            _mm256_blendv_ps(along[axis], normalized, normalizable)
-        })
-    }
-
-    /// [`super::shade_cyclopean_avx2`].
-    #[target_feature(enable = "avx2")]
-    pub(super) fn shade_into(
-        lanes: &super::CyclopeanLanes,
-        (base, emissive): ([f32; 3], [f32; 3]),
-        normal_out: &mut Lanes3,
-        color_out: &mut Lanes3,
-    ) {
-        let sign = _mm256_set1_ps(-0.0);
-        for first in (0..BLOCK_RAYS).step_by(8) {
-            let along = [0, 1, 2].map(|axis| load(&lanes.direction[axis], first));
-            let view = views(
-                lanes.origin,
-                &along,
-                load(lanes.t, first),
-                lanes.viewer,
-                first,
-            );
-            // The normal facing the ray: negated where it points along the ray.
-            let normal = [0, 1, 2].map(|axis| load(&lanes.normal[axis], first));
-            let back_face = _mm256_cmp_ps::<_CMP_GT_OQ>(dot(&normal, &along), _mm256_setzero_ps());
-            let flip = _mm256_and_ps(back_face, sign);
-            let normal = normal.map(|n| _mm256_xor_ps(n, flip));
-            // Lit from the eye: base · (0.2 + 0.8 · max(−view · normal, 0)) + emission.
-            let toward = view.map(|v| _mm256_xor_ps(v, sign));
-            let facing = _mm256_max_ps(dot(&toward, &normal), _mm256_setzero_ps());
-            let light = _mm256_add_ps(
-                _mm256_set1_ps(0.2),
-                _mm256_mul_ps(_mm256_set1_ps(0.8), facing),
-            );
-            for axis in 0..3 {
-                let lit = _mm256_mul_ps(_mm256_set1_ps(base[axis]), light);
-                let rgb = _mm256_add_ps(lit, _mm256_set1_ps(emissive[axis]));
-                store(&mut normal_out[axis], first, normal[axis]);
-                store(&mut color_out[axis], first, rgb);
-            }
-        }
-    }
-}
-
-/// The lane arrays a stereo block's shading on one uniform surface reads: the rays, the hits'
-/// ray parameters `t` and geometric normals, and the cyclopean points.
-pub(super) struct CyclopeanLanes<'a> {
-    pub origin: &'a Lanes3,
-    pub direction: &'a Lanes3,
-    pub t: &'a [f32; BLOCK_RAYS],
-    pub viewer: &'a Lanes3,
-    pub normal: &'a Lanes3,
-}
-
-/// With AVX2 (`crate::isa`), per lane the shading normal (`UniformSurface::normal`) and the
-/// colour (`UniformSurface::color` of base colour `base` and emission `emissive`) of a stereo
-/// block's hit lit along its view from the cyclopean point, eight lanes per vector without
-/// writing the views out: the same operations in the same order as lane by lane, bit for bit.
-/// `false` (nothing written) without AVX2.
-#[inline(always)]
-pub(super) fn shade_cyclopean_avx2(
-    lanes: &CyclopeanLanes,
-    (base, emissive): (glam::Vec3, glam::Vec3),
-    normal: &mut Lanes3,
-    color: &mut Lanes3,
-) -> bool {
-    #[cfg(target_arch = "x86_64")]
-    if crate::isa::avx2_selected() {
-        let surface = (base.to_array(), emissive.to_array());
-        // SAFETY: the AVX2 path is selected only on a CPU that has AVX2.
-        unsafe { avx2::shade_into(lanes, surface, normal, color) };
-        return true;
-    }
-    let _ = (lanes, base, emissive, normal, color);
-    false
-}
-
+/// The lanes here also test [`super::super::cyclopean_shading_avx2`].
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::accel::{Ray, SceneHit};
     use crate::camera::lane_vec3;
-    use crate::render::integrator::{UniformSurface, eye_light_of};
+    use crate::render::integrator::UniformSurface;
     use crate::render::renderer::RendererSettings;
     use glam::{Vec2, Vec3};
 
     /// A hit at ray parameter `t` (only `t` places the hit point).
-    fn hit_at(t: f32) -> SceneHit {
+    pub(in crate::render::frame) fn hit_at(t: f32) -> SceneHit {
         SceneHit {
             t,
             instance: 0,
@@ -208,7 +72,7 @@ mod tests {
     /// spread over every position of a vector of four and of eight: the hit point on the
     /// viewer, an offset whose square underflows to zero, one whose square overflows, NaN and
     /// huge hit points.
-    fn lanes() -> (Lanes3, Lanes3, [f32; BLOCK_RAYS], Lanes3, usize) {
+    pub(in crate::render::frame) fn lanes() -> (Lanes3, Lanes3, [f32; BLOCK_RAYS], Lanes3, usize) {
         let mut origin = [[0.0; BLOCK_RAYS]; 3];
         let mut direction = [[0.0; BLOCK_RAYS]; 3];
         let mut t = [0.0; BLOCK_RAYS];
@@ -250,7 +114,7 @@ mod tests {
         (origin, direction, t, viewer, 9)
     }
 
-    fn settings() -> RendererSettings {
+    pub(in crate::render::frame) fn settings() -> RendererSettings {
         RendererSettings {
             cyclopean_lighting: true,
             ..RendererSettings::default()
@@ -258,7 +122,7 @@ mod tests {
     }
 
     /// Lane `lane`'s ray.
-    fn ray(origin: &Lanes3, direction: &Lanes3, lane: usize) -> Ray {
+    pub(in crate::render::frame) fn ray(origin: &Lanes3, direction: &Lanes3, lane: usize) -> Ray {
         Ray {
             origin: lane_vec3(origin, lane),
             direction: lane_vec3(direction, lane),
@@ -289,71 +153,6 @@ mod tests {
         assert_eq!(
             fallbacks, special,
             "{fallbacks} lanes fell back to the ray's direction"
-        );
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[test]
-    fn avx2_cyclopean_shading_matches_the_per_lane_shading_bit_for_bit() {
-        if !crate::isa::Isa::Avx2.supported() {
-            eprintln!("no AVX2 on this CPU: the AVX2 shading is not run");
-            return;
-        }
-        let (origin, direction, t, viewer, _) = lanes();
-        // Geometric normals facing the ray or away from it, by lane; one lane perpendicular.
-        let mut normal_in = [[0.0; BLOCK_RAYS]; 3];
-        for lane in 0..BLOCK_RAYS {
-            let along = lane_vec3(&direction, lane);
-            let tilt = Vec3::new(0.3, -0.2, 0.1) * (lane % 5) as f32;
-            let n = if lane % 3 == 0 {
-                along + tilt
-            } else {
-                tilt - along
-            };
-            for (axis, lanes) in normal_in.iter_mut().enumerate() {
-                lanes[lane] = n.normalize_or(Vec3::Z)[axis];
-            }
-        }
-        let perpendicular = lane_vec3(&direction, 9).any_orthonormal_vector();
-        for (axis, lanes) in normal_in.iter_mut().enumerate() {
-            lanes[9] = perpendicular[axis];
-        }
-        let (base, emissive) = (Vec3::new(0.8, 0.3, 0.55), Vec3::new(0.01, 0.0, 0.2));
-        let inputs = CyclopeanLanes {
-            origin: &origin,
-            direction: &direction,
-            t: &t,
-            viewer: &viewer,
-            normal: &normal_in,
-        };
-        let (mut normal, mut color) = ([[0.0; BLOCK_RAYS]; 3], [[0.0; BLOCK_RAYS]; 3]);
-        let lit = (base.to_array(), emissive.to_array());
-        // SAFETY: this CPU has AVX2.
-        unsafe { avx2::shade_into(&inputs, lit, &mut normal, &mut color) };
-        let mut back_faces = 0;
-        for (lane, &t) in t.iter().enumerate() {
-            let ray = ray(&origin, &direction, lane);
-            let point = UniformSurface::point(&ray, &hit_at(t));
-            let view = settings().view_direction(&ray, point, Some(lane_vec3(&viewer, lane)));
-            let shading = UniformSurface::normal(lane_vec3(&normal_in, lane), ray.direction);
-            let rgb = eye_light_of(view, shading, base, emissive);
-            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
-            let (got_normal, got_color) = (lane_vec3(&normal, lane), lane_vec3(&color, lane));
-            assert_eq!(
-                bits(got_normal),
-                bits(shading),
-                "lane {lane}: normal {got_normal}"
-            );
-            assert_eq!(
-                bits(got_color),
-                bits(rgb),
-                "lane {lane}: colour {got_color} vs {rgb}"
-            );
-            back_faces += usize::from(shading != lane_vec3(&normal_in, lane));
-        }
-        assert!(
-            (10..BLOCK_RAYS - 10).contains(&back_faces),
-            "{back_faces} back faces"
         );
     }
 }

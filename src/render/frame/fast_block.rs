@@ -14,7 +14,8 @@ use crate::render::integrator::{UniformSurface, fast_surface_color, fast_surface
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
 
-use super::cyclopean_views::{CyclopeanLanes, cyclopean_views_into, shade_cyclopean_avx2};
+use super::cyclopean_shading_avx2::{CyclopeanLanes, shade_cyclopean_avx2};
+use super::cyclopean_views::cyclopean_views_into;
 use super::records::TileRecords;
 use super::tile::{PACKET_ORDER, PACKET_SIDE, traced_lane};
 
