@@ -699,6 +699,12 @@ impl GeometryBvh {
                 let group = &groups[group_index];
                 let base = group_index as u32 * GROUP_LANES as u32;
                 let triangles = leaf_lanes;
+                crate::accel::counters::add(|counts| {
+                    counts.packet_leaf_groups += 1;
+                    counts.packet_leaf_rays += u64::from(lanes.count_ones());
+                    counts.packet_triangle_rays +=
+                        u64::from(lanes.count_ones() * triangles.count_ones());
+                });
                 if lanes.count_ones() < triangles.count_ones() {
                     // Fewer rays than triangles: each ray takes the whole group in one pass
                     // (lanes = triangles), the single-ray test with the same hits.
@@ -948,6 +954,7 @@ impl GeometryBvh {
 }
 
 /// [`GeometryBvh::closest_slot`] over triangle groups (see `single_ray`).
+#[cfg(not(feature = "kernel-counters"))]
 #[inline]
 fn closest_triangle_slot(
     nodes: &[WideNode],
@@ -957,6 +964,42 @@ fn closest_triangle_slot(
     // SAFETY: triangle and quad BVHs are checked with `codes_in_range` when built
     // (`GeometryBvh::checked`) and never change afterwards.
     unsafe { single_ray::closest_triangle_slot(nodes, groups, ray) }
+}
+
+/// [`GeometryBvh::closest_slot`] over triangle groups through the generic walk, counting its
+/// inner nodes, leaves and triangles (`accel::counters`).
+#[cfg(feature = "kernel-counters")]
+fn closest_triangle_slot(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &mut TraversalRay,
+) -> Option<(u32, Vec2)> {
+    use crate::accel::counters;
+    use crate::accel::wide_bvh::{BoxRay, BoxTest, child_hits, traverse_with};
+    struct CountingBoxTest;
+    impl BoxTest for CountingBoxTest {
+        fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+            counters::add(|counts| counts.nodes += 1);
+            child_hits(node, ray, t_min, t_max)
+        }
+    }
+    counters::add(|counts| counts.rays += 1);
+    let mut closest = None;
+    let mut test_leaf = |code: u32, ray: &mut TraversalRay| {
+        let (group_index, lanes) = group_leaf(code);
+        counters::add(|counts| {
+            counts.leaves += 1;
+            counts.triangles += u64::from(lanes.count_ones());
+        });
+        let hit = group_closest(&groups[group_index], lanes, ray);
+        if let Some((lane, t, uv)) = hit {
+            ray.t_max = t;
+            closest = Some(((group_index * GROUP_LANES + lane) as u32, uv));
+        }
+        hit.is_some()
+    };
+    traverse_with::<CountingBoxTest, false, _>(nodes, ray, &mut test_leaf);
+    closest
 }
 
 /// [`GeometryBvh::any_hit`] over triangle groups (see `single_ray`).

@@ -30,6 +30,8 @@ use rayon::iter::{
     IndexedParallelIterator, IntoParallelIterator, IntoParallelRefIterator, ParallelIterator,
 };
 use rayon::slice::ParallelSlice;
+use std::sync::atomic::Ordering::Relaxed;
+use std::sync::atomic::{AtomicBool, AtomicU64};
 
 /// Leaves hold at most four primitives (one SIMD group of triangles).
 pub(crate) const MAX_PRIMS_PER_LEAF: u32 = 4;
@@ -180,11 +182,80 @@ pub(crate) fn build_wide_bvh(
     );
     ReinsertionOptimizer::default().run(&mut bvh2, 0.01, None);
     let (nodes, order) = collapse_to_wide(&bvh2, sizing, alignment);
+    #[cfg(feature = "kernel-counters")]
+    if std::env::var_os("CAVETRACE_TREE_STATISTICS").is_some() {
+        print_tree_statistics(&nodes, &order, &total);
+    }
     WideBvh {
         nodes,
         order,
         bounds: (total.min.into(), total.max.into()),
     }
+}
+
+/// Prints the wide tree's shape and surface-area cost in the terms of Embree's BVH statistics
+/// (`--features kernel-counters`, `CAVETRACE_TREE_STATISTICS=1`): inner nodes, their filled
+/// slots, leaves, primitives per leaf; node SAH = Σ inner node half areas / root's, leaf SAH =
+/// Σ leaf half areas / root's (one group test per leaf, as a Triangle4 block per leaf there).
+#[cfg(feature = "kernel-counters")]
+fn print_tree_statistics(nodes: &[WideNode], order: &[u32], total: &Aabb) {
+    let root_area = f64::from(total.half_area());
+    let (mut children, mut leaves, mut primitives) = (0usize, 0usize, 0usize);
+    let (mut node_sah, mut leaf_sah) = (root_area, 0.0f64);
+    let _ = order;
+    let mut histogram = [0usize; 9];
+    for node in nodes {
+        let mut node_prims = 0usize;
+        let mut all_leaves = true;
+        for slot in 0..WIDTH {
+            if occupied(node, slot) {
+                if node.children[slot] & LEAF_BIT != 0 {
+                    node_prims += leaf_range(node.children[slot]).1 as usize;
+                } else {
+                    all_leaves = false;
+                }
+            }
+        }
+        if all_leaves {
+            histogram[node_prims.div_ceil(4).min(8)] += 1;
+        }
+        for slot in 0..WIDTH {
+            if !occupied(node, slot) {
+                continue;
+            }
+            children += 1;
+            let min = Vec3::new(
+                node.planes[0][slot],
+                node.planes[2][slot],
+                node.planes[4][slot],
+            );
+            let max = Vec3::new(
+                node.planes[1][slot],
+                node.planes[3][slot],
+                node.planes[5][slot],
+            );
+            let extent = max - min;
+            let area = f64::from(extent.x * extent.y + extent.y * extent.z + extent.z * extent.x);
+            if node.children[slot] & LEAF_BIT != 0 {
+                leaves += 1;
+                primitives += leaf_range(node.children[slot]).1 as usize;
+                leaf_sah += area;
+            } else {
+                node_sah += area;
+            }
+        }
+    }
+    eprintln!(
+        "tree: {} inner nodes ({:.1} % of slots filled), {} leaves ({:.2} primitives each), \
+         node SAH {:.3}, leaf SAH {:.3}",
+        nodes.len(),
+        100.0 * children as f64 / (WIDTH * nodes.len()) as f64,
+        leaves,
+        primitives as f64 / leaves as f64,
+        node_sah / root_area,
+        leaf_sah / root_area,
+    );
+    eprintln!("  nodes with only leaves, by groups of four primitives they hold: {histogram:?}");
 }
 
 /// Binary leaves for a build over `boxes`: runs of up to [`MAX_RUN`] consecutive primitives whose
@@ -269,6 +340,105 @@ pub(crate) enum LeafSizing {
 /// Marks an empty slot in [`assign_slots`]' result.
 const EMPTY_SLOT: u8 = u8::MAX;
 
+/// Surface-area cost of the node visits below binary subtree `index` when it is laid out in at
+/// most `i` child slots of a wide node (`costs[i - 1]`, `i = 1..=8`), as the dynamic programme
+/// of Ylitie et al., "Efficient incoherent ray traversal on GPUs through compressed wide BVHs"
+/// (HPG 2017), with every leaf-sized subtree one leaf: such a subtree costs nothing here (its
+/// leaf tests are the same however the nodes above fall); a larger one either takes one slot
+/// as a wide node of its own (its area: the rays that visit it, plus its children spread over
+/// eight slots) or spreads its two children over the slots. Opening the largest child first,
+/// the greedy collapse this replaces, left many small subtrees (5–8 triangles) as wide nodes
+/// of their own: 94,223 nodes at 1M triangles against 64,215, and a node cost 4 % higher
+/// (`docs/kernel.md`, "The tree beside Embree's").
+///
+/// The choices go to `choices[index]`: per slot budget `i` a nibble at `4 (i - 1)`, 0 for one
+/// slot, else the budget `j <= i` spread over; the left child's share of budget `j` at
+/// `32 + 4 (j - 1)`.
+fn slot_costs(bvh2: &Bvh2, index: usize, choices: &[AtomicU64], depth: u32) -> [f32; WIDTH] {
+    if leaf_sized_count(bvh2, index).is_some() {
+        return [0.0; WIDTH];
+    }
+    let node = &bvh2.nodes[index];
+    let area = node.aabb().half_area();
+    let first = node.first_index as usize;
+    // Rayon tasks for the top levels only: below, the subtrees are plenty.
+    let (left, right) = if depth < 8 {
+        rayon::join(
+            || slot_costs(bvh2, first, choices, depth + 1),
+            || slot_costs(bvh2, first + 1, choices, depth + 1),
+        )
+    } else {
+        (
+            slot_costs(bvh2, first, choices, depth + 1),
+            slot_costs(bvh2, first + 1, choices, depth + 1),
+        )
+    };
+    // spread[j - 1]: both children over at most j slots.
+    let mut spread = [f32::INFINITY; WIDTH];
+    let mut packed = 0u64;
+    for budget in 2..=WIDTH {
+        let mut best = (f32::INFINITY, 1);
+        for left_slots in 1..budget {
+            let cost = left[left_slots - 1] + right[budget - left_slots - 1];
+            if cost < best.0 {
+                best = (cost, left_slots);
+            }
+        }
+        spread[budget - 1] = best.0;
+        packed |= (best.1 as u64) << (32 + 4 * (budget - 1));
+    }
+    let mut costs = [0.0f32; WIDTH];
+    let own = area + spread[WIDTH - 1];
+    let mut best = (own, 0usize);
+    costs[0] = own;
+    for budget in 2..=WIDTH {
+        if spread[budget - 1] < best.0 {
+            best = (spread[budget - 1], budget);
+        }
+        costs[budget - 1] = best.0;
+        packed |= (best.1 as u64) << (4 * (budget - 1));
+    }
+    choices[index].store(packed, Relaxed);
+    costs
+}
+
+/// Marks, from [`slot_costs`]' choices, the binary nodes below `index` (laid out in at most
+/// `budget` slots) that become wide nodes of their own.
+fn mark_roots(
+    bvh2: &Bvh2,
+    index: usize,
+    budget: usize,
+    choices: &[AtomicU64],
+    roots: &[AtomicBool],
+    depth: u32,
+) {
+    if leaf_sized_count(bvh2, index).is_some() {
+        return;
+    }
+    let packed = choices[index].load(Relaxed);
+    let mut spread = ((packed >> (4 * (budget - 1))) & 15) as usize;
+    if budget == 1 || spread == 0 {
+        // A wide node of its own: its children spread over eight slots.
+        if index != 0 {
+            roots[index].store(true, Relaxed);
+        }
+        spread = WIDTH;
+    }
+    let left_slots = ((packed >> (32 + 4 * (spread - 1))) & 15) as usize;
+    let first = bvh2.nodes[index].first_index as usize;
+    let mark =
+        |child: usize, slots: usize| mark_roots(bvh2, child, slots, choices, roots, depth + 1);
+    if depth < 8 {
+        rayon::join(
+            || mark(first, left_slots),
+            || mark(first + 1, spread - left_slots),
+        );
+    } else {
+        mark(first, left_slots);
+        mark(first + 1, spread - left_slots);
+    }
+}
+
 /// Binary descendant chosen as a child of a wide node.
 #[derive(Clone, Copy)]
 struct Candidate {
@@ -333,11 +503,14 @@ struct Subtree {
     primitives: Vec<u32>,
 }
 
-/// Lays a binary BVH (leaves of at most four primitives) out as wide nodes: each takes its
-/// binary node's two children and keeps opening the largest child (by surface area) that is
-/// too big for a leaf until it has eight or none is left (then, with `LeafSizing::Split`, the
-/// largest that fits a leaf); subtrees of at most four primitives become leaves. The subtrees
-/// below the root are collapsed in parallel on the current rayon pool.
+/// Lays a binary BVH (leaves of at most four primitives) out as wide nodes. Which binary
+/// subtrees become wide nodes of their own is chosen for the least surface-area cost of node
+/// visits ([`slot_costs`], [`mark_roots`]); each wide node then takes its binary node's two
+/// children and opens every child too big for a leaf that is not such a node (at most eight
+/// children result), then, with spare slots and `LeafSizing::Split` or
+/// `LeafAlignment::Group`, the largest that fits a leaf; subtrees of at most four primitives
+/// become leaves. The subtrees below the root are collapsed in parallel on the current rayon
+/// pool.
 pub(crate) fn collapse_to_wide(
     bvh2: &Bvh2,
     sizing: LeafSizing,
@@ -352,12 +525,31 @@ pub(crate) fn collapse_to_wide(
             .all(|node| node.prim_count <= MAX_PRIMS_PER_LEAF)
     );
     let mut root_primitives = Vec::new();
-    let (mut root, inner_children) =
-        wide_node(bvh2, 0, true, sizing, alignment, &mut root_primitives);
+    // Per binary node: whether it becomes a wide node of its own (the root always does).
+    let roots: Vec<AtomicBool> = (0..bvh2.nodes.len())
+        .into_par_iter()
+        .map(|_| AtomicBool::new(false))
+        .collect();
+    let choices: Vec<AtomicU64> = (0..bvh2.nodes.len())
+        .into_par_iter()
+        .map(|_| AtomicU64::new(0))
+        .collect();
+    slot_costs(bvh2, 0, &choices, 0);
+    mark_roots(bvh2, 0, WIDTH, &choices, &roots, 0);
+    let roots = &roots[..];
+    let (mut root, inner_children) = wide_node(
+        bvh2,
+        0,
+        true,
+        sizing,
+        alignment,
+        &mut root_primitives,
+        roots,
+    );
     let subtrees: Vec<Subtree> = inner_children
         .as_slice()
         .par_iter()
-        .map(|&(_, child)| collapse_subtree(bvh2, child as usize, sizing, alignment))
+        .map(|&(_, child)| collapse_subtree(bvh2, child as usize, sizing, alignment, roots))
         .collect();
 
     // Layout: root, its inner children's roots side by side, then each child's descendants;
@@ -437,6 +629,7 @@ fn collapse_subtree(
     binary_root: usize,
     sizing: LeafSizing,
     alignment: LeafAlignment,
+    roots: &[AtomicBool],
 ) -> Subtree {
     let mut nodes = vec![WideNode::default()];
     let mut primitives = Vec::new();
@@ -450,6 +643,7 @@ fn collapse_subtree(
             sizing,
             alignment,
             &mut primitives,
+            roots,
         );
         for &(slot, child) in inner_children.as_slice() {
             node.children[slot as usize] = nodes.len() as u32;
@@ -473,9 +667,10 @@ fn wide_node(
     sizing: LeafSizing,
     alignment: LeafAlignment,
     primitive_order: &mut Vec<u32>,
+    roots: &[AtomicBool],
 ) -> (WideNode, InnerChildren) {
     let binary = &bvh2.nodes;
-    let children = wide_children(bvh2, binary_index, may_be_leaf, sizing, alignment);
+    let children = wide_children(bvh2, binary_index, may_be_leaf, sizing, alignment, roots);
     let children = children.as_slice();
     let parent_box = *binary[binary_index].aabb();
     let slots = assign_slots(children, &parent_box);
@@ -703,6 +898,7 @@ fn wide_children(
     may_be_leaf: bool,
     sizing: LeafSizing,
     alignment: LeafAlignment,
+    roots: &[AtomicBool],
 ) -> Candidates {
     let binary = &bvh2.nodes;
     let node = &binary[index];
@@ -725,6 +921,9 @@ fn wide_children(
         let mut best: Option<(usize, bool, f32)> = None;
         for (position, child) in children.as_slice().iter().enumerate() {
             let must_open = child.leaf_count.is_none();
+            if must_open && roots[child.index as usize].load(Relaxed) {
+                continue;
+            }
             if binary[child.index as usize].is_leaf()
                 || child.partners.len > 0
                 || (!must_open && sizing == LeafSizing::Whole && alignment != LeafAlignment::Group)
