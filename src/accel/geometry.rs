@@ -71,6 +71,11 @@ impl GeometryBvh {
         crate::accel::wide_bvh::leaf_count(&self.nodes)
     }
 
+    /// The tree's shape and surface-area costs.
+    pub(crate) fn tree_shape(&self) -> crate::accel::wide_bvh::TreeShape {
+        crate::accel::wide_bvh::TreeShape::of(&self.nodes, self.bounds)
+    }
+
     /// For triangles and quads: the closest hit's slot and `t` and the any-hit answer of the
     /// single-ray walks with an inline stack of eight entries (restarting on the heap).
     pub(crate) fn walks_with_small_stack(&self, ray: &TraversalRay) -> (Option<(u32, f32)>, bool) {

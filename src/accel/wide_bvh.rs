@@ -30,8 +30,8 @@ use rayon::iter::{
     IndexedParallelIterator, IntoParallelIterator, IntoParallelRefIterator, ParallelIterator,
 };
 use rayon::slice::ParallelSlice;
+use std::sync::atomic::AtomicU64;
 use std::sync::atomic::Ordering::Relaxed;
-use std::sync::atomic::{AtomicBool, AtomicU64};
 
 /// Leaves hold at most four primitives (one SIMD group of triangles).
 pub(crate) const MAX_PRIMS_PER_LEAF: u32 = 4;
@@ -184,7 +184,19 @@ pub(crate) fn build_wide_bvh(
     let (nodes, order) = collapse_to_wide(&bvh2, sizing, alignment);
     #[cfg(feature = "kernel-counters")]
     if std::env::var_os("CAVETRACE_TREE_STATISTICS").is_some() {
-        print_tree_statistics(&nodes, &order, &total);
+        let shape = TreeShape::of(&nodes, (total.min.into(), total.max.into()));
+        eprintln!(
+            "tree: {} inner nodes ({:.1} % of slots filled), {} leaves ({:.2} primitives each), \
+             node SAH {:.3}, leaf SAH {:.3}; nodes with only leaves, by groups of four \
+             primitives they hold: {:?}",
+            shape.nodes,
+            100.0 * shape.children as f64 / (WIDTH * shape.nodes) as f64,
+            shape.leaves,
+            shape.primitives as f64 / shape.leaves as f64,
+            shape.node_cost,
+            shape.leaf_cost,
+            shape.bottom_nodes,
+        );
     }
     WideBvh {
         nodes,
@@ -193,69 +205,74 @@ pub(crate) fn build_wide_bvh(
     }
 }
 
-/// Prints the wide tree's shape and surface-area cost in the terms of Embree's BVH statistics
-/// (`--features kernel-counters`, `CAVETRACE_TREE_STATISTICS=1`): inner nodes, their filled
-/// slots, leaves, primitives per leaf; node SAH = Σ inner node half areas / root's, leaf SAH =
-/// Σ leaf half areas / root's (one group test per leaf, as a Triangle4 block per leaf there).
-#[cfg(feature = "kernel-counters")]
-fn print_tree_statistics(nodes: &[WideNode], order: &[u32], total: &Aabb) {
-    let root_area = f64::from(total.half_area());
-    let (mut children, mut leaves, mut primitives) = (0usize, 0usize, 0usize);
-    let (mut node_sah, mut leaf_sah) = (root_area, 0.0f64);
-    let _ = order;
-    let mut histogram = [0usize; 9];
-    for node in nodes {
-        let mut node_prims = 0usize;
-        let mut all_leaves = true;
-        for slot in 0..WIDTH {
-            if occupied(node, slot) {
+/// A wide tree's shape and surface-area costs in the terms of Embree's BVH statistics.
+#[cfg(any(test, feature = "kernel-counters"))]
+#[derive(Debug)]
+pub(crate) struct TreeShape {
+    pub nodes: usize,
+    /// Occupied child slots, inner and leaf.
+    pub children: usize,
+    pub leaves: usize,
+    pub primitives: usize,
+    /// Σ inner node half areas / the root's: node visits per ray, for rays spread evenly
+    /// over the root's box.
+    pub node_cost: f64,
+    /// Σ leaf half areas / the root's: leaf (group) tests per ray, the same way.
+    pub leaf_cost: f64,
+    /// Nodes whose children are all leaves, by the groups of four primitives they hold
+    /// (`[k]`: 4k - 3 to 4k primitives; the last entry 29 and more).
+    pub bottom_nodes: [usize; 9],
+}
+
+#[cfg(any(test, feature = "kernel-counters"))]
+impl TreeShape {
+    pub fn of(nodes: &[WideNode], bounds: (Vec3, Vec3)) -> TreeShape {
+        let half_area = |extent: Vec3| {
+            f64::from(extent.x * extent.y + extent.y * extent.z + extent.z * extent.x)
+        };
+        let root_area = half_area(bounds.1 - bounds.0);
+        let mut shape = TreeShape {
+            nodes: nodes.len(),
+            children: 0,
+            leaves: 0,
+            primitives: 0,
+            node_cost: if nodes.is_empty() { 0.0 } else { 1.0 },
+            leaf_cost: 0.0,
+            bottom_nodes: [0; 9],
+        };
+        for node in nodes {
+            let mut node_primitives = 0;
+            let mut only_leaves = true;
+            for slot in (0..WIDTH).filter(|&slot| occupied(node, slot)) {
+                shape.children += 1;
+                let min = Vec3::new(
+                    node.planes[0][slot],
+                    node.planes[2][slot],
+                    node.planes[4][slot],
+                );
+                let max = Vec3::new(
+                    node.planes[1][slot],
+                    node.planes[3][slot],
+                    node.planes[5][slot],
+                );
+                let area = half_area(max - min) / root_area;
                 if node.children[slot] & LEAF_BIT != 0 {
-                    node_prims += leaf_range(node.children[slot]).1 as usize;
+                    let count = leaf_range(node.children[slot]).1 as usize;
+                    shape.leaves += 1;
+                    shape.primitives += count;
+                    node_primitives += count;
+                    shape.leaf_cost += area;
                 } else {
-                    all_leaves = false;
+                    only_leaves = false;
+                    shape.node_cost += area;
                 }
             }
-        }
-        if all_leaves {
-            histogram[node_prims.div_ceil(4).min(8)] += 1;
-        }
-        for slot in 0..WIDTH {
-            if !occupied(node, slot) {
-                continue;
-            }
-            children += 1;
-            let min = Vec3::new(
-                node.planes[0][slot],
-                node.planes[2][slot],
-                node.planes[4][slot],
-            );
-            let max = Vec3::new(
-                node.planes[1][slot],
-                node.planes[3][slot],
-                node.planes[5][slot],
-            );
-            let extent = max - min;
-            let area = f64::from(extent.x * extent.y + extent.y * extent.z + extent.z * extent.x);
-            if node.children[slot] & LEAF_BIT != 0 {
-                leaves += 1;
-                primitives += leaf_range(node.children[slot]).1 as usize;
-                leaf_sah += area;
-            } else {
-                node_sah += area;
+            if only_leaves {
+                shape.bottom_nodes[node_primitives.div_ceil(4).min(8)] += 1;
             }
         }
+        shape
     }
-    eprintln!(
-        "tree: {} inner nodes ({:.1} % of slots filled), {} leaves ({:.2} primitives each), \
-         node SAH {:.3}, leaf SAH {:.3}",
-        nodes.len(),
-        100.0 * children as f64 / (WIDTH * nodes.len()) as f64,
-        leaves,
-        primitives as f64 / leaves as f64,
-        node_sah / root_area,
-        leaf_sah / root_area,
-    );
-    eprintln!("  nodes with only leaves, by groups of four primitives they hold: {histogram:?}");
 }
 
 /// Binary leaves for a build over `boxes`: runs of up to [`MAX_RUN`] consecutive primitives whose
@@ -351,28 +368,37 @@ const EMPTY_SLOT: u8 = u8::MAX;
 /// of their own: 94,223 nodes at 1M triangles against 64,215, and a node cost 4 % higher
 /// (`docs/kernel.md`, "The tree beside Embree's").
 ///
-/// The choices go to `choices[index]`: per slot budget `i` a nibble at `4 (i - 1)`, 0 for one
-/// slot, else the budget `j <= i` spread over; the left child's share of budget `j` at
-/// `32 + 4 (j - 1)`.
-fn slot_costs(bvh2: &Bvh2, index: usize, choices: &[AtomicU64], depth: u32) -> [f32; WIDTH] {
-    if leaf_sized_count(bvh2, index).is_some() {
-        return [0.0; WIDTH];
-    }
+/// Also returns the subtree's primitive count if it fits a leaf, as [`leaf_sized_count`] has
+/// it. The choices of a larger subtree go to `plan[index]` (see [`Plan`]).
+fn slot_costs(
+    bvh2: &Bvh2,
+    index: usize,
+    plan: &[AtomicU64],
+    depth: u32,
+) -> ([f32; WIDTH], Option<u32>) {
     let node = &bvh2.nodes[index];
-    let area = node.aabb().half_area();
+    if node.is_leaf() {
+        return ([0.0; WIDTH], Some(node.prim_count));
+    }
     let first = node.first_index as usize;
     // Rayon tasks for the top levels only: below, the subtrees are plenty.
-    let (left, right) = if depth < 8 {
+    let ((left, left_count), (right, right_count)) = if depth < 8 {
         rayon::join(
-            || slot_costs(bvh2, first, choices, depth + 1),
-            || slot_costs(bvh2, first + 1, choices, depth + 1),
+            || slot_costs(bvh2, first, plan, depth + 1),
+            || slot_costs(bvh2, first + 1, plan, depth + 1),
         )
     } else {
         (
-            slot_costs(bvh2, first, choices, depth + 1),
-            slot_costs(bvh2, first + 1, choices, depth + 1),
+            slot_costs(bvh2, first, plan, depth + 1),
+            slot_costs(bvh2, first + 1, plan, depth + 1),
         )
     };
+    let both_inner = !bvh2.nodes[first].is_leaf() && !bvh2.nodes[first + 1].is_leaf();
+    if let (Some(left_count), Some(right_count), false) = (left_count, right_count, both_inner)
+        && left_count + right_count <= MAX_PRIMS_PER_LEAF
+    {
+        return ([0.0; WIDTH], Some(left_count + right_count));
+    }
     // spread[j - 1]: both children over at most j slots.
     let mut spread = [f32::INFINITY; WIDTH];
     let mut packed = 0u64;
@@ -385,57 +411,36 @@ fn slot_costs(bvh2: &Bvh2, index: usize, choices: &[AtomicU64], depth: u32) -> [
             }
         }
         spread[budget - 1] = best.0;
-        packed |= (best.1 as u64) << (32 + 4 * (budget - 1));
+        packed |= (best.1 as u64) << Plan::share_shift(budget);
     }
     let mut costs = [0.0f32; WIDTH];
-    let own = area + spread[WIDTH - 1];
-    let mut best = (own, 0usize);
-    costs[0] = own;
+    let mut best = (node.aabb().half_area() + spread[WIDTH - 1], 0usize);
+    costs[0] = best.0;
     for budget in 2..=WIDTH {
         if spread[budget - 1] < best.0 {
             best = (spread[budget - 1], budget);
         }
         costs[budget - 1] = best.0;
-        packed |= (best.1 as u64) << (4 * (budget - 1));
+        packed |= (best.1 as u64) << Plan::spread_shift(budget);
     }
-    choices[index].store(packed, Relaxed);
-    costs
+    plan[index].store(packed, Relaxed);
+    (costs, None)
 }
 
-/// Marks, from [`slot_costs`]' choices, the binary nodes below `index` (laid out in at most
-/// `budget` slots) that become wide nodes of their own.
-fn mark_roots(
-    bvh2: &Bvh2,
-    index: usize,
-    budget: usize,
-    choices: &[AtomicU64],
-    roots: &[AtomicBool],
-    depth: u32,
-) {
-    if leaf_sized_count(bvh2, index).is_some() {
-        return;
+/// Per binary node, [`slot_costs`]' choices, packed into 64 bits (zero for a subtree that fits
+/// a leaf, whose choices are never read): for a slot budget `i = 2..=8`, in a nibble at
+/// [`Plan::spread_shift`], 0 for one slot (a wide node of its own) or the budget `j <= i` its
+/// children spread over; for a budget `j = 2..=8`, the left child's share in a nibble at
+/// [`Plan::share_shift`].
+struct Plan;
+
+impl Plan {
+    fn spread_shift(budget: usize) -> u32 {
+        4 * (budget as u32 - 1)
     }
-    let packed = choices[index].load(Relaxed);
-    let mut spread = ((packed >> (4 * (budget - 1))) & 15) as usize;
-    if budget == 1 || spread == 0 {
-        // A wide node of its own: its children spread over eight slots.
-        if index != 0 {
-            roots[index].store(true, Relaxed);
-        }
-        spread = WIDTH;
-    }
-    let left_slots = ((packed >> (32 + 4 * (spread - 1))) & 15) as usize;
-    let first = bvh2.nodes[index].first_index as usize;
-    let mark =
-        |child: usize, slots: usize| mark_roots(bvh2, child, slots, choices, roots, depth + 1);
-    if depth < 8 {
-        rayon::join(
-            || mark(first, left_slots),
-            || mark(first + 1, spread - left_slots),
-        );
-    } else {
-        mark(first, left_slots);
-        mark(first + 1, spread - left_slots);
+
+    fn share_shift(budget: usize) -> u32 {
+        32 + 4 * (budget as u32 - 1)
     }
 }
 
@@ -451,6 +456,8 @@ struct Candidate {
     aabb: Aabb,
     /// Binary subtrees sharing its leaf (see [`pair_small_leaves`]).
     partners: Partners,
+    /// Child slots the subtree may take in this wide node ([`slot_costs`]' plan).
+    budget: usize,
 }
 
 impl Candidate {
@@ -462,6 +469,7 @@ impl Candidate {
             leaf_count,
             aabb,
             partners: Partners::default(),
+            budget: 1,
         }
     }
 }
@@ -503,14 +511,15 @@ struct Subtree {
     primitives: Vec<u32>,
 }
 
-/// Lays a binary BVH (leaves of at most four primitives) out as wide nodes. Which binary
-/// subtrees become wide nodes of their own is chosen for the least surface-area cost of node
-/// visits ([`slot_costs`], [`mark_roots`]); each wide node then takes its binary node's two
-/// children and opens every child too big for a leaf that is not such a node (at most eight
-/// children result), then, with spare slots and `LeafSizing::Split` or
-/// `LeafAlignment::Group`, the largest that fits a leaf; subtrees of at most four primitives
-/// become leaves. The subtrees below the root are collapsed in parallel on the current rayon
-/// pool.
+/// Lays a binary BVH (leaves of at most four primitives) out as wide nodes. With
+/// `LeafSizing::Whole`, which binary subtrees become wide nodes of their own is chosen for the
+/// least surface-area cost of node visits ([`slot_costs`]), and each wide node opens every
+/// child too big for a leaf that the plan spreads over its slots (at most eight result); with
+/// `LeafSizing::Split`, each wide node keeps opening the largest child too big for a leaf until
+/// it has eight or none is left. Then, with spare slots and `LeafSizing::Split` or
+/// `LeafAlignment::Group`, the largest child that fits a leaf is opened; subtrees of at most
+/// four primitives become leaves. The subtrees below the root are collapsed in parallel on the
+/// current rayon pool.
 pub(crate) fn collapse_to_wide(
     bvh2: &Bvh2,
     sizing: LeafSizing,
@@ -525,31 +534,22 @@ pub(crate) fn collapse_to_wide(
             .all(|node| node.prim_count <= MAX_PRIMS_PER_LEAF)
     );
     let mut root_primitives = Vec::new();
-    // Per binary node: whether it becomes a wide node of its own (the root always does).
-    let roots: Vec<AtomicBool> = (0..bvh2.nodes.len())
-        .into_par_iter()
-        .map(|_| AtomicBool::new(false))
-        .collect();
-    let choices: Vec<AtomicU64> = (0..bvh2.nodes.len())
+    let plan: Vec<AtomicU64> = (0..bvh2.nodes.len())
         .into_par_iter()
         .map(|_| AtomicU64::new(0))
         .collect();
-    slot_costs(bvh2, 0, &choices, 0);
-    mark_roots(bvh2, 0, WIDTH, &choices, &roots, 0);
-    let roots = &roots[..];
-    let (mut root, inner_children) = wide_node(
-        bvh2,
-        0,
-        true,
-        sizing,
-        alignment,
-        &mut root_primitives,
-        roots,
-    );
+    // Leaves of costly primitives are split over spare slots instead (`LeafSizing::Split`),
+    // which the plan does not weigh: their nodes open the largest child first.
+    if sizing == LeafSizing::Whole {
+        slot_costs(bvh2, 0, &plan, 0);
+    }
+    let plan = &plan[..];
+    let (mut root, inner_children) =
+        wide_node(bvh2, 0, true, sizing, alignment, &mut root_primitives, plan);
     let subtrees: Vec<Subtree> = inner_children
         .as_slice()
         .par_iter()
-        .map(|&(_, child)| collapse_subtree(bvh2, child as usize, sizing, alignment, roots))
+        .map(|&(_, child)| collapse_subtree(bvh2, child as usize, sizing, alignment, plan))
         .collect();
 
     // Layout: root, its inner children's roots side by side, then each child's descendants;
@@ -629,7 +629,7 @@ fn collapse_subtree(
     binary_root: usize,
     sizing: LeafSizing,
     alignment: LeafAlignment,
-    roots: &[AtomicBool],
+    plan: &[AtomicU64],
 ) -> Subtree {
     let mut nodes = vec![WideNode::default()];
     let mut primitives = Vec::new();
@@ -643,7 +643,7 @@ fn collapse_subtree(
             sizing,
             alignment,
             &mut primitives,
-            roots,
+            plan,
         );
         for &(slot, child) in inner_children.as_slice() {
             node.children[slot as usize] = nodes.len() as u32;
@@ -667,10 +667,10 @@ fn wide_node(
     sizing: LeafSizing,
     alignment: LeafAlignment,
     primitive_order: &mut Vec<u32>,
-    roots: &[AtomicBool],
+    plan: &[AtomicU64],
 ) -> (WideNode, InnerChildren) {
     let binary = &bvh2.nodes;
-    let children = wide_children(bvh2, binary_index, may_be_leaf, sizing, alignment, roots);
+    let children = wide_children(bvh2, binary_index, may_be_leaf, sizing, alignment, plan);
     let children = children.as_slice();
     let parent_box = *binary[binary_index].aabb();
     let slots = assign_slots(children, &parent_box);
@@ -898,10 +898,9 @@ fn wide_children(
     may_be_leaf: bool,
     sizing: LeafSizing,
     alignment: LeafAlignment,
-    roots: &[AtomicBool],
+    plan: &[AtomicU64],
 ) -> Candidates {
     let binary = &bvh2.nodes;
-    let node = &binary[index];
     let mut children = Candidates::new(Candidate::of(bvh2, 0, None));
     if may_be_leaf && let Some(count) = leaf_sized_count(bvh2, index) {
         // Only for a tiny root: a single leaf child.
@@ -912,7 +911,24 @@ fn wide_children(
     // to open. Joining more to fill groups is not needed (siblings share groups) and loosens
     // the leaf boxes: the frustum packets were 2-5 % slower with it.
     let join_leaves = alignment == LeafAlignment::Group;
-    let [first, second] = candidate_pair(bvh2, node.first_index as usize);
+    // Children spread as the plan has it: over eight slots below this node, then each opened
+    // subtree's children over the slots it was given.
+    let spread_of = |candidate: &Candidate| match candidate.budget {
+        _ if sizing == LeafSizing::Split => WIDTH,
+        0 | 1 => 0,
+        budget => {
+            ((plan[candidate.index as usize].load(Relaxed) >> Plan::spread_shift(budget)) & 15)
+                as usize
+        }
+    };
+    let opened_pair = |index: usize, spread: usize| {
+        let share = ((plan[index].load(Relaxed) >> Plan::share_shift(spread)) & 15) as usize;
+        let mut pair = candidate_pair(bvh2, binary[index].first_index as usize);
+        pair[0].budget = share;
+        pair[1].budget = spread - share;
+        pair
+    };
+    let [first, second] = opened_pair(index, WIDTH);
     children.push(first);
     children.push(second);
     loop {
@@ -921,7 +937,8 @@ fn wide_children(
         let mut best: Option<(usize, bool, f32)> = None;
         for (position, child) in children.as_slice().iter().enumerate() {
             let must_open = child.leaf_count.is_none();
-            if must_open && roots[child.index as usize].load(Relaxed) {
+            if must_open && spread_of(child) == 0 {
+                // A wide node of its own.
                 continue;
             }
             if binary[child.index as usize].is_leaf()
@@ -955,8 +972,12 @@ fn wide_children(
             };
             position = moved;
         }
-        let opened = binary[children.entries[position].index as usize].first_index as usize;
-        let [first, second] = candidate_pair(bvh2, opened);
+        let chosen = &children.entries[position];
+        let [first, second] = match chosen.leaf_count {
+            None => opened_pair(chosen.index as usize, spread_of(chosen)),
+            // A leaf-sized subtree split over spare slots.
+            Some(_) => candidate_pair(bvh2, binary[chosen.index as usize].first_index as usize),
+        };
         children.entries[position] = first;
         children.push(second);
     }
