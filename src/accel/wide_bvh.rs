@@ -381,6 +381,13 @@ fn slot_costs(
         return ([0.0; WIDTH], Some(node.prim_count));
     }
     let first = node.first_index as usize;
+    // The walk is bound by memory latency: the grandchildren's loads start before the
+    // children's subtrees are walked.
+    for child in &bvh2.nodes[first..first + 2] {
+        if !child.is_leaf() {
+            prefetch_pair(&bvh2.nodes, child.first_index as usize);
+        }
+    }
     // Rayon tasks for the top levels only: below, the subtrees are plenty.
     let ((left, left_count), (right, right_count)) = if depth < 8 {
         rayon::join(
@@ -403,13 +410,20 @@ fn slot_costs(
     let mut spread = [f32::INFINITY; WIDTH];
     let mut packed = 0u64;
     for budget in 2..=WIDTH {
-        let mut best = (f32::INFINITY, 1);
-        for left_slots in 1..budget {
-            let cost = left[left_slots - 1] + right[budget - left_slots - 1];
-            if cost < best.0 {
-                best = (cost, left_slots);
+        // A leaf-sized left child costs nothing in one slot, and costs never grow with the
+        // budget: it takes one slot, the right child the rest (the first best share below).
+        let best = if left_count.is_some() {
+            (right[budget - 2], 1)
+        } else {
+            let mut best = (f32::INFINITY, 1);
+            for left_slots in 1..budget {
+                let cost = left[left_slots - 1] + right[budget - left_slots - 1];
+                if cost < best.0 {
+                    best = (cost, left_slots);
+                }
             }
-        }
+            best
+        };
         spread[budget - 1] = best.0;
         packed |= (best.1 as u64) << Plan::share_shift(budget);
     }
