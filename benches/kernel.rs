@@ -20,7 +20,10 @@
 //! `CAVETRACE_BENCH_QUICK=1`: two sizes at 256×256, 3 frames. `CAVETRACE_BENCH_GRIDS=22,708`:
 //! only those sizes (for profiling one). `CAVETRACE_BENCH_PARTS=packets,frame`: only those of
 //! `packets`, `single`, `frame` (a part left out prints 0). `CAVETRACE_BENCH_ISAS=avx2`: only
-//! those instruction-set paths.
+//! those instruction-set paths. `--features kernel-counters`: also prints, per size, the inner
+//! nodes, leaves and triangles per ray of both walks (`accel::counters`; the single-ray times
+//! are then those of the counting generic walk, not the real one), and with
+//! `CAVETRACE_TREE_STATISTICS=1` each tree's shape and surface-area costs.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
