@@ -20,7 +20,10 @@
 //! `CAVETRACE_BENCH_QUICK=1`: two sizes at 256×256, 3 frames. `CAVETRACE_BENCH_GRIDS=22,708`:
 //! only those sizes (for profiling one). `CAVETRACE_BENCH_PARTS=packets,frame`: only those of
 //! `packets`, `single`, `frame` (a part left out prints 0). `CAVETRACE_BENCH_ISAS=avx2`: only
-//! those instruction-set paths.
+//! those instruction-set paths. `--features kernel-counters`: also prints, per size, the inner
+//! nodes, leaves and triangles per ray of both walks (`accel::counters`; the single-ray times
+//! are then those of the counting generic walk, not the real one), and with
+//! `CAVETRACE_TREE_STATISTICS=1` each tree's shape and surface-area costs.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -29,6 +32,7 @@ use std::process::Command;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::Instant;
 
+use cavetrace::accel::counters::{self, TraversalCounts};
 use cavetrace::accel::isa::{self, Isa};
 use cavetrace::accel::{PacketScratch, Ray, SceneBvh};
 
@@ -76,8 +80,15 @@ fn place_camera(dev: ANARIDevice, camera: ANARICamera, frame: u32) {
 }
 
 /// Traces `rays` in 64-ray packets (or ray by ray) on `threads` threads, 16 packets at a time;
-/// (wall ms, CPU ms, hit checksum).
-fn trace(scene: &SceneBvh, rays: &[Ray], threads: usize, one_by_one: bool) -> (f64, f64, u64) {
+/// (wall ms, CPU ms, hit checksum); with `--features kernel-counters` the walks' counts are
+/// added to `counts`.
+fn trace(
+    scene: &SceneBvh,
+    rays: &[Ray],
+    threads: usize,
+    one_by_one: bool,
+    counts: &mut TraversalCounts,
+) -> (f64, f64, u64) {
     let next = AtomicUsize::new(0);
     let packets = rays.len().div_ceil(64);
     let (start, cpu_start) = (Instant::now(), cpu_ms());
@@ -85,13 +96,14 @@ fn trace(scene: &SceneBvh, rays: &[Ray], threads: usize, one_by_one: bool) -> (f
         let workers: Vec<_> = (0..threads)
             .map(|_| {
                 scope.spawn(|| {
+                    counters::take();
                     let mut scratch = PacketScratch::new();
                     let mut hits = [None; 64];
                     let mut checksum = 0u64;
                     loop {
                         let first = next.fetch_add(16, Ordering::Relaxed);
                         if first >= packets {
-                            break checksum;
+                            break (checksum, counters::take());
                         }
                         for packet in first..(first + 16).min(packets) {
                             let chunk = &rays[packet * 64..((packet + 1) * 64).min(rays.len())];
@@ -112,13 +124,41 @@ fn trace(scene: &SceneBvh, rays: &[Ray], threads: usize, one_by_one: bool) -> (f
                 })
             })
             .collect();
-        workers.into_iter().map(|w| w.join().unwrap()).sum()
+        let mut checksum = 0;
+        for worker in workers {
+            let (sum, worker_counts) = worker.join().unwrap();
+            checksum += sum;
+            *counts += worker_counts;
+        }
+        checksum
     });
     (
         start.elapsed().as_secs_f64() * 1e3,
         cpu_ms() - cpu_start,
         checksum,
     )
+}
+
+/// Per ray: the walks' inner nodes, leaves and triangles (`--features kernel-counters`).
+fn print_counts(triangles: u32, [packets, single]: &[TraversalCounts; 2]) {
+    let per = |value: u64, rays: u64| value as f64 / rays.max(1) as f64;
+    println!(
+        "  {triangles:>9} counts per ray: one by one {:.3} nodes, {:.3} leaves, {:.3} triangles \
+         ({} rays); frustum packets {:.4} nodes (per packet {:.2}), {:.3} leaves, {:.3} \
+         triangles, {:.4} leaf tests of 4 rays ({} packets, {} rays; {} rays one by one)",
+        per(single.nodes, single.rays),
+        per(single.leaves, single.rays),
+        per(single.triangles, single.rays),
+        single.rays,
+        per(packets.packet_nodes, packets.packet_rays),
+        per(packets.packet_nodes, packets.packets),
+        per(packets.packet_leaf_rays, packets.packet_rays),
+        per(packets.packet_triangle_rays, packets.packet_rays),
+        per(packets.packet_leaf_groups, packets.packet_rays),
+        packets.packets,
+        packets.packet_rays,
+        packets.rays,
+    );
 }
 
 /// One run of the Embree probe: its median wall ms per mode and its hit checksum.
@@ -242,6 +282,8 @@ fn main() {
         // frame by frame.
         let mut figures = vec![[(); 6].map(|_| Vec::new()); isas.len()];
         let mut checksums = vec![[0; 2]; isas.len()];
+        // Walk counts of the first path (every path walks the same nodes): packets, one by one.
+        let mut counts = [TraversalCounts::default(); 2];
         for f in 0..=frames {
             place_camera(dev, camera, f);
             let rays = camera_rays(dev, camera, size);
@@ -250,14 +292,19 @@ fn main() {
                 commit(dev, dev);
                 assert_eq!(isa::selected(), *isa);
                 let skipped = (0.0, 0.0, 0);
+                let mut walks = [TraversalCounts::default(); 2];
                 let (packet_ms, packet_cpu, packet_sum) = match run_packets {
-                    true => trace(&scene, &rays, threads, false),
+                    true => trace(&scene, &rays, threads, false, &mut walks[0]),
                     false => skipped,
                 };
                 let (single_ms, single_cpu, single_sum) = match run_single {
-                    true => trace(&scene, &rays, threads, true),
+                    true => trace(&scene, &rays, threads, true, &mut walks[1]),
                     false => skipped,
                 };
+                if k == 0 {
+                    counts[0] += walks[0];
+                    counts[1] += walks[1];
+                }
                 let (start, cpu_start) = (Instant::now(), cpu_ms());
                 if run_frame {
                     anariRenderFrame(dev, frame);
@@ -277,6 +324,9 @@ fn main() {
                     }
                 }
             }
+        }
+        if counters::ENABLED {
+            print_counts(2 * grid * grid, &counts);
         }
         let embree_after = embree_probe.as_deref().map(|p| run_probe(p, &probe_args));
         let embree = embree_before.zip(embree_after).map(|(before, after)| {

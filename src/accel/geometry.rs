@@ -71,6 +71,11 @@ impl GeometryBvh {
         crate::accel::wide_bvh::leaf_count(&self.nodes)
     }
 
+    /// The tree's shape and surface-area costs.
+    pub(crate) fn tree_shape(&self) -> crate::accel::wide_bvh::TreeShape {
+        crate::accel::wide_bvh::TreeShape::of(&self.nodes, self.bounds)
+    }
+
     /// For triangles and quads: the closest hit's slot and `t` and the any-hit answer of the
     /// single-ray walks with an inline stack of eight entries (restarting on the heap).
     pub(crate) fn walks_with_small_stack(&self, ray: &TraversalRay) -> (Option<(u32, f32)>, bool) {
@@ -699,6 +704,12 @@ impl GeometryBvh {
                 let group = &groups[group_index];
                 let base = group_index as u32 * GROUP_LANES as u32;
                 let triangles = leaf_lanes;
+                crate::accel::counters::add(|counts| {
+                    counts.packet_leaf_groups += 1;
+                    counts.packet_leaf_rays += u64::from(lanes.count_ones());
+                    counts.packet_triangle_rays +=
+                        u64::from(lanes.count_ones() * triangles.count_ones());
+                });
                 if lanes.count_ones() < triangles.count_ones() {
                     // Fewer rays than triangles: each ray takes the whole group in one pass
                     // (lanes = triangles), the single-ray test with the same hits.
@@ -948,6 +959,7 @@ impl GeometryBvh {
 }
 
 /// [`GeometryBvh::closest_slot`] over triangle groups (see `single_ray`).
+#[cfg(not(feature = "kernel-counters"))]
 #[inline]
 fn closest_triangle_slot(
     nodes: &[WideNode],
@@ -957,6 +969,46 @@ fn closest_triangle_slot(
     // SAFETY: triangle and quad BVHs are checked with `codes_in_range` when built
     // (`GeometryBvh::checked`) and never change afterwards.
     unsafe { single_ray::closest_triangle_slot(nodes, groups, ray) }
+}
+
+/// [`GeometryBvh::closest_slot`] over triangle groups through the generic walk, counting its
+/// inner nodes, leaves and triangles (`accel::counters`).
+#[cfg(feature = "kernel-counters")]
+fn closest_triangle_slot(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &mut TraversalRay,
+) -> Option<(u32, Vec2)> {
+    use crate::accel::counters;
+    use crate::accel::wide_bvh::{BoxRay, BoxTest, child_hits, traverse_with};
+    struct CountingBoxTest;
+    impl BoxTest for CountingBoxTest {
+        fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
+            counters::add(|counts| counts.nodes += 1);
+            child_hits(node, ray, t_min, t_max)
+        }
+    }
+    // The per-octant walk stays compiled (not taken while counting), without dead-code
+    // warnings.
+    let _per_octant_walk: unsafe fn(&[WideNode], &[TriangleGroup], &mut TraversalRay) -> _ =
+        single_ray::closest_triangle_slot;
+    counters::add(|counts| counts.rays += 1);
+    let mut closest = None;
+    let mut test_leaf = |code: u32, ray: &mut TraversalRay| {
+        let (group_index, lanes) = group_leaf(code);
+        counters::add(|counts| {
+            counts.leaves += 1;
+            counts.triangles += u64::from(lanes.count_ones());
+        });
+        let hit = group_closest(&groups[group_index], lanes, ray);
+        if let Some((lane, t, uv)) = hit {
+            ray.t_max = t;
+            closest = Some(((group_index * GROUP_LANES + lane) as u32, uv));
+        }
+        hit.is_some()
+    };
+    traverse_with::<CountingBoxTest, false, _>(nodes, ray, &mut test_leaf);
+    closest
 }
 
 /// [`GeometryBvh::any_hit`] over triangle groups (see `single_ray`).

@@ -41,6 +41,7 @@
 //! * **Rebuilds.** [`SceneBvh::build`] only reads the `Arc<GeometryBvh>`s it is given; rebuild a
 //!   [`GeometryBvh`] only when its primitives change ([`geometry_build_count`] counts builds).
 
+pub mod counters;
 mod geometry;
 pub use crate::isa;
 mod packet;

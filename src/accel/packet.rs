@@ -1245,6 +1245,10 @@ pub(crate) fn traverse_frustum<const AVX2: bool, F, P>(
     if nodes.is_empty() || active.iter().all(|lanes| *lanes == 0) {
         return;
     }
+    crate::accel::counters::add(|counts| {
+        counts.packets += 1;
+        counts.packet_rays += u64::from(active.iter().map(|lanes| lanes.count_ones()).sum::<u32>());
+    });
     // Lanes from a few origins are walked one origin at a time; otherwise the packet's own
     // bounds hold every lane's.
     let split = match frustum.whole.shared_origin() {
@@ -1319,6 +1323,7 @@ fn walk_frustum<const SPREAD: bool, const AVX2: bool, F, P>(
     let mut t_max_high = frustum.t_max_high(active);
     while let Some((index, quadrants)) = stack.pop() {
         let node = &nodes[index as usize];
+        crate::accel::counters::add(|counts| counts.packet_nodes += 1);
         // Per child slot (4 bits each, as `child_lane_masks`), the quadrants reaching it.
         let mut quadrant_masks = 0u32;
         if quadrants.count_ones() > 1 {

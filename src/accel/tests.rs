@@ -1662,7 +1662,7 @@ fn single_ray_box_tests_keep_every_box_an_exact_test_reaches() {
         }
     }
     assert!(
-        corner_rays > 10_000 && reached > 10_000,
+        corner_rays > 8_000 && reached > 10_000,
         "{corner_rays} {reached}"
     );
     assert_eq!(missed, 0, "of {reached}");
@@ -2585,7 +2585,11 @@ fn whole_leaves_split_only_within_shared_groups_and_sphere_and_tube_leaves_split
     let whole_grouped = build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group);
     let grouped_leaves = leaf_count(&whole_grouped.nodes);
     let slots = whole_grouped.order.len();
-    assert!(grouped_leaves > 2 * whole, "{grouped_leaves} vs {whole}");
+    // (Fewer than twice as many: the nodes chosen by surface-area cost leave fewer spare slots.)
+    assert!(
+        4 * grouped_leaves > 5 * whole,
+        "{grouped_leaves} vs {whole}"
+    );
     assert!(slots * 10 < 3000 * 13, "{slots} slots for 3000 boxes");
     // Geometries choose by the cost of their primitive test.
     let per_leaf = |bvh: &GeometryBvh| bvh.primitive_count() as f64 / bvh.leaf_count() as f64;
@@ -3205,6 +3209,25 @@ fn height_field_grid(cells: u32) -> (Vec<Vec3>, Vec<UVec4>) {
 /// The build's layout (nodes, slots, groups, ids) is pinned: faster builders must produce
 /// exactly this BVH. Covers the triangle path with and without skipped triangles, quads and
 /// spheres (split leaves, packed order), each large enough for the parallel collapse.
+/// The collapse chooses which binary subtrees become wide nodes for the least surface-area
+/// cost of node visits: on a height field (the kernel bench's scene) few subtrees of at most
+/// eight triangles stay wide nodes of their own, unlike with the greedy collapse that opened
+/// the largest child first (45,000 triangles: 4,147 nodes, 1,533 of them over at most eight
+/// triangles, node cost 6.83; now 2,748, 402 and 6.54).
+#[test]
+fn wide_nodes_are_chosen_by_surface_area_cost() {
+    let (positions, quads) = height_field_grid(150);
+    let bvh = GeometryBvh::build(GeometryPrims::Quads {
+        positions,
+        indices: quads,
+    });
+    let shape = bvh.tree_shape();
+    assert_eq!(shape.primitives, 45_000, "{shape:?}");
+    let small = shape.bottom_nodes[1] + shape.bottom_nodes[2];
+    assert!(shape.nodes <= 3_000 && small <= 600, "{shape:?}");
+    assert!(shape.node_cost <= 6.65, "{shape:?}");
+}
+
 #[test]
 fn build_layout_is_unchanged() {
     let (positions, quads) = height_field_grid(150);
@@ -3236,9 +3259,9 @@ fn build_layout_is_unchanged() {
     assert_eq!(
         fingerprints,
         [
-            3398085200649982481,
-            10420994867940916855,
-            12304594831072735673,
+            14379911771246019775,
+            4761950897196296312,
+            2529180024857928951,
             17152728817455457097
         ]
     );

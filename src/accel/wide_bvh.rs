@@ -30,6 +30,8 @@ use rayon::iter::{
     IndexedParallelIterator, IntoParallelIterator, IntoParallelRefIterator, ParallelIterator,
 };
 use rayon::slice::ParallelSlice;
+use std::sync::atomic::AtomicU64;
+use std::sync::atomic::Ordering::Relaxed;
 
 /// Leaves hold at most four primitives (one SIMD group of triangles).
 pub(crate) const MAX_PRIMS_PER_LEAF: u32 = 4;
@@ -180,10 +182,96 @@ pub(crate) fn build_wide_bvh(
     );
     ReinsertionOptimizer::default().run(&mut bvh2, 0.01, None);
     let (nodes, order) = collapse_to_wide(&bvh2, sizing, alignment);
+    #[cfg(feature = "kernel-counters")]
+    if std::env::var_os("CAVETRACE_TREE_STATISTICS").is_some() {
+        let shape = TreeShape::of(&nodes, (total.min.into(), total.max.into()));
+        eprintln!(
+            "tree: {} inner nodes ({:.1} % of slots filled), {} leaves ({:.2} primitives each), \
+             node SAH {:.3}, leaf SAH {:.3}; nodes with only leaves, by groups of four \
+             primitives they hold: {:?}",
+            shape.nodes,
+            100.0 * shape.children as f64 / (WIDTH * shape.nodes) as f64,
+            shape.leaves,
+            shape.primitives as f64 / shape.leaves as f64,
+            shape.node_cost,
+            shape.leaf_cost,
+            shape.bottom_nodes,
+        );
+    }
     WideBvh {
         nodes,
         order,
         bounds: (total.min.into(), total.max.into()),
+    }
+}
+
+/// A wide tree's shape and surface-area costs in the terms of Embree's BVH statistics.
+#[cfg(any(test, feature = "kernel-counters"))]
+#[derive(Debug)]
+pub(crate) struct TreeShape {
+    pub nodes: usize,
+    /// Occupied child slots, inner and leaf.
+    pub children: usize,
+    pub leaves: usize,
+    pub primitives: usize,
+    /// Σ inner node half areas / the root's: node visits per ray, for rays spread evenly
+    /// over the root's box.
+    pub node_cost: f64,
+    /// Σ leaf half areas / the root's: leaf (group) tests per ray, the same way.
+    pub leaf_cost: f64,
+    /// Nodes whose children are all leaves, by the groups of four primitives they hold
+    /// (`[k]`: 4k - 3 to 4k primitives; the last entry 29 and more).
+    pub bottom_nodes: [usize; 9],
+}
+
+#[cfg(any(test, feature = "kernel-counters"))]
+impl TreeShape {
+    pub fn of(nodes: &[WideNode], bounds: (Vec3, Vec3)) -> TreeShape {
+        let half_area = |extent: Vec3| {
+            f64::from(extent.x * extent.y + extent.y * extent.z + extent.z * extent.x)
+        };
+        let root_area = half_area(bounds.1 - bounds.0);
+        let mut shape = TreeShape {
+            nodes: nodes.len(),
+            children: 0,
+            leaves: 0,
+            primitives: 0,
+            node_cost: if nodes.is_empty() { 0.0 } else { 1.0 },
+            leaf_cost: 0.0,
+            bottom_nodes: [0; 9],
+        };
+        for node in nodes {
+            let mut node_primitives = 0;
+            let mut only_leaves = true;
+            for slot in (0..WIDTH).filter(|&slot| occupied(node, slot)) {
+                shape.children += 1;
+                let min = Vec3::new(
+                    node.planes[0][slot],
+                    node.planes[2][slot],
+                    node.planes[4][slot],
+                );
+                let max = Vec3::new(
+                    node.planes[1][slot],
+                    node.planes[3][slot],
+                    node.planes[5][slot],
+                );
+                let area = half_area(max - min) / root_area;
+                if node.children[slot] & LEAF_BIT != 0 {
+                    let count = leaf_range(node.children[slot]).1 as usize;
+                    shape.leaves += 1;
+                    shape.primitives += count;
+                    node_primitives += count;
+                    shape.leaf_cost += area;
+                } else {
+                    only_leaves = false;
+                    shape.node_cost += area;
+                }
+            }
+            if only_leaves {
+                shape.bottom_nodes[node_primitives.div_ceil(4).min(8)] += 1;
+            }
+        }
+        shape
     }
 }
 
@@ -269,6 +357,107 @@ pub(crate) enum LeafSizing {
 /// Marks an empty slot in [`assign_slots`]' result.
 const EMPTY_SLOT: u8 = u8::MAX;
 
+/// Surface-area cost of the node visits below binary subtree `index` when it is laid out in at
+/// most `i` child slots of a wide node (`costs[i - 1]`, `i = 1..=8`), as the dynamic programme
+/// of Ylitie et al., "Efficient incoherent ray traversal on GPUs through compressed wide BVHs"
+/// (HPG 2017), with every leaf-sized subtree one leaf: such a subtree costs nothing here (its
+/// leaf tests are the same however the nodes above fall); a larger one either takes one slot
+/// as a wide node of its own (its area: the rays that visit it, plus its children spread over
+/// eight slots) or spreads its two children over the slots. Opening the largest child first,
+/// the greedy collapse this replaces, left many small subtrees (5–8 triangles) as wide nodes
+/// of their own: 94,223 nodes at 1M triangles against 64,215, and a node cost 4 % higher
+/// (`docs/kernel.md`, "The tree beside Embree's").
+///
+/// Also returns the subtree's primitive count if it fits a leaf, as [`leaf_sized_count`] has
+/// it. The choices of a larger subtree go to `plan[index]` (see [`Plan`]).
+fn slot_costs(
+    bvh2: &Bvh2,
+    index: usize,
+    plan: &[AtomicU64],
+    depth: u32,
+) -> ([f32; WIDTH], Option<u32>) {
+    let node = &bvh2.nodes[index];
+    if node.is_leaf() {
+        return ([0.0; WIDTH], Some(node.prim_count));
+    }
+    let first = node.first_index as usize;
+    // The walk is bound by memory latency: the grandchildren's loads start before the
+    // children's subtrees are walked.
+    for child in &bvh2.nodes[first..first + 2] {
+        if !child.is_leaf() {
+            prefetch_pair(&bvh2.nodes, child.first_index as usize);
+        }
+    }
+    // Rayon tasks for the top levels only: below, the subtrees are plenty.
+    let ((left, left_count), (right, right_count)) = if depth < 8 {
+        rayon::join(
+            || slot_costs(bvh2, first, plan, depth + 1),
+            || slot_costs(bvh2, first + 1, plan, depth + 1),
+        )
+    } else {
+        (
+            slot_costs(bvh2, first, plan, depth + 1),
+            slot_costs(bvh2, first + 1, plan, depth + 1),
+        )
+    };
+    let both_inner = !bvh2.nodes[first].is_leaf() && !bvh2.nodes[first + 1].is_leaf();
+    if let (Some(left_count), Some(right_count), false) = (left_count, right_count, both_inner)
+        && left_count + right_count <= MAX_PRIMS_PER_LEAF
+    {
+        return ([0.0; WIDTH], Some(left_count + right_count));
+    }
+    // spread[j - 1]: both children over at most j slots.
+    let mut spread = [f32::INFINITY; WIDTH];
+    let mut packed = 0u64;
+    for budget in 2..=WIDTH {
+        // A leaf-sized left child costs nothing in one slot, and costs never grow with the
+        // budget: it takes one slot, the right child the rest (the first best share below).
+        let best = if left_count.is_some() {
+            (right[budget - 2], 1)
+        } else {
+            let mut best = (f32::INFINITY, 1);
+            for left_slots in 1..budget {
+                let cost = left[left_slots - 1] + right[budget - left_slots - 1];
+                if cost < best.0 {
+                    best = (cost, left_slots);
+                }
+            }
+            best
+        };
+        spread[budget - 1] = best.0;
+        packed |= (best.1 as u64) << Plan::share_shift(budget);
+    }
+    let mut costs = [0.0f32; WIDTH];
+    let mut best = (node.aabb().half_area() + spread[WIDTH - 1], 0usize);
+    costs[0] = best.0;
+    for budget in 2..=WIDTH {
+        if spread[budget - 1] < best.0 {
+            best = (spread[budget - 1], budget);
+        }
+        costs[budget - 1] = best.0;
+        packed |= (best.1 as u64) << Plan::spread_shift(budget);
+    }
+    plan[index].store(packed, Relaxed);
+    (costs, None)
+}
+
+/// Per binary node, [`slot_costs`]' choices, packed into 64 bits (zero for a subtree that fits
+/// a leaf, whose choices are never read): for a slot budget `i = 2..=8`, in a nibble at
+/// [`Plan::spread_shift`], 0 for one slot (a wide node of its own) or the budget `j <= i` its
+/// children spread over; for a budget `j = 2..=8`, the left child's share in a nibble at
+/// [`Plan::share_shift`].
+struct Plan;
+
+impl Plan {
+    fn spread_shift(budget: usize) -> u32 {
+        4 * (budget as u32 - 1)
+    }
+
+    fn share_shift(budget: usize) -> u32 {
+        32 + 4 * (budget as u32 - 1)
+    }
+}
+
 /// Binary descendant chosen as a child of a wide node.
 #[derive(Clone, Copy)]
 struct Candidate {
@@ -281,6 +470,8 @@ struct Candidate {
     aabb: Aabb,
     /// Binary subtrees sharing its leaf (see [`pair_small_leaves`]).
     partners: Partners,
+    /// Child slots the subtree may take in this wide node ([`slot_costs`]' plan).
+    budget: usize,
 }
 
 impl Candidate {
@@ -292,6 +483,7 @@ impl Candidate {
             leaf_count,
             aabb,
             partners: Partners::default(),
+            budget: 1,
         }
     }
 }
@@ -333,11 +525,15 @@ struct Subtree {
     primitives: Vec<u32>,
 }
 
-/// Lays a binary BVH (leaves of at most four primitives) out as wide nodes: each takes its
-/// binary node's two children and keeps opening the largest child (by surface area) that is
-/// too big for a leaf until it has eight or none is left (then, with `LeafSizing::Split`, the
-/// largest that fits a leaf); subtrees of at most four primitives become leaves. The subtrees
-/// below the root are collapsed in parallel on the current rayon pool.
+/// Lays a binary BVH (leaves of at most four primitives) out as wide nodes. With
+/// `LeafSizing::Whole`, which binary subtrees become wide nodes of their own is chosen for the
+/// least surface-area cost of node visits ([`slot_costs`]), and each wide node opens every
+/// child too big for a leaf that the plan spreads over its slots (at most eight result); with
+/// `LeafSizing::Split`, each wide node keeps opening the largest child too big for a leaf until
+/// it has eight or none is left. Then, with spare slots and `LeafSizing::Split` or
+/// `LeafAlignment::Group`, the largest child that fits a leaf is opened; subtrees of at most
+/// four primitives become leaves. The subtrees below the root are collapsed in parallel on the
+/// current rayon pool.
 pub(crate) fn collapse_to_wide(
     bvh2: &Bvh2,
     sizing: LeafSizing,
@@ -352,12 +548,22 @@ pub(crate) fn collapse_to_wide(
             .all(|node| node.prim_count <= MAX_PRIMS_PER_LEAF)
     );
     let mut root_primitives = Vec::new();
+    let plan: Vec<AtomicU64> = (0..bvh2.nodes.len())
+        .into_par_iter()
+        .map(|_| AtomicU64::new(0))
+        .collect();
+    // Leaves of costly primitives are split over spare slots instead (`LeafSizing::Split`),
+    // which the plan does not weigh: their nodes open the largest child first.
+    if sizing == LeafSizing::Whole {
+        slot_costs(bvh2, 0, &plan, 0);
+    }
+    let plan = &plan[..];
     let (mut root, inner_children) =
-        wide_node(bvh2, 0, true, sizing, alignment, &mut root_primitives);
+        wide_node(bvh2, 0, true, sizing, alignment, &mut root_primitives, plan);
     let subtrees: Vec<Subtree> = inner_children
         .as_slice()
         .par_iter()
-        .map(|&(_, child)| collapse_subtree(bvh2, child as usize, sizing, alignment))
+        .map(|&(_, child)| collapse_subtree(bvh2, child as usize, sizing, alignment, plan))
         .collect();
 
     // Layout: root, its inner children's roots side by side, then each child's descendants;
@@ -437,6 +643,7 @@ fn collapse_subtree(
     binary_root: usize,
     sizing: LeafSizing,
     alignment: LeafAlignment,
+    plan: &[AtomicU64],
 ) -> Subtree {
     let mut nodes = vec![WideNode::default()];
     let mut primitives = Vec::new();
@@ -450,6 +657,7 @@ fn collapse_subtree(
             sizing,
             alignment,
             &mut primitives,
+            plan,
         );
         for &(slot, child) in inner_children.as_slice() {
             node.children[slot as usize] = nodes.len() as u32;
@@ -473,9 +681,10 @@ fn wide_node(
     sizing: LeafSizing,
     alignment: LeafAlignment,
     primitive_order: &mut Vec<u32>,
+    plan: &[AtomicU64],
 ) -> (WideNode, InnerChildren) {
     let binary = &bvh2.nodes;
-    let children = wide_children(bvh2, binary_index, may_be_leaf, sizing, alignment);
+    let children = wide_children(bvh2, binary_index, may_be_leaf, sizing, alignment, plan);
     let children = children.as_slice();
     let parent_box = *binary[binary_index].aabb();
     let slots = assign_slots(children, &parent_box);
@@ -703,9 +912,9 @@ fn wide_children(
     may_be_leaf: bool,
     sizing: LeafSizing,
     alignment: LeafAlignment,
+    plan: &[AtomicU64],
 ) -> Candidates {
     let binary = &bvh2.nodes;
-    let node = &binary[index];
     let mut children = Candidates::new(Candidate::of(bvh2, 0, None));
     if may_be_leaf && let Some(count) = leaf_sized_count(bvh2, index) {
         // Only for a tiny root: a single leaf child.
@@ -716,7 +925,24 @@ fn wide_children(
     // to open. Joining more to fill groups is not needed (siblings share groups) and loosens
     // the leaf boxes: the frustum packets were 2-5 % slower with it.
     let join_leaves = alignment == LeafAlignment::Group;
-    let [first, second] = candidate_pair(bvh2, node.first_index as usize);
+    // Children spread as the plan has it: over eight slots below this node, then each opened
+    // subtree's children over the slots it was given.
+    let spread_of = |candidate: &Candidate| match candidate.budget {
+        _ if sizing == LeafSizing::Split => WIDTH,
+        0 | 1 => 0,
+        budget => {
+            ((plan[candidate.index as usize].load(Relaxed) >> Plan::spread_shift(budget)) & 15)
+                as usize
+        }
+    };
+    let opened_pair = |index: usize, spread: usize| {
+        let share = ((plan[index].load(Relaxed) >> Plan::share_shift(spread)) & 15) as usize;
+        let mut pair = candidate_pair(bvh2, binary[index].first_index as usize);
+        pair[0].budget = share;
+        pair[1].budget = spread - share;
+        pair
+    };
+    let [first, second] = opened_pair(index, WIDTH);
     children.push(first);
     children.push(second);
     loop {
@@ -725,6 +951,10 @@ fn wide_children(
         let mut best: Option<(usize, bool, f32)> = None;
         for (position, child) in children.as_slice().iter().enumerate() {
             let must_open = child.leaf_count.is_none();
+            if must_open && spread_of(child) == 0 {
+                // A wide node of its own.
+                continue;
+            }
             if binary[child.index as usize].is_leaf()
                 || child.partners.len > 0
                 || (!must_open && sizing == LeafSizing::Whole && alignment != LeafAlignment::Group)
@@ -756,8 +986,12 @@ fn wide_children(
             };
             position = moved;
         }
-        let opened = binary[children.entries[position].index as usize].first_index as usize;
-        let [first, second] = candidate_pair(bvh2, opened);
+        let chosen = &children.entries[position];
+        let [first, second] = match chosen.leaf_count {
+            None => opened_pair(chosen.index as usize, spread_of(chosen)),
+            // A leaf-sized subtree split over spare slots.
+            Some(_) => candidate_pair(bvh2, binary[chosen.index as usize].first_index as usize),
+        };
         children.entries[position] = first;
         children.push(second);
     }
