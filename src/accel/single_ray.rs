@@ -36,13 +36,13 @@
 //! per-ray biases `origin * inverse ± widening` (see [`fma_biases`] for the bound; it holds for
 //! distances of either sign).
 //!
-//! Rays with `t_min < 0` or an inverse direction component below `f32::MIN_POSITIVE` (a
-//! direction component beyond 2^126) take the generic walk (`wide_bvh::traverse`, the widened
-//! reference test).
+//! Rays with `t_min < 0` take the generic walk (`wide_bvh::traverse`, the widened reference
+//! test).
 
 use crate::accel::primitives::{GROUP_LANES, GroupRay, TriangleGroup, closest_lane, group_closest};
 use crate::accel::wide_bvh::{
-    LEAF_BIT, SLAB_ERROR, TraversalRay, WIDTH, WideNode, group_leaf, traverse,
+    LEAF_BIT, NODE_ROWS, SLAB_ERROR, TraversalRay, WIDTH, WideNode, group_leaf, node_at_unchecked,
+    traverse,
 };
 use glam::{Vec2, Vec3, Vec3A, Vec4};
 use std::mem::MaybeUninit;
@@ -242,31 +242,35 @@ const FUSED_WIDENING_FLOOR: f32 = f32::from_bits(8); // 2^-146
 /// `fl(plane * inverse - entry_bias)` (one rounding, the product exact inside the fused
 /// operation), its exit `fl(plane * inverse - exit_bias)`, with `entry_bias = fl(c + w)` and
 /// `exit_bias = fl(c - w)`, `c = fl(origin * inverse)` and the widening
-/// `w = max(fl(fl(fl(P + |origin|) * |inverse|) * SLAB_ERROR), FUSED_WIDENING_FLOOR)`, `P` the
-/// plane magnitude (`|plane| <= P`).
+/// `w = max(fl(fl(fl(P + |origin|) * max(|inverse|, m)) * SLAB_ERROR), FUSED_WIDENING_FLOOR)`,
+/// `P` the plane magnitude (`|plane| <= P`), `m = f32::MIN_POSITIVE`.
 ///
-/// Why no box holding a hit is culled. Let `u = 2^-24` (half an ulp of 1), `a` the inverse
-/// (normal: `|a| >= f32::MIN_POSITIVE`, the walks' precondition), `M = (P + |origin|) * |a|`,
-/// `T = (plane - origin) * a` and `T*` the exact distance `(plane - origin) / direction`. Each
-/// rounding to nearest of a value `x` errs by at most `u * |x|`, plus `2^-150` in the subnormal
-/// range. Then (first order in `u`; the second-order terms are far inside the margin):
+/// Why no box holding a hit is culled. Let `u = 2^-24` (half an ulp of 1), `a` the inverse,
+/// `A = max(|a|, m)`, `M = (P + |origin|) * A`, `T = (plane - origin) * a` and `T*` the exact
+/// distance `(plane - origin) / direction`. Each rounding to nearest of a value `x` errs by at
+/// most `u * |x|` plus, in the subnormal range, `2^-150`. Then (first order in `u`; the
+/// second-order terms are far inside the margin):
 /// - `|c - origin * a| <= u * |origin| * |a|`,
 /// - `|entry_bias - (c + w)| <= u * (|origin| * |a| + w)`,
 /// - the final rounding errs by at most `u * (P * |a| + |origin| * |a| + w)`,
-/// - `|T - T*| <= u * M` (`a` is `1 / direction` rounded once),
+/// - `|T - T*| <= u * M`: `a` is `1 / direction` rounded once, off by `u * |a|` when normal and
+///   by `2^-150 = u * 2^-126 <= u * A` when subnormal,
 ///
-/// so `entry = T* - w + e` with `|e| <= 4 u M + 2 u w` (plus `3 * 2^-150`). `w` is rounded
-/// down by at most three roundings, `w >= 8 u M (1 - u)^3 > 7.9 u M`, and `w >= 2^-146`, so
-/// `entry < T*` whenever `M > 0` (if `M = 0` every value is zero and exact); likewise
-/// `exit > T*`. The entry of a box (maximum over the axes and `t_min`) is then no later than
-/// the exact one and its exit no earlier, for distances of either sign. An empty slot (planes
-/// `±EMPTY_PLANE`, far beyond `P` and any origin) keeps entry and exit of opposite signs. All
-/// values stay finite: `|plane * a| <= 1e20 * MAX_INV_DIRECTION`.
+/// and the three roundings in the subnormal range add at most `3 * 2^-150`; so
+/// `entry = T* - w + e` with `|e| <= 4 u M + 2 u w + 3 * 2^-150`. `w` is rounded down by at
+/// most three roundings, `w >= 8 u M (1 - u)^3 > 7.9 u M`, and `w >= 2^-146`, so `entry < T*`
+/// whenever `M > 0` (if `M = 0` every value is zero and exact); likewise `exit > T*`. The
+/// entry of a box (maximum over the axes and `t_min`) is then no later than the exact one and
+/// its exit no earlier, for distances of either sign. An empty slot (planes `±EMPTY_PLANE`, far
+/// beyond `P` and any origin) keeps entry and exit of opposite signs. All values stay finite:
+/// `|plane * a| <= 1e20 * MAX_INV_DIRECTION`.
 #[inline(always)]
 fn fma_biases(ray: &TraversalRay, plane_magnitude: Vec3A) -> [Vec3A; 2] {
     let inverse = ray.inv_direction;
     let origin_inverse = ray.origin * inverse;
-    let widening = ((plane_magnitude + ray.origin.abs()) * inverse.abs() * SLAB_ERROR)
+    let widening = ((plane_magnitude + ray.origin.abs())
+        * inverse.abs().max(Vec3A::splat(f32::MIN_POSITIVE))
+        * SLAB_ERROR)
         .max(Vec3A::splat(FUSED_WIDENING_FLOOR));
     [origin_inverse + widening, origin_inverse - widening]
 }
@@ -422,7 +426,7 @@ impl Lanes for Avx2 {
     }
 }
 
-/// Whether every code of `nodes` is in range: inner codes index `nodes`, leaf codes address
+/// Whether every code of `nodes` is in range: inner codes address nodes of `nodes`, leaf codes
 /// slots within `group_count` groups. The walks rely on it (no bounds checks); builds assert it.
 pub(crate) fn codes_in_range(nodes: &[WideNode], group_count: usize) -> bool {
     nodes.iter().all(|node| {
@@ -431,7 +435,8 @@ pub(crate) fn codes_in_range(nodes: &[WideNode], group_count: usize) -> bool {
             if !crate::accel::wide_bvh::occupied(node, slot) {
                 true
             } else if code & LEAF_BIT == 0 {
-                (code as usize) < nodes.len()
+                (code as usize).is_multiple_of(NODE_ROWS)
+                    && (code as usize) / NODE_ROWS < nodes.len()
             } else {
                 group_leaf(code).0 < group_count
             }
@@ -458,8 +463,8 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
     let mut code = 0u32;
     loop {
         if code & LEAF_BIT == 0 {
-            // SAFETY: inner codes index `nodes` (the caller's promise).
-            let node = unsafe { nodes.get_unchecked(code as usize) };
+            // SAFETY: inner codes address nodes of `nodes` (the caller's promise).
+            let node = unsafe { node_at_unchecked(nodes, code) };
             let (mask, nears) = I::child_hits::<ORDER>(node, box_ray, t_max);
             if mask != 0 {
                 let visit = VISIT[ORDER][(mask & 0xff) as usize];
@@ -604,21 +609,6 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
     }
 }
 
-/// Whether the walks' box tests hold for `ray` (else it takes the generic walk): `t_min >= 0`
-/// (the baseline's negative distances would decide entries) and every inverse direction
-/// component normal (the fused test's rounding bound).
-#[inline(always)]
-fn walks_hold(ray: &TraversalRay) -> bool {
-    #[allow(clippy::neg_cmp_op_on_partial_ord)]
-    let behind = !(ray.t_min >= 0.0);
-    let subnormal = ray
-        .inv_direction
-        .abs()
-        .cmplt(Vec3A::splat(f32::MIN_POSITIVE))
-        .any();
-    !(behind | subnormal)
-}
-
 /// The closest hit among `groups` under `nodes`: its slot and barycentrics `(b1, b2)`;
 /// `ray.t_max` shrinks to it. `plane_magnitude`: [`plane_magnitude`] of `nodes` (or more).
 ///
@@ -634,7 +624,9 @@ pub(crate) unsafe fn closest_triangle_slot(
     if nodes.is_empty() {
         return None;
     }
-    if !walks_hold(ray) {
+    // Negative distances decide entries only for rays that may hit before their origin.
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    if !(ray.t_min >= 0.0) {
         return closest_by_generic_walk(nodes, groups, ray);
     }
     #[cfg(target_arch = "x86_64")]
@@ -676,7 +668,8 @@ pub(crate) unsafe fn any_triangle_hit(
     if nodes.is_empty() {
         return false;
     }
-    if !walks_hold(ray) {
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    if !(ray.t_min >= 0.0) {
         return any_by_generic_walk(nodes, groups, ray);
     }
     #[cfg(target_arch = "x86_64")]
@@ -721,7 +714,7 @@ unsafe fn any_baseline(
         .is_some()
 }
 
-/// [`closest_triangle_slot`] for rays the walks' box tests do not hold for: the generic walk, whose widened box
+/// [`closest_triangle_slot`] for rays with `t_min < 0`: the generic walk, whose widened box
 /// test holds for negative distances too (the same hits: both tests keep every box that holds
 /// one, and both walks visit children in the same order).
 #[cold]
