@@ -51,7 +51,27 @@ use std::mem::MaybeUninit;
 /// are visited nearest-first in slots `i ^ order`: the nearest hit child's slot in bits 0..3,
 /// the other hit children's slots three bits each from bit 3 on, farthest first, and their
 /// number from bit [`OTHERS_SHIFT`] on.
-pub(crate) static VISIT: [[u32; 256]; 8] = {
+pub(crate) static VISIT: [[u32; 256]; 8] = visit_table();
+
+/// `NEAREST[order][mask]`: the slot of [`VISIT`]'s nearest hit child (its bits 0..3), a table of
+/// its own so that the walk loads it straight into the child code's address, without masking
+/// it out of the entry on the path from one node to the next.
+static NEAREST: [[u8; 256]; 8] = {
+    let visit = visit_table();
+    let mut table = [[0u8; 256]; 8];
+    let mut order = 0;
+    while order < 8 {
+        let mut mask = 0;
+        while mask < 256 {
+            table[order][mask] = (visit[order][mask] & 7) as u8;
+            mask += 1;
+        }
+        order += 1;
+    }
+    table
+};
+
+const fn visit_table() -> [[u32; 256]; 8] {
     let mut table = [[0u32; 256]; 8];
     let mut order = 0;
     while order < 8 {
@@ -77,7 +97,7 @@ pub(crate) static VISIT: [[u32; 256]; 8] = {
         order += 1;
     }
     table
-};
+}
 
 /// Where a [`VISIT`] entry keeps the number of children to push.
 const OTHERS_SHIFT: u32 = 28;
@@ -467,8 +487,16 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
             let node = unsafe { node_at_unchecked(nodes, code) };
             let (mask, nears) = I::child_hits::<ORDER>(node, box_ray, t_max);
             if mask != 0 {
-                let visit = VISIT[ORDER][(mask & 0xff) as usize];
-                code = node.children[(visit & 7) as usize];
+                // SAFETY: a mask of eight children is below 256, and `NEAREST` holds slots
+                // (below eight).
+                let (visit, nearest) = unsafe {
+                    (
+                        *VISIT[ORDER].get_unchecked(mask as usize),
+                        *NEAREST[ORDER].get_unchecked(mask as usize),
+                    )
+                };
+                // SAFETY: as above.
+                code = unsafe { *node.children.get_unchecked(nearest as usize) };
                 let others = visit >> OTHERS_SHIFT;
                 if others != 0 {
                     if stack.len > stack.last_push {
@@ -886,6 +914,7 @@ pub(crate) mod test_paths {
                     .map(|i| i ^ order as u32)
                     .collect();
                 let entry = VISIT[order][mask];
+                assert_eq!(u32::from(NEAREST[order][mask]), entry & 7);
                 assert_eq!(entry & 7, slots[0], "order {order} mask {mask:#b}");
                 let others = (entry >> OTHERS_SHIFT) as usize;
                 assert_eq!(others, slots.len() - 1, "order {order} mask {mask:#b}");
