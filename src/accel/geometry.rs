@@ -91,7 +91,6 @@ impl GeometryBvh {
     /// per slot (quads: with `QUAD_SECOND_HALF`; padding slots repeat their group's first)
     /// and, for triangles and quads, every group's vertex coordinates (bits).
     pub(crate) fn layout_fingerprint(&self) -> u64 {
-        use crate::accel::wide_bvh::{LEAF_BIT, NODE_ROWS};
         let mut hash = 0xcbf2_9ce4_8422_2325u64;
         let mut add = |word: u32| {
             for byte in word.to_le_bytes() {
@@ -103,14 +102,7 @@ impl GeometryBvh {
                 .iter()
                 .flatten()
                 .for_each(|plane| add(plane.to_bits()));
-            // Inner codes as node indices (the layout's, whatever their encoding).
-            node.children.iter().for_each(|&code| {
-                add(if code & LEAF_BIT == 0 {
-                    code / NODE_ROWS as u32
-                } else {
-                    code
-                })
-            });
+            node.children.iter().for_each(|&code| add(code));
         }
         if let PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) = &self.primitives {
             groups.iter().flat_map(|group| group.ids).for_each(&mut add);

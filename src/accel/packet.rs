@@ -18,7 +18,7 @@ use crate::accel::geometry::prepare as prepare_one;
 use crate::accel::primitives::{TriangleGroup, triangle_t_uv};
 use crate::accel::wide_bvh::{
     BoxRay, LEAF_BIT, MAX_INV_DIRECTION, ORDER, SLAB_ERROR, TraversalRay, TraversalStack, WideNode,
-    child_hits, node_at, prefetch_node,
+    child_hits, prefetch_node,
 };
 use crate::accel::{MAX_COORDINATE, Ray};
 use glam::{BVec4A, Vec3A, Vec4};
@@ -399,7 +399,7 @@ pub(crate) fn traverse_packet<F>(
             );
             continue;
         }
-        let node = node_at(nodes, index);
+        let node = &nodes[index as usize];
         let masks = child_lane_masks(node, &rows, packet, lanes, occupied_children(node));
         let mut hit = 0u32;
         for child in 0..8 {
@@ -454,7 +454,7 @@ fn walk_lane<F>(
             test_leaf(code, 1 << lane, packet);
             continue;
         }
-        let node = node_at(nodes, code);
+        let node = &nodes[code as usize];
         let (mask, nears) = child_hits(node, &box_ray, ray.t_min, packet.t_max[lane]);
         let mut remaining = u32::from(ORDER[order][mask as usize]);
         while remaining != 0 {
@@ -1318,7 +1318,7 @@ fn walk_frustum<const SPREAD: bool, const AVX2: bool, F, P>(
     stack.push((0, active_quadrants));
     let mut t_max_high = frustum.t_max_high(active);
     while let Some((index, quadrants)) = stack.pop() {
-        let node = node_at(nodes, index);
+        let node = &nodes[index as usize];
         // Per child slot (4 bits each, as `child_lane_masks`), the quadrants reaching it.
         let mut quadrant_masks = 0u32;
         if quadrants.count_ones() > 1 {
@@ -1353,7 +1353,7 @@ fn walk_frustum<const SPREAD: bool, const AVX2: bool, F, P>(
                 prefetch_leaf(node.children[slot as usize]);
             } else {
                 inner |= 1 << slot;
-                prefetch_node(node_at(nodes, node.children[slot as usize]));
+                prefetch_node(&nodes[node.children[slot as usize] as usize]);
             }
         }
         if leaves != 0 {

@@ -41,8 +41,7 @@
 
 use crate::accel::primitives::{GROUP_LANES, GroupRay, TriangleGroup, closest_lane, group_closest};
 use crate::accel::wide_bvh::{
-    LEAF_BIT, NODE_ROWS, SLAB_ERROR, TraversalRay, WIDTH, WideNode, group_leaf, node_at_unchecked,
-    traverse,
+    LEAF_BIT, SLAB_ERROR, TraversalRay, WIDTH, WideNode, group_leaf, traverse,
 };
 use glam::{Vec2, Vec3, Vec3A, Vec4};
 use std::mem::MaybeUninit;
@@ -446,7 +445,7 @@ impl Lanes for Avx2 {
     }
 }
 
-/// Whether every code of `nodes` is in range: inner codes address nodes of `nodes`, leaf codes
+/// Whether every code of `nodes` is in range: inner codes index `nodes`, leaf codes address
 /// slots within `group_count` groups. The walks rely on it (no bounds checks); builds assert it.
 pub(crate) fn codes_in_range(nodes: &[WideNode], group_count: usize) -> bool {
     nodes.iter().all(|node| {
@@ -455,8 +454,7 @@ pub(crate) fn codes_in_range(nodes: &[WideNode], group_count: usize) -> bool {
             if !crate::accel::wide_bvh::occupied(node, slot) {
                 true
             } else if code & LEAF_BIT == 0 {
-                (code as usize).is_multiple_of(NODE_ROWS)
-                    && (code as usize) / NODE_ROWS < nodes.len()
+                (code as usize) < nodes.len()
             } else {
                 group_leaf(code).0 < group_count
             }
@@ -483,8 +481,8 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
     let mut code = 0u32;
     loop {
         if code & LEAF_BIT == 0 {
-            // SAFETY: inner codes address nodes of `nodes` (the caller's promise).
-            let node = unsafe { node_at_unchecked(nodes, code) };
+            // SAFETY: inner codes index `nodes` (the caller's promise).
+            let node = unsafe { nodes.get_unchecked(code as usize) };
             let (mask, nears) = I::child_hits::<ORDER>(node, box_ray, t_max);
             if mask != 0 {
                 // SAFETY: a mask of eight children is below 256, and `NEAREST` holds slots

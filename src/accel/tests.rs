@@ -2397,7 +2397,7 @@ mod packet_and_structure {
     }
 
     fn check_structure_with(boxes: &[Aabb], sizing: LeafSizing, alignment: LeafAlignment) {
-        use crate::accel::wide_bvh::{LEAF_BIT, NODE_ROWS, PADDING, leaf_range, occupied};
+        use crate::accel::wide_bvh::{LEAF_BIT, PADDING, leaf_range, occupied};
         let crate::accel::wide_bvh::WideBvh { nodes, order, .. } =
             build_wide_bvh(boxes, sizing, alignment);
         let n = boxes.len();
@@ -2426,14 +2426,13 @@ mod packet_and_structure {
                     })
                 };
                 if code & LEAF_BIT == 0 {
-                    let child = crate::accel::wide_bvh::node_at(&nodes, code);
+                    let child = &nodes[code as usize];
                     for child_slot in (0..8).filter(|&s| occupied(child, s)) {
                         let low = [0, 2, 4].map(|row| child.planes[row][child_slot]);
                         let high = [1, 3, 5].map(|row| child.planes[row][child_slot]);
                         assert!(inside(&Aabb::new(low.into(), high.into())));
                     }
-                    assert_eq!(code as usize % NODE_ROWS, 0);
-                    stack.push(code as usize / NODE_ROWS);
+                    stack.push(code as usize);
                 } else {
                     let (first, count) = leaf_range(code);
                     assert!((1..=4).contains(&count));

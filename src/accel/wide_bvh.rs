@@ -43,63 +43,15 @@ const PLOC_SEARCH_DISTANCE: usize = 2;
 /// A node's children can be at most this many.
 pub(crate) const WIDTH: usize = 8;
 
-/// Set in a child code for a leaf; the code of an inner child is [`inner_code`] of its node
-/// index.
+/// Set in a child code for a leaf; the code of an inner child is its node index.
 pub(crate) const LEAF_BIT: u32 = 1 << 31;
-
-/// A node spans this many 32-byte rows (six plane rows, one row of codes).
-pub(crate) const NODE_ROWS: usize = std::mem::size_of::<WideNode>() / 32;
-const _: () = assert!(std::mem::size_of::<WideNode>() == NODE_ROWS * 32 && NODE_ROWS == 7);
-
-/// The code of inner node `index`: its first row, `index * NODE_ROWS`, so that a walk finds
-/// the node's address with a shift (`code * 32`) instead of a multiply by the node's size.
-/// Nodes number at most [`MAX_PRIMITIVES`], so codes stay below [`LEAF_BIT`].
-#[inline(always)]
-pub(crate) const fn inner_code(index: usize) -> u32 {
-    (index * NODE_ROWS) as u32
-}
-
-/// The node inner code `code` addresses; panics, as indexing does, if its rows lie beyond
-/// `nodes`.
-#[inline(always)]
-pub(crate) fn node_at(nodes: &[WideNode], code: u32) -> &WideNode {
-    let row = code as usize;
-    assert!(
-        row + NODE_ROWS <= nodes.len() * NODE_ROWS,
-        "node code out of range"
-    );
-    // SAFETY: the seven rows from `row` lie within `nodes`; rows are 32 bytes from a 32-byte
-    // aligned start, and a `WideNode` is seven rows of plain `f32`/`u32` data (no padding, every
-    // bit pattern valid), so any seven consecutive rows are a valid, aligned node (for a code
-    // not a multiple of seven, a wrong one, never undefined behaviour).
-    unsafe { node_at_unchecked(nodes, code) }
-}
-
-/// [`node_at`] without the range check.
-///
-/// # Safety
-/// `code as usize + NODE_ROWS <= nodes.len() * NODE_ROWS`.
-#[inline(always)]
-pub(crate) unsafe fn node_at_unchecked(nodes: &[WideNode], code: u32) -> &WideNode {
-    // SAFETY: the rows lie within `nodes` (the caller's promise); see `node_at`.
-    unsafe {
-        &*nodes
-            .as_ptr()
-            .cast::<[f32; WIDTH]>()
-            .add(code as usize)
-            .cast::<WideNode>()
-    }
-}
 /// Leaf codes keep `count - 1` in the two bits below [`LEAF_BIT`].
 const LEAF_COUNT_SHIFT: u32 = 29;
 /// Leaf codes keep the first primitive slot (its group with [`LeafAlignment::Group`]) in the
 /// low 29 bits.
 const LEAF_FIRST_MASK: u32 = (1 << LEAF_COUNT_SHIFT) - 1;
-/// Geometries and scenes address at most this many primitives; the rest are skipped. A BVH
-/// then has fewer nodes (every node but a lone root has two children or more), so that
-/// [`inner_code`]s (seven per node) stay below [`LEAF_BIT`].
-pub(crate) const MAX_PRIMITIVES: usize = 1 << 28;
-const _: () = assert!(MAX_PRIMITIVES * NODE_ROWS < LEAF_BIT as usize);
+/// Geometries and scenes address at most this many primitives; the rest are skipped.
+pub(crate) const MAX_PRIMITIVES: usize = 1 << LEAF_COUNT_SHIFT;
 
 /// Planes of an empty child slot: a box beyond every ray origin whose entry and exit distances
 /// have opposite signs for every ray, so it is never hit, and whose slab distances stay finite.
@@ -109,7 +61,7 @@ const EMPTY_PLANE: f32 = 1.0e20;
 pub(crate) const PADDING: u32 = u32::MAX;
 
 /// Eight children: their boxes per axis as minima then maxima (`planes[2 * axis]`,
-/// `planes[2 * axis + 1]`), and their codes (inner: [`inner_code`]; leaf: [`LEAF_BIT`], count,
+/// `planes[2 * axis + 1]`), and their codes (inner: node index; leaf: [`LEAF_BIT`], count,
 /// first slot). 224 bytes.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(32))]
@@ -411,7 +363,7 @@ pub(crate) fn collapse_to_wide(
     // Layout: root, its inner children's roots side by side, then each child's descendants;
     // primitives: the root's leaves, then each child's primitives.
     for (rank, &(slot, _)) in inner_children.as_slice().iter().enumerate() {
-        root.children[slot as usize] = inner_code(1 + rank);
+        root.children[slot as usize] = 1 + rank as u32;
     }
     let root = [root];
     let mut node_parts: Vec<&[WideNode]> = vec![&root];
@@ -445,7 +397,7 @@ pub(crate) fn collapse_to_wide(
                 *code += primitive_base;
             } else {
                 // Inner children of a subtree are never its root (index 0).
-                *code += inner_code(descendant_base as usize - 1);
+                *code += descendant_base - 1;
             }
         }
         node
@@ -500,7 +452,7 @@ fn collapse_subtree(
             &mut primitives,
         );
         for &(slot, child) in inner_children.as_slice() {
-            node.children[slot as usize] = inner_code(nodes.len());
+            node.children[slot as usize] = nodes.len() as u32;
             pending.push((nodes.len(), child as usize));
             nodes.push(WideNode::default());
         }
@@ -1285,7 +1237,7 @@ pub(crate) fn traverse_with<B: BoxTest, const ANY_HIT: bool, L: LeafTest>(
     let mut code = 0u32;
     loop {
         if code & LEAF_BIT == 0 {
-            let node = node_at(nodes, code);
+            let node = &nodes[code as usize];
             let (mask, nears) = B::child_hits(node, &box_ray, ray.t_min, ray.t_max);
             if mask != 0 {
                 let ordered = u32::from(ORDER[order][mask as usize]);
@@ -1298,7 +1250,7 @@ pub(crate) fn traverse_with<B: BoxTest, const ANY_HIT: bool, L: LeafTest>(
                 }
                 code = node.children[ordered.trailing_zeros() as usize ^ order];
                 if code & LEAF_BIT == 0 {
-                    prefetch(node_at(nodes, code));
+                    prefetch(&nodes[code as usize]);
                 }
                 continue;
             }
