@@ -60,9 +60,6 @@ pub struct GeometryBvh {
     /// ([`GeometryBvh::source_id`]).
     source_ids: Vec<u32>,
     bounds: (Vec3, Vec3),
-    /// Per axis the largest magnitude of an occupied child plane (triangle and quad BVHs; set
-    /// by [`GeometryBvh::checked`]): the single-ray box test's rounding bound.
-    plane_magnitude: Vec3A,
     primitive_count: usize,
     skipped_primitive_count: usize,
 }
@@ -87,9 +84,7 @@ impl GeometryBvh {
             panic!("only triangle and quad BVHs have these walks");
         };
         // SAFETY: checked at build (`checked`).
-        unsafe {
-            single_ray::test_paths::with_small_stack(&self.nodes, groups, self.plane_magnitude, ray)
-        }
+        unsafe { single_ray::test_paths::with_small_stack(&self.nodes, groups, ray) }
     }
 
     /// FNV-1a over the layout: every node's planes (bits) and child codes, the source ids
@@ -264,7 +259,6 @@ fn bvh_over_collected<P: Copy + Send + Sync>(
         primitives,
         source_ids,
         bounds,
-        plane_magnitude: Vec3A::ZERO,
         primitive_count: accepted,
         skipped_primitive_count: input_count - accepted,
     }
@@ -318,7 +312,6 @@ impl GeometryBvh {
                     primitives: PrimitiveData::Triangles(groups),
                     source_ids: Vec::new(),
                     bounds,
-                    plane_magnitude: Vec3A::ZERO,
                     primitive_count: accepted,
                     skipped_primitive_count: input_count - accepted,
                 }
@@ -503,12 +496,10 @@ impl GeometryBvh {
     }
 
     /// Asserts that a triangle or quad BVH's codes are in range, which the single-ray walks
-    /// rely on instead of bounds checks, and finds the magnitude of its planes, which their
-    /// box test relies on.
-    fn checked(mut self) -> GeometryBvh {
+    /// rely on instead of bounds checks.
+    fn checked(self) -> GeometryBvh {
         if let PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) = &self.primitives {
             assert!(single_ray::codes_in_range(&self.nodes, groups.len()));
-            self.plane_magnitude = single_ray::plane_magnitude(&self.nodes);
         }
         self
     }
@@ -523,7 +514,7 @@ impl GeometryBvh {
     pub(crate) fn closest_slot(&self, ray: &mut TraversalRay) -> Option<(u32, Vec2)> {
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
-                closest_triangle_slot(&self.nodes, groups, self.plane_magnitude, ray)
+                closest_triangle_slot(&self.nodes, groups, ray)
             }
             _ => self.closest_other_slot(ray),
         }
@@ -778,7 +769,7 @@ impl GeometryBvh {
     pub(crate) fn any_hit(&self, ray: &mut TraversalRay) -> bool {
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
-                any_triangle_hit(&self.nodes, groups, self.plane_magnitude, ray)
+                any_triangle_hit(&self.nodes, groups, ray)
             }
             PrimitiveData::Spheres(spheres) => {
                 traverse::<true, _>(&self.nodes, ray, |code, ray| {
@@ -973,12 +964,11 @@ impl GeometryBvh {
 fn closest_triangle_slot(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
-    plane_magnitude: Vec3A,
     ray: &mut TraversalRay,
 ) -> Option<(u32, Vec2)> {
     // SAFETY: triangle and quad BVHs are checked with `codes_in_range` when built
-    // (`GeometryBvh::checked`, which also finds `plane_magnitude`) and never change afterwards.
-    unsafe { single_ray::closest_triangle_slot(nodes, groups, plane_magnitude, ray) }
+    // (`GeometryBvh::checked`) and never change afterwards.
+    unsafe { single_ray::closest_triangle_slot(nodes, groups, ray) }
 }
 
 /// [`GeometryBvh::closest_slot`] over triangle groups through the generic walk, counting its
@@ -1023,14 +1013,9 @@ fn closest_triangle_slot(
 
 /// [`GeometryBvh::any_hit`] over triangle groups (see `single_ray`).
 #[inline]
-fn any_triangle_hit(
-    nodes: &[WideNode],
-    groups: &[TriangleGroup],
-    plane_magnitude: Vec3A,
-    ray: &TraversalRay,
-) -> bool {
+fn any_triangle_hit(nodes: &[WideNode], groups: &[TriangleGroup], ray: &TraversalRay) -> bool {
     // SAFETY: as in `closest_triangle_slot`.
-    unsafe { single_ray::any_triangle_hit(nodes, groups, plane_magnitude, ray) }
+    unsafe { single_ray::any_triangle_hit(nodes, groups, ray) }
 }
 
 /// The frustum walk compiled for AVX2: a node's eight child boxes culled per frustum in one

@@ -16,61 +16,32 @@
 //!   same hits);
 //! - the ray's values for the box test and for the triangle test are set up once per ray.
 //!
-//! Both box tests below keep every child box that an exact test reaches within `[t_min, t_max]`
-//! (also when the ray meets it on a face, edge or corner), at an entry distance no later than
-//! the exact one, so both paths visit the same hit-holding children in the same slot order and
-//! find the same hits; they may differ in boxes that hold none. Exact here means with the
-//! walk's inverse direction where a component is clamped to `MAX_INV_DIRECTION`, as for every
-//! box test in the crate.
-//!
-//! The baseline test computes each slab distance as `(origin - plane) * scale`, the plane being
-//! the instruction's memory operand, with the widening folded into the scale: entries are
-//! scaled by `-inverse_direction * (1 - SLAB_ERROR)`, exits by `-inverse_direction * (1 +
-//! SLAB_ERROR)` (each rounded once, per ray). Four roundings (difference, inverse, scale,
-//! product) move a distance by less than `2.1 ε` of itself and the scale by `4 ε` the other
-//! way, so positive entries come out below their exact value and positive exits above it. A
-//! negative distance stays negative (its sign is exact), so with `t_min >= 0` it never decides
-//! an entry (the maximum with `t_min` does) and a negative exit culls only boxes behind `t_min`.
-//!
-//! The AVX2 test is one fused multiply-subtract per plane: `plane * inverse - bias`, with the
-//! per-ray biases `origin * inverse ± widening` (see [`fma_biases`] for the bound; it holds for
-//! distances of either sign).
-//!
-//! Rays with `t_min < 0` take the generic walk (`wide_bvh::traverse`, the widened reference
-//! test).
+//! The box test computes each slab distance as `(origin - plane) * scale`, the plane being the
+//! instruction's memory operand, with the widening folded into the scale: entries are scaled by
+//! `-inverse_direction * (1 - SLAB_ERROR)`, exits by `-inverse_direction * (1 + SLAB_ERROR)`
+//! (each rounded once, per ray). Four roundings (difference, inverse, scale, product) move a
+//! distance by less than `2.1 ε` of itself and the scale by `4 ε` the other way, so positive
+//! entries come out below their exact value and positive exits above it: a box holding a hit
+//! within `[t_min, t_max]` is never culled, also when the ray meets it on a face, edge or
+//! corner. A negative distance stays negative (its sign is exact), so with `t_min >= 0` it never
+//! decides an entry (the maximum with `t_min` does) and a negative exit culls only boxes behind
+//! `t_min`. Rays with `t_min < 0` take the generic walk (`wide_bvh::traverse`, the widened
+//! reference test). Against `wide_bvh::child_hits` this test costs four operations fewer per
+//! node and is shorter on the walk's dependency chain (node, box test, next node); it may reach
+//! a few more or fewer boxes that hold no hit, so the hits are the same.
 
 use crate::accel::primitives::{GROUP_LANES, GroupRay, TriangleGroup, closest_lane, group_closest};
 use crate::accel::wide_bvh::{
     LEAF_BIT, SLAB_ERROR, TraversalRay, WIDTH, WideNode, group_leaf, traverse,
 };
-use glam::{Vec2, Vec3, Vec3A, Vec4};
+use glam::{Vec2, Vec3, Vec4};
 use std::mem::MaybeUninit;
 
 /// `VISIT[order][mask]` for the hit children `mask` (bit per slot) of a ray whose children
 /// are visited nearest-first in slots `i ^ order`: the nearest hit child's slot in bits 0..3,
 /// the other hit children's slots three bits each from bit 3 on, farthest first, and their
 /// number from bit [`OTHERS_SHIFT`] on.
-pub(crate) static VISIT: [[u32; 256]; 8] = visit_table();
-
-/// `NEAREST[order][mask]`: the slot of [`VISIT`]'s nearest hit child (its bits 0..3), a table of
-/// its own so that the walk loads it straight into the child code's address, without masking
-/// it out of the entry on the path from one node to the next.
-static NEAREST: [[u8; 256]; 8] = {
-    let visit = visit_table();
-    let mut table = [[0u8; 256]; 8];
-    let mut order = 0;
-    while order < 8 {
-        let mut mask = 0;
-        while mask < 256 {
-            table[order][mask] = (visit[order][mask] & 7) as u8;
-            mask += 1;
-        }
-        order += 1;
-    }
-    table
-};
-
-const fn visit_table() -> [[u32; 256]; 8] {
+pub(crate) static VISIT: [[u32; 256]; 8] = {
     let mut table = [[0u32; 256]; 8];
     let mut order = 0;
     while order < 8 {
@@ -96,7 +67,7 @@ const fn visit_table() -> [[u32; 256]; 8] {
         order += 1;
     }
     table
-}
+};
 
 /// Where a [`VISIT`] entry keeps the number of children to push.
 const OTHERS_SHIFT: u32 = 28;
@@ -136,8 +107,7 @@ trait Lanes {
     /// The widened entry distances of a node's children.
     type Nears: Copy;
 
-    /// `plane_magnitude`: per axis no less than the magnitude of any occupied child plane.
-    fn box_ray(ray: &TraversalRay, plane_magnitude: Vec3A) -> Self::BoxRay;
+    fn box_ray(ray: &TraversalRay) -> Self::BoxRay;
 
     /// The children hit within `[t_min, t_max]` (bit per slot) and their entry distances, for a
     /// ray whose children are visited in slots `i ^ ORDER`.
@@ -192,7 +162,7 @@ impl Lanes for FourWide {
     type Nears = [f32; WIDTH];
 
     #[inline(always)]
-    fn box_ray(ray: &TraversalRay, _plane_magnitude: Vec3A) -> FourWideRay {
+    fn box_ray(ray: &TraversalRay) -> FourWideRay {
         let [entry_scale, exit_scale] = slab_scales(ray);
         FourWideRay {
             origin: ray.origin.to_array().map(Vec4::splat),
@@ -253,101 +223,40 @@ impl Lanes for FourWide {
     }
 }
 
-/// Smallest widening of the fused box test: covers the absolute rounding errors of results in
-/// the subnormal range (at most `2^-150` each, three of them).
-const FUSED_WIDENING_FLOOR: f32 = f32::from_bits(8); // 2^-146
-
-/// Per axis the biases of the fused box test, `(entry, exit)`: a child's entry distance is
-/// `fl(plane * inverse - entry_bias)` (one rounding, the product exact inside the fused
-/// operation), its exit `fl(plane * inverse - exit_bias)`, with `entry_bias = fl(c + w)` and
-/// `exit_bias = fl(c - w)`, `c = fl(origin * inverse)` and the widening
-/// `w = max(fl(fl(fl(P + |origin|) * max(|inverse|, m)) * SLAB_ERROR), FUSED_WIDENING_FLOOR)`,
-/// `P` the plane magnitude (`|plane| <= P`), `m = f32::MIN_POSITIVE`.
-///
-/// Why no box holding a hit is culled. Let `u = 2^-24` (half an ulp of 1), `a` the inverse,
-/// `A = max(|a|, m)`, `M = (P + |origin|) * A`, `T = (plane - origin) * a` and `T*` the exact
-/// distance `(plane - origin) / direction`. Each rounding to nearest of a value `x` errs by at
-/// most `u * |x|` plus, in the subnormal range, `2^-150`. Then (first order in `u`; the
-/// second-order terms are far inside the margin):
-/// - `|c - origin * a| <= u * |origin| * |a|`,
-/// - `|entry_bias - (c + w)| <= u * (|origin| * |a| + w)`,
-/// - the final rounding errs by at most `u * (P * |a| + |origin| * |a| + w)`,
-/// - `|T - T*| <= u * M`: `a` is `1 / direction` rounded once, off by `u * |a|` when normal and
-///   by `2^-150 = u * 2^-126 <= u * A` when subnormal,
-///
-/// and the three roundings in the subnormal range add at most `3 * 2^-150`; so
-/// `entry = T* - w + e` with `|e| <= 4 u M + 2 u w + 3 * 2^-150`. `w` is rounded down by at
-/// most three roundings, `w >= 8 u M (1 - u)^3 > 7.9 u M`, and `w >= 2^-146`, so `entry < T*`
-/// whenever `M > 0` (if `M = 0` every value is zero and exact); likewise `exit > T*`. The
-/// entry of a box (maximum over the axes and `t_min`) is then no later than the exact one and
-/// its exit no earlier, for distances of either sign. An empty slot (planes `±EMPTY_PLANE`, far
-/// beyond `P` and any origin) keeps entry and exit of opposite signs. All values stay finite:
-/// `|plane * a| <= 1e20 * MAX_INV_DIRECTION`.
-#[inline(always)]
-fn fma_biases(ray: &TraversalRay, plane_magnitude: Vec3A) -> [Vec3A; 2] {
-    let inverse = ray.inv_direction;
-    let origin_inverse = ray.origin * inverse;
-    let widening = ((plane_magnitude + ray.origin.abs())
-        * inverse.abs().max(Vec3A::splat(f32::MIN_POSITIVE))
-        * SLAB_ERROR)
-        .max(Vec3A::splat(FUSED_WIDENING_FLOOR));
-    [origin_inverse + widening, origin_inverse - widening]
-}
-
-/// Per axis the largest magnitude of an occupied child plane of `nodes`.
-pub(crate) fn plane_magnitude(nodes: &[WideNode]) -> Vec3A {
-    let mut magnitude = Vec3A::ZERO;
-    for node in nodes {
-        for slot in 0..WIDTH {
-            if crate::accel::wide_bvh::occupied(node, slot) {
-                let low =
-                    Vec3A::from_array(std::array::from_fn(|axis| node.planes[2 * axis][slot]));
-                let high =
-                    Vec3A::from_array(std::array::from_fn(|axis| node.planes[2 * axis + 1][slot]));
-                magnitude = magnitude.max(low.abs()).max(high.abs());
-            }
-        }
-    }
-    magnitude
-}
-
-/// The AVX2 path: the fused box test eight children at a time and pushes by permutation. Only
-/// walks compiled for AVX2 and FMA (entered only when AVX2 is selected, which requires both)
-/// use it.
+/// The AVX2 path: the box test eight children at a time and pushes by permutation. Only walks
+/// compiled for AVX2 (entered only when AVX2 is selected) use it.
 #[cfg(target_arch = "x86_64")]
 struct Avx2;
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::{Stack, TraversalRay, WideNode, fma_biases, rows};
-    use glam::Vec3A;
+    use super::{FourWideRay, Stack, WideNode, rows};
     use std::arch::x86_64::*;
 
     #[derive(Clone, Copy)]
     pub(super) struct Avx2Ray {
-        inverse: [__m256; 3],
-        entry_bias: [__m256; 3],
-        exit_bias: [__m256; 3],
+        origin: [__m256; 3],
+        entry_scale: [__m256; 3],
+        exit_scale: [__m256; 3],
         t_min: __m256,
     }
 
-    #[target_feature(enable = "avx2,fma")]
+    #[target_feature(enable = "avx2")]
     #[inline]
-    pub(super) fn box_ray(ray: &TraversalRay, plane_magnitude: Vec3A) -> Avx2Ray {
-        let [entry_bias, exit_bias] = fma_biases(ray, plane_magnitude);
-        let splat = |value: Vec3A| value.to_array().map(|lane| _mm256_set1_ps(lane));
+    pub(super) fn box_ray(ray: &FourWideRay) -> Avx2Ray {
+        let splat = |value: glam::Vec4| _mm256_set1_ps(value.x);
         Avx2Ray {
-            inverse: splat(ray.inv_direction),
-            entry_bias: splat(entry_bias),
-            exit_bias: splat(exit_bias),
-            t_min: _mm256_set1_ps(ray.t_min),
+            origin: ray.origin.map(splat),
+            entry_scale: ray.entry_scale.map(splat),
+            exit_scale: ray.exit_scale.map(splat),
+            t_min: splat(ray.t_min),
         }
     }
 
-    #[target_feature(enable = "avx2,fma")]
+    #[target_feature(enable = "avx2")]
     #[inline]
     fn distances(node: &WideNode, ray: &Avx2Ray, axis: usize, rows: (usize, usize)) -> [__m256; 2] {
-        let inverse = ray.inverse[axis];
+        let origin = ray.origin[axis];
         // SAFETY: every plane row is eight floats, 32-byte aligned (`WideNode` is).
         let (entry, exit) = unsafe {
             (
@@ -356,12 +265,12 @@ mod avx2 {
             )
         };
         [
-            _mm256_fmsub_ps(entry, inverse, ray.entry_bias[axis]),
-            _mm256_fmsub_ps(exit, inverse, ray.exit_bias[axis]),
+            _mm256_mul_ps(_mm256_sub_ps(origin, entry), ray.entry_scale[axis]),
+            _mm256_mul_ps(_mm256_sub_ps(origin, exit), ray.exit_scale[axis]),
         ]
     }
 
-    #[target_feature(enable = "avx2,fma")]
+    #[target_feature(enable = "avx2")]
     #[inline]
     pub(super) fn child_hits<const ORDER: usize>(
         node: &WideNode,
@@ -387,7 +296,7 @@ mod avx2 {
     ///
     /// # Safety
     /// `stack.len + 8` entries fit the stack.
-    #[target_feature(enable = "avx2,fma")]
+    #[target_feature(enable = "avx2")]
     #[inline]
     pub(super) unsafe fn push(
         node: &WideNode,
@@ -422,10 +331,9 @@ impl Lanes for Avx2 {
     type Nears = std::arch::x86_64::__m256;
 
     #[inline(always)]
-    fn box_ray(ray: &TraversalRay, plane_magnitude: Vec3A) -> avx2::Avx2Ray {
-        // SAFETY: only walks entered when AVX2 is selected (so the CPU has it and FMA) use this
-        // path.
-        unsafe { avx2::box_ray(ray, plane_magnitude) }
+    fn box_ray(ray: &TraversalRay) -> avx2::Avx2Ray {
+        // SAFETY: only walks entered when AVX2 is selected (so the CPU has it) use this path.
+        unsafe { avx2::box_ray(&FourWide::box_ray(ray)) }
     }
 
     #[inline(always)]
@@ -485,16 +393,8 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
             let node = unsafe { nodes.get_unchecked(code as usize) };
             let (mask, nears) = I::child_hits::<ORDER>(node, box_ray, t_max);
             if mask != 0 {
-                // SAFETY: a mask of eight children is below 256, and `NEAREST` holds slots
-                // (below eight).
-                let (visit, nearest) = unsafe {
-                    (
-                        *VISIT[ORDER].get_unchecked(mask as usize),
-                        *NEAREST[ORDER].get_unchecked(mask as usize),
-                    )
-                };
-                // SAFETY: as above.
-                code = unsafe { *node.children.get_unchecked(nearest as usize) };
+                let visit = VISIT[ORDER][(mask & 0xff) as usize];
+                code = node.children[(visit & 7) as usize];
                 let others = visit >> OTHERS_SHIFT;
                 if others != 0 {
                     if stack.len > stack.last_push {
@@ -582,7 +482,6 @@ fn field_by_field(ray: &TraversalRay) -> TraversalRay {
 unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
-    plane_magnitude: Vec3A,
     ray: &TraversalRay,
 ) -> (Option<Hit>, f32) {
     const { assert!(INLINE >= WIDTH) };
@@ -591,7 +490,7 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
     // instructions read them as memory operands, where otherwise the compiler kept copies in
     // registers, spilled them at the start and reloaded them after every leaf (fewer cycles per
     // ray at 968 triangles, 214 -> 199, for a few more instructions).
-    let box_ray = I::box_ray(ray, plane_magnitude);
+    let box_ray = I::box_ray(ray);
     let box_ray: &I::BoxRay = std::hint::black_box(&box_ray);
     // Kept in memory (opaque to the optimiser): the leaf test then reads its values as memory
     // operands, where otherwise copies of them were spilled for the whole walk (13 fewer
@@ -636,7 +535,7 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
 }
 
 /// The closest hit among `groups` under `nodes`: its slot and barycentrics `(b1, b2)`;
-/// `ray.t_max` shrinks to it. `plane_magnitude`: [`plane_magnitude`] of `nodes` (or more).
+/// `ray.t_max` shrinks to it.
 ///
 /// # Safety
 /// `codes_in_range(nodes, groups.len())`.
@@ -644,7 +543,6 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
 pub(crate) unsafe fn closest_triangle_slot(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
-    plane_magnitude: Vec3A,
     ray: &mut TraversalRay,
 ) -> Option<(u32, Vec2)> {
     if nodes.is_empty() {
@@ -657,15 +555,15 @@ pub(crate) unsafe fn closest_triangle_slot(
     }
     #[cfg(target_arch = "x86_64")]
     let (hit, t) = if crate::isa::avx2_selected() {
-        // SAFETY: AVX2 is selected only on CPUs that have it and FMA; the caller's promise.
-        unsafe { avx2_walks::closest(nodes, groups, plane_magnitude, ray) }
+        // SAFETY: AVX2 is selected only on CPUs that have it; the caller's promise.
+        unsafe { avx2_walks::closest(nodes, groups, ray) }
     } else {
         // SAFETY: the caller's promise.
-        unsafe { closest_baseline(nodes, groups, plane_magnitude, ray) }
+        unsafe { closest_baseline(nodes, groups, ray) }
     };
     #[cfg(not(target_arch = "x86_64"))]
     // SAFETY: the caller's promise.
-    let (hit, t) = unsafe { closest_baseline(nodes, groups, plane_magnitude, ray) };
+    let (hit, t) = unsafe { closest_baseline(nodes, groups, ray) };
     let Hit {
         group,
         lane,
@@ -679,8 +577,7 @@ pub(crate) unsafe fn closest_triangle_slot(
     Some((slot, Vec2::new(v[lane] * inv, w[lane] * inv)))
 }
 
-/// Whether any of `groups` under `nodes` is hit (`plane_magnitude` as in
-/// [`closest_triangle_slot`]).
+/// Whether any of `groups` under `nodes` is hit.
 ///
 /// # Safety
 /// `codes_in_range(nodes, groups.len())`.
@@ -688,7 +585,6 @@ pub(crate) unsafe fn closest_triangle_slot(
 pub(crate) unsafe fn any_triangle_hit(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
-    plane_magnitude: Vec3A,
     ray: &TraversalRay,
 ) -> bool {
     if nodes.is_empty() {
@@ -700,11 +596,11 @@ pub(crate) unsafe fn any_triangle_hit(
     }
     #[cfg(target_arch = "x86_64")]
     if crate::isa::avx2_selected() {
-        // SAFETY: AVX2 is selected only on CPUs that have it and FMA; the caller's promise.
-        return unsafe { avx2_walks::any(nodes, groups, plane_magnitude, ray) };
+        // SAFETY: AVX2 is selected only on CPUs that have it; the caller's promise.
+        return unsafe { avx2_walks::any(nodes, groups, ray) };
     }
     // SAFETY: the caller's promise.
-    unsafe { any_baseline(nodes, groups, plane_magnitude, ray) }
+    unsafe { any_baseline(nodes, groups, ray) }
 }
 
 /// The baseline path's closest-hit walk, out of line like the AVX2 one, so that its callers
@@ -716,11 +612,10 @@ pub(crate) unsafe fn any_triangle_hit(
 unsafe fn closest_baseline(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
-    plane_magnitude: Vec3A,
     ray: &TraversalRay,
 ) -> (Option<Hit>, f32) {
     // SAFETY: the caller's promise.
-    unsafe { walk_ray::<FourWide, false, INLINE_STACK>(nodes, groups, plane_magnitude, ray) }
+    unsafe { walk_ray::<FourWide, false, INLINE_STACK>(nodes, groups, ray) }
 }
 
 /// The baseline path's any-hit walk (as [`closest_baseline`]).
@@ -728,14 +623,9 @@ unsafe fn closest_baseline(
 /// # Safety
 /// As [`closest_baseline`].
 #[inline(never)]
-unsafe fn any_baseline(
-    nodes: &[WideNode],
-    groups: &[TriangleGroup],
-    plane_magnitude: Vec3A,
-    ray: &TraversalRay,
-) -> bool {
+unsafe fn any_baseline(nodes: &[WideNode], groups: &[TriangleGroup], ray: &TraversalRay) -> bool {
     // SAFETY: the caller's promise.
-    unsafe { walk_ray::<FourWide, true, INLINE_STACK>(nodes, groups, plane_magnitude, ray) }
+    unsafe { walk_ray::<FourWide, true, INLINE_STACK>(nodes, groups, ray) }
         .0
         .is_some()
 }
@@ -774,37 +664,34 @@ fn any_by_generic_walk(nodes: &[WideNode], groups: &[TriangleGroup], ray: &Trave
     })
 }
 
-/// The walks compiled for AVX2 and FMA: the eight-wide fused box test and push inlined, the
-/// triangle test the same four-wide operations as the baseline's (VEX-encoded; Rust never
-/// fuses a multiply and an add on its own, so its values are the baseline's bit for bit).
+/// The walks compiled for AVX2: the eight-wide box test and push inlined, the triangle test
+/// the same four-wide operations (VEX-encoded, no fused multiply-adds).
 #[cfg(target_arch = "x86_64")]
 mod avx2_walks {
     use super::*;
 
     /// # Safety
-    /// The CPU has AVX2 and FMA; `codes_in_range(nodes, groups.len())`; `nodes` not empty.
-    #[target_feature(enable = "avx2,fma")]
+    /// The CPU has AVX2; `codes_in_range(nodes, groups.len())`; `nodes` not empty.
+    #[target_feature(enable = "avx2")]
     pub(super) unsafe fn closest(
         nodes: &[WideNode],
         groups: &[TriangleGroup],
-        plane_magnitude: Vec3A,
         ray: &TraversalRay,
     ) -> (Option<Hit>, f32) {
         // SAFETY: the caller's promise.
-        unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, plane_magnitude, ray) }
+        unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray) }
     }
 
     /// # Safety
     /// As [`closest`].
-    #[target_feature(enable = "avx2,fma")]
+    #[target_feature(enable = "avx2")]
     pub(super) unsafe fn any(
         nodes: &[WideNode],
         groups: &[TriangleGroup],
-        plane_magnitude: Vec3A,
         ray: &TraversalRay,
     ) -> bool {
         // SAFETY: the caller's promise.
-        unsafe { walk_ray::<Avx2, true, INLINE_STACK>(nodes, groups, plane_magnitude, ray) }
+        unsafe { walk_ray::<Avx2, true, INLINE_STACK>(nodes, groups, ray) }
             .0
             .is_some()
     }
@@ -817,8 +704,7 @@ pub(crate) mod test_paths {
     use super::*;
 
     /// The single-ray box test of each path for `ray` (its octant's code), as
-    /// `(mask, entry distances)`, with the node's own plane magnitude (the tightest the fused
-    /// test may be given).
+    /// `(mask, entry distances)`.
     pub(crate) fn child_hits(node: &WideNode, ray: &TraversalRay) -> Vec<(u32, [f32; WIDTH])> {
         macro_rules! octants {
             ($($order:literal)*) => {
@@ -835,16 +721,14 @@ pub(crate) mod test_paths {
         node: &WideNode,
         ray: &TraversalRay,
     ) -> Vec<(u32, [f32; WIDTH])> {
-        let magnitude = plane_magnitude(std::slice::from_ref(node));
         let mut paths = vec![FourWide::child_hits::<ORDER>(
             node,
-            &FourWide::box_ray(ray, magnitude),
+            &FourWide::box_ray(ray),
             ray.t_max,
         )];
         #[cfg(target_arch = "x86_64")]
         if crate::isa::Isa::Avx2.supported() {
-            let box_ray = Avx2::box_ray(ray, magnitude);
-            let (mask, near) = Avx2::child_hits::<ORDER>(node, &box_ray, ray.t_max);
+            let (mask, near) = Avx2::child_hits::<ORDER>(node, &Avx2::box_ray(ray), ray.t_max);
             let mut nears = [0.0f32; WIDTH];
             // SAFETY: `nears` holds eight floats.
             unsafe { std::arch::x86_64::_mm256_storeu_ps(nears.as_mut_ptr(), near) };
@@ -861,7 +745,6 @@ pub(crate) mod test_paths {
     pub(crate) unsafe fn with_small_stack(
         nodes: &[WideNode],
         groups: &[TriangleGroup],
-        plane_magnitude: Vec3A,
         ray: &TraversalRay,
     ) -> (Option<(u32, f32)>, bool) {
         if nodes.is_empty() {
@@ -875,25 +758,15 @@ pub(crate) mod test_paths {
             #[cfg(target_arch = "x86_64")]
             if crate::isa::avx2_selected() {
                 return (
-                    slot(walk_ray::<Avx2, false, WIDTH>(
-                        nodes,
-                        groups,
-                        plane_magnitude,
-                        ray,
-                    )),
-                    walk_ray::<Avx2, true, WIDTH>(nodes, groups, plane_magnitude, ray)
+                    slot(walk_ray::<Avx2, false, WIDTH>(nodes, groups, ray)),
+                    walk_ray::<Avx2, true, WIDTH>(nodes, groups, ray)
                         .0
                         .is_some(),
                 );
             }
             (
-                slot(walk_ray::<FourWide, false, WIDTH>(
-                    nodes,
-                    groups,
-                    plane_magnitude,
-                    ray,
-                )),
-                walk_ray::<FourWide, true, WIDTH>(nodes, groups, plane_magnitude, ray)
+                slot(walk_ray::<FourWide, false, WIDTH>(nodes, groups, ray)),
+                walk_ray::<FourWide, true, WIDTH>(nodes, groups, ray)
                     .0
                     .is_some(),
             )
@@ -912,7 +785,6 @@ pub(crate) mod test_paths {
                     .map(|i| i ^ order as u32)
                     .collect();
                 let entry = VISIT[order][mask];
-                assert_eq!(u32::from(NEAREST[order][mask]), entry & 7);
                 assert_eq!(entry & 7, slots[0], "order {order} mask {mask:#b}");
                 let others = (entry >> OTHERS_SHIFT) as usize;
                 assert_eq!(others, slots.len() - 1, "order {order} mask {mask:#b}");
