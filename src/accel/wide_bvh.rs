@@ -357,28 +357,45 @@ pub(crate) enum LeafSizing {
 /// Marks an empty slot in [`assign_slots`]' result.
 const EMPTY_SLOT: u8 = u8::MAX;
 
-/// Surface-area cost of the node visits below binary subtree `index` when it is laid out in at
-/// most `i` child slots of a wide node (`costs[i - 1]`, `i = 1..=8`), as the dynamic programme
-/// of Ylitie et al., "Efficient incoherent ray traversal on GPUs through compressed wide BVHs"
-/// (HPG 2017), with every leaf-sized subtree one leaf: such a subtree costs nothing here (its
-/// leaf tests are the same however the nodes above fall); a larger one either takes one slot
-/// as a wide node of its own (its area: the rays that visit it, plus its children spread over
+/// Surface-area cost of a leaf (group) test relative to a wide node visit, in
+/// [`slot_costs`]: a group of up to four triangles is tested together in SIMD lanes, so the
+/// cost is the same whatever the count. Tuned on the kernel bench (2, 3, 4 and 6 tried, each
+/// with [`NODE_MEMORY_COST`] holding memory level); it stands for more than the test itself,
+/// as a leaf hit also ends in the hit's bookkeeping.
+const LEAF_TEST_COST: f32 = 4.0;
+
+/// A wide node's 224 bytes as a surface-area cost in [`slot_costs`], in half areas of the
+/// root's box per primitive (about the area a bottom node spends per triangle on a surface):
+/// without it, leaf costs alone spread leaf-sized subtrees over more nodes (1M triangles,
+/// leaf test cost 2: +12 % nodes, +1.9 bytes per triangle).
+const NODE_MEMORY_COST: f32 = 24.0;
+
+/// Surface-area cost of the node visits and leaf tests below binary subtree `index` when it
+/// is laid out in at most `i` child slots of a wide node (`costs[i - 1]`, `i = 1..=8`), as the
+/// dynamic programme of Ylitie et al., "Efficient incoherent ray traversal on GPUs through
+/// compressed wide BVHs" (HPG 2017): a leaf-sized subtree either takes one slot as one leaf
+/// (its area times [`LEAF_TEST_COST`]) or spreads its two children over the slots, as leaves
+/// with smaller boxes; a larger one either takes one slot as a wide node of its own (its area:
+/// the rays that visit it, plus [`NODE_MEMORY_COST`] for its memory, plus its children spread over
 /// eight slots) or spreads its two children over the slots. Opening the largest child first,
 /// the greedy collapse this replaces, left many small subtrees (5–8 triangles) as wide nodes
-/// of their own: 94,223 nodes at 1M triangles against 64,215, and a node cost 4 % higher
+/// of their own: 94,223 nodes at 1M triangles against 64,215 with node visits only, and a
+/// node cost 4 % higher; weighing the leaf tests splits leaves where slots are left
 /// (`docs/kernel.md`, "The tree beside Embree's").
 ///
 /// Also returns the subtree's primitive count if it fits a leaf, as [`leaf_sized_count`] has
-/// it. The choices of a larger subtree go to `plan[index]` (see [`Plan`]).
+/// it. The choices go to `plan[index]` (see [`Plan`]).
 fn slot_costs(
     bvh2: &Bvh2,
     index: usize,
     plan: &[AtomicU64],
+    model: CostModel,
     depth: u32,
 ) -> ([f32; WIDTH], Option<u32>) {
     let node = &bvh2.nodes[index];
     if node.is_leaf() {
-        return ([0.0; WIDTH], Some(node.prim_count));
+        let cost = node.aabb().half_area() * LEAF_TEST_COST;
+        return ([cost; WIDTH], Some(node.prim_count));
     }
     let first = node.first_index as usize;
     // The walk is bound by memory latency: the grandchildren's loads start before the
@@ -391,64 +408,149 @@ fn slot_costs(
     // Rayon tasks for the top levels only: below, the subtrees are plenty.
     let ((left, left_count), (right, right_count)) = if depth < 8 {
         rayon::join(
-            || slot_costs(bvh2, first, plan, depth + 1),
-            || slot_costs(bvh2, first + 1, plan, depth + 1),
+            || slot_costs(bvh2, first, plan, model, depth + 1),
+            || slot_costs(bvh2, first + 1, plan, model, depth + 1),
         )
     } else {
         (
-            slot_costs(bvh2, first, plan, depth + 1),
-            slot_costs(bvh2, first + 1, plan, depth + 1),
+            slot_costs(bvh2, first, plan, model, depth + 1),
+            slot_costs(bvh2, first + 1, plan, model, depth + 1),
         )
     };
     let both_inner = !bvh2.nodes[first].is_leaf() && !bvh2.nodes[first + 1].is_leaf();
-    if let (Some(left_count), Some(right_count), false) = (left_count, right_count, both_inner)
-        && left_count + right_count <= MAX_PRIMS_PER_LEAF
+    let leaf_sized = match (left_count, right_count, both_inner) {
+        (Some(left_count), Some(right_count), false)
+            if left_count + right_count <= MAX_PRIMS_PER_LEAF =>
+        {
+            Some(left_count + right_count)
+        }
+        _ => None,
+    };
+    if !model.split_leaves && leaf_sized.is_some() {
+        let one_leaf = node.aabb().half_area() * LEAF_TEST_COST;
+        return ([one_leaf; WIDTH], leaf_sized);
+    }
+    if let (Some(count), Some(left_count)) = (leaf_sized, left_count)
+        && count <= 3
     {
-        return ([0.0; WIDTH], Some(left_count + right_count));
+        let costs = small_leaf_costs(node, (left, left_count), right, count, &plan[index]);
+        return (costs, leaf_sized);
     }
     // spread[j - 1]: both children over at most j slots.
     let mut spread = [f32::INFINITY; WIDTH];
     let mut packed = 0u64;
-    for budget in 2..=WIDTH {
-        // A leaf-sized left child costs nothing in one slot, and costs never grow with the
-        // budget: it takes one slot, the right child the rest (the first best share below).
-        let best = if left_count.is_some() {
-            (right[budget - 2], 1)
-        } else {
-            let mut best = (f32::INFINITY, 1);
-            for left_slots in 1..budget {
-                let cost = left[left_slots - 1] + right[budget - left_slots - 1];
-                if cost < best.0 {
-                    best = (cost, left_slots);
-                }
+    // A leaf-sized subtree of `c` primitives has at most `c` leaves: more slots cost the same,
+    // and a share above them never costs less (the other child's cost only grows), so the
+    // first best share is found among the smaller ones.
+    let most_slots = leaf_sized.map_or(WIDTH, |count| count as usize);
+    let most_left = left_count.map_or(WIDTH, |count| count as usize);
+    for budget in 2..=most_slots {
+        let mut best = (f32::INFINITY, 1);
+        for left_slots in 1..budget.min(most_left + 1) {
+            let cost = left[left_slots - 1] + right[budget - left_slots - 1];
+            if cost < best.0 {
+                best = (cost, left_slots);
             }
-            best
-        };
+        }
         spread[budget - 1] = best.0;
         packed |= (best.1 as u64) << Plan::share_shift(budget);
     }
+    // In one slot: a leaf, or a wide node of its own (the rays that visit it, its memory, and
+    // its children spread over eight slots).
+    let one_slot = match leaf_sized {
+        Some(_) => node.aabb().half_area() * LEAF_TEST_COST,
+        None => node.aabb().half_area() + model.node_penalty + spread[WIDTH - 1],
+    };
     let mut costs = [0.0f32; WIDTH];
-    let mut best = (node.aabb().half_area() + spread[WIDTH - 1], 0usize);
+    let mut best = (one_slot, 0u64);
     costs[0] = best.0;
-    for budget in 2..=WIDTH {
+    for budget in 2..=most_slots {
         if spread[budget - 1] < best.0 {
-            best = (spread[budget - 1], budget);
+            best = (spread[budget - 1], budget as u64);
         }
         costs[budget - 1] = best.0;
-        packed |= (best.1 as u64) << Plan::spread_shift(budget);
+        packed |= best.1 << Plan::spread_shift(budget);
     }
-    plan[index].store(packed, Relaxed);
-    (costs, None)
+    // More slots than a leaf-sized subtree's primitives: the same choice.
+    for budget in most_slots + 1..=WIDTH {
+        costs[budget - 1] = best.0;
+        packed |= best.1 << Plan::spread_shift(budget);
+    }
+    // Shares are read only for a subtree spread: most leaf-sized ones stay one leaf, and
+    // skipping their stores saves the cache misses of writing the plan.
+    if packed & Plan::SPREADS != 0 {
+        plan[index].store(packed, Relaxed);
+    }
+    (costs, leaf_sized)
 }
 
-/// Per binary node, [`slot_costs`]' choices, packed into 64 bits (zero for a subtree that fits
-/// a leaf, whose choices are never read): for a slot budget `i = 2..=8`, in a nibble at
-/// [`Plan::spread_shift`], 0 for one slot (a wide node of its own) or the budget `j <= i` its
-/// children spread over; for a budget `j = 2..=8`, the left child's share in a nibble at
+/// What [`slot_costs`] weighs besides surface areas.
+#[derive(Clone, Copy)]
+struct CostModel {
+    /// [`NODE_MEMORY_COST`] in this tree's areas.
+    node_penalty: f32,
+    /// Whether leaf-sized subtrees may spread over several slots: with
+    /// [`LeafAlignment::Group`] (a node's leaves share groups, so it costs no memory); packed
+    /// leaves stay whole.
+    split_leaves: bool,
+}
+
+/// [`slot_costs`] for a leaf-sized subtree of at most three primitives (most of them), the
+/// same choices without the general loops: one leaf, or its children in two slots, or, for
+/// three primitives, in three (the inner child in two).
+#[inline(always)]
+fn small_leaf_costs(
+    node: &Bvh2Node,
+    (left, left_count): ([f32; WIDTH], u32),
+    right: [f32; WIDTH],
+    count: u32,
+    plan: &AtomicU64,
+) -> [f32; WIDTH] {
+    let two = left[0] + right[0];
+    let mut packed = 1u64 << Plan::share_shift(2);
+    let mut three = two;
+    if count == 3 {
+        let mut best = (left[0] + right[1], 1u64);
+        if left_count >= 2 && left[1] + right[0] < best.0 {
+            best = (left[1] + right[0], 2);
+        }
+        three = best.0;
+        packed |= best.1 << Plan::share_shift(3);
+    }
+    let one_slot = node.aabb().half_area() * LEAF_TEST_COST;
+    // The least cost and its spread (0: one leaf) with two slots, then with three or more.
+    let with_two = if two < one_slot {
+        (two, 2)
+    } else {
+        (one_slot, 0)
+    };
+    let with_three = if three < with_two.0 {
+        (three, 3)
+    } else {
+        with_two
+    };
+    let mut costs = [with_three.0; WIDTH];
+    costs[0] = one_slot;
+    costs[1] = with_two.0;
+    // Spread nibbles: budget 2, then the same for budgets 3 to 8.
+    packed |= (with_two.1 << Plan::spread_shift(2))
+        | ((with_three.1 * 0x11_1111) << Plan::spread_shift(3));
+    if packed & Plan::SPREADS != 0 {
+        plan.store(packed, Relaxed);
+    }
+    costs
+}
+
+/// Per binary node, [`slot_costs`]' choices, packed into 64 bits (zero for a binary leaf):
+/// for a slot budget `i = 2..=8`, in a nibble at [`Plan::spread_shift`], 0 for one slot (a
+/// wide node of its own, or one leaf) or the budget `j <= i` its children spread over; for a budget `j = 2..=8`, the left child's share in a nibble at
 /// [`Plan::share_shift`].
 struct Plan;
 
 impl Plan {
+    /// The nibbles of the spreads.
+    const SPREADS: u64 = (1 << 32) - 1;
+
     fn spread_shift(budget: usize) -> u32 {
         4 * (budget as u32 - 1)
     }
@@ -470,8 +572,9 @@ struct Candidate {
     aabb: Aabb,
     /// Binary subtrees sharing its leaf (see [`pair_small_leaves`]).
     partners: Partners,
-    /// Child slots the subtree may take in this wide node ([`slot_costs`]' plan).
-    budget: usize,
+    /// The slots of this wide node its two children spread over ([`slot_costs`]' plan), or 0
+    /// if it stays one child: a leaf or a wide node of its own.
+    spread: usize,
 }
 
 impl Candidate {
@@ -483,7 +586,7 @@ impl Candidate {
             leaf_count,
             aabb,
             partners: Partners::default(),
-            budget: 1,
+            spread: 0,
         }
     }
 }
@@ -526,9 +629,10 @@ struct Subtree {
 }
 
 /// Lays a binary BVH (leaves of at most four primitives) out as wide nodes. With
-/// `LeafSizing::Whole`, which binary subtrees become wide nodes of their own is chosen for the
-/// least surface-area cost of node visits ([`slot_costs`]), and each wide node opens every
-/// child too big for a leaf that the plan spreads over its slots (at most eight result); with
+/// `LeafSizing::Whole`, which binary subtrees become wide nodes of their own and which leaves
+/// are split is chosen for the least surface-area cost of node visits and leaf tests
+/// ([`slot_costs`]), and each wide node opens every child that the plan spreads over its
+/// slots (at most eight result); with
 /// `LeafSizing::Split`, each wide node keeps opening the largest child too big for a leaf until
 /// it has eight or none is left. Then, with spare slots and `LeafSizing::Split` or
 /// `LeafAlignment::Group`, the largest child that fits a leaf is opened; subtrees of at most
@@ -555,7 +659,12 @@ pub(crate) fn collapse_to_wide(
     // Leaves of costly primitives are split over spare slots instead (`LeafSizing::Split`),
     // which the plan does not weigh: their nodes open the largest child first.
     if sizing == LeafSizing::Whole {
-        slot_costs(bvh2, 0, &plan, 0);
+        let model = CostModel {
+            node_penalty: NODE_MEMORY_COST * bvh2.nodes[0].aabb().half_area()
+                / bvh2.primitive_indices.len() as f32,
+            split_leaves: alignment == LeafAlignment::Group,
+        };
+        slot_costs(bvh2, 0, &plan, model, 0);
     }
     let plan = &plan[..];
     let (mut root, inner_children) =
@@ -927,8 +1036,14 @@ fn wide_children(
     let join_leaves = alignment == LeafAlignment::Group;
     // Children spread as the plan has it: over eight slots below this node, then each opened
     // subtree's children over the slots it was given.
-    let spread_of = |candidate: &Candidate| match candidate.budget {
-        _ if sizing == LeafSizing::Split => WIDTH,
+    let spread_of = |candidate: &Candidate, budget: usize| match budget {
+        _ if sizing == LeafSizing::Split => {
+            if candidate.leaf_count.is_none() {
+                WIDTH
+            } else {
+                0
+            }
+        }
         0 | 1 => 0,
         budget => {
             ((plan[candidate.index as usize].load(Relaxed) >> Plan::spread_shift(budget)) & 15)
@@ -938,42 +1053,46 @@ fn wide_children(
     let opened_pair = |index: usize, spread: usize| {
         let share = ((plan[index].load(Relaxed) >> Plan::share_shift(spread)) & 15) as usize;
         let mut pair = candidate_pair(bvh2, binary[index].first_index as usize);
-        pair[0].budget = share;
-        pair[1].budget = spread - share;
+        pair[0].spread = spread_of(&pair[0], share);
+        pair[1].spread = spread_of(&pair[1], spread - share);
         pair
     };
+    let fill_spare = sizing == LeafSizing::Split || alignment == LeafAlignment::Group;
     let [first, second] = opened_pair(index, WIDTH);
     children.push(first);
     children.push(second);
     loop {
-        // Open the largest subtree too large for a leaf; with spare slots and
-        // `LeafSizing::Split` or `LeafAlignment::Group`, then the largest one that fits a leaf.
+        // Open every subtree the plan spreads (too large for a leaf or not); with spare slots
+        // and `LeafSizing::Split` or `LeafAlignment::Group`, then the largest one that fits a
+        // leaf.
         let mut best: Option<(usize, bool, f32)> = None;
         for (position, child) in children.as_slice().iter().enumerate() {
-            let must_open = child.leaf_count.is_none();
-            if must_open && spread_of(child) == 0 {
+            let planned = child.spread > 0;
+            if !planned && child.leaf_count.is_none() {
                 // A wide node of its own.
                 continue;
             }
             if binary[child.index as usize].is_leaf()
                 || child.partners.len > 0
-                || (!must_open && sizing == LeafSizing::Whole && alignment != LeafAlignment::Group)
+                || (!planned && !fill_spare)
             {
                 continue;
             }
-            let better = best.is_none_or(|(_, best_must, best_area)| {
-                (must_open && !best_must) || (must_open == best_must && child.half_area > best_area)
+            let better = best.is_none_or(|(_, best_planned, best_area)| {
+                (planned && !best_planned)
+                    || (planned == best_planned && child.half_area > best_area)
             });
             if better {
-                best = Some((position, must_open, child.half_area));
+                best = Some((position, planned, child.half_area));
             }
         }
-        let Some((mut position, must_open, _)) = best else {
+        let Some((mut position, planned, _)) = best else {
             break;
         };
         if children.len == WIDTH {
             let chosen = children.entries[position].index;
-            if !(must_open && join_leaves && pair_small_leaves(&mut children)) {
+            let must_open = children.entries[position].leaf_count.is_none();
+            if !(planned && must_open && join_leaves && pair_small_leaves(&mut children)) {
                 break;
             }
             // Joining moved candidates (never the chosen one, which is no leaf).
@@ -987,10 +1106,11 @@ fn wide_children(
             position = moved;
         }
         let chosen = &children.entries[position];
-        let [first, second] = match chosen.leaf_count {
-            None => opened_pair(chosen.index as usize, spread_of(chosen)),
+        let [first, second] = if planned {
+            opened_pair(chosen.index as usize, chosen.spread)
+        } else {
             // A leaf-sized subtree split over spare slots.
-            Some(_) => candidate_pair(bvh2, binary[chosen.index as usize].first_index as usize),
+            candidate_pair(bvh2, binary[chosen.index as usize].first_index as usize)
         };
         children.entries[position] = first;
         children.push(second);
