@@ -977,7 +977,6 @@ fn closest_triangle_slot(
 fn closest_triangle_slot(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
-    _plane_magnitude: Vec3A,
     ray: &mut TraversalRay,
 ) -> Option<(u32, Vec2)> {
     use crate::accel::counters;
@@ -991,7 +990,7 @@ fn closest_triangle_slot(
     }
     // The per-octant walk stays compiled (not taken while counting), without dead-code
     // warnings.
-    let _per_octant_walk: unsafe fn(&[WideNode], &[TriangleGroup], Vec3A, &mut TraversalRay) -> _ =
+    let _per_octant_walk: unsafe fn(&[WideNode], &[TriangleGroup], &mut TraversalRay) -> _ =
         single_ray::closest_triangle_slot;
     counters::add(|counts| counts.rays += 1);
     let mut closest = None;
