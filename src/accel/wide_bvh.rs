@@ -430,12 +430,6 @@ fn slot_costs(
         let one_leaf = node.aabb().half_area() * LEAF_TEST_COST;
         return ([one_leaf; WIDTH], leaf_sized);
     }
-    if let (Some(count), Some(left_count)) = (leaf_sized, left_count)
-        && count <= 3
-    {
-        let costs = small_leaf_costs(node, (left, left_count), right, count, &plan[index]);
-        return (costs, leaf_sized);
-    }
     // spread[j - 1]: both children over at most j slots.
     let mut spread = [f32::INFINITY; WIDTH];
     let mut packed = 0u64;
@@ -493,52 +487,6 @@ struct CostModel {
     /// [`LeafAlignment::Group`] (a node's leaves share groups, so it costs no memory); packed
     /// leaves stay whole.
     split_leaves: bool,
-}
-
-/// [`slot_costs`] for a leaf-sized subtree of at most three primitives (most of them), the
-/// same choices without the general loops: one leaf, or its children in two slots, or, for
-/// three primitives, in three (the inner child in two).
-#[inline(always)]
-fn small_leaf_costs(
-    node: &Bvh2Node,
-    (left, left_count): ([f32; WIDTH], u32),
-    right: [f32; WIDTH],
-    count: u32,
-    plan: &AtomicU64,
-) -> [f32; WIDTH] {
-    let two = left[0] + right[0];
-    let mut packed = 1u64 << Plan::share_shift(2);
-    let mut three = two;
-    if count == 3 {
-        let mut best = (left[0] + right[1], 1u64);
-        if left_count >= 2 && left[1] + right[0] < best.0 {
-            best = (left[1] + right[0], 2);
-        }
-        three = best.0;
-        packed |= best.1 << Plan::share_shift(3);
-    }
-    let one_slot = node.aabb().half_area() * LEAF_TEST_COST;
-    // The least cost and its spread (0: one leaf) with two slots, then with three or more.
-    let with_two = if two < one_slot {
-        (two, 2)
-    } else {
-        (one_slot, 0)
-    };
-    let with_three = if three < with_two.0 {
-        (three, 3)
-    } else {
-        with_two
-    };
-    let mut costs = [with_three.0; WIDTH];
-    costs[0] = one_slot;
-    costs[1] = with_two.0;
-    // Spread nibbles: budget 2, then the same for budgets 3 to 8.
-    packed |= (with_two.1 << Plan::spread_shift(2))
-        | ((with_three.1 * 0x11_1111) << Plan::spread_shift(3));
-    if packed & Plan::SPREADS != 0 {
-        plan.store(packed, Relaxed);
-    }
-    costs
 }
 
 /// Per binary node, [`slot_costs`]' choices, packed into 64 bits (zero for a binary leaf):
