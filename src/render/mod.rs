@@ -6,6 +6,7 @@ pub mod bsdf;
 pub mod cluster;
 pub mod color;
 pub mod diagnostics;
+pub mod eye_light;
 pub mod frame;
 pub mod integrator;
 pub mod interleave;

@@ -13,6 +13,7 @@ use super::{
     key_ray, trace_inputs,
 };
 use crate::accel::SceneHit;
+use crate::render::eye_light;
 use crate::render::integrator::{self, Sample};
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
@@ -449,7 +450,7 @@ fn shade(
             let hit = hits[index];
             if record.fast {
                 let screen = record.screen().unwrap_or_default();
-                Outcome::Sample(integrator::fast_surface_sample(
+                Outcome::Sample(eye_light::fast_surface_sample(
                     scene,
                     settings,
                     &ray,

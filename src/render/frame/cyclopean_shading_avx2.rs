@@ -152,7 +152,7 @@ pub(super) fn shade_cyclopean_avx2(
 mod tests {
     use super::*;
     use crate::camera::lane_vec3;
-    use crate::render::integrator::{UniformSurface, eye_light_of};
+    use crate::render::eye_light::{UniformSurface, eye_light_of};
     use glam::Vec3;
 
     use super::super::cyclopean_views::tests::{hit_at, lanes, ray, settings};

@@ -51,7 +51,7 @@ pub(super) mod tests {
     use super::*;
     use crate::accel::{Ray, SceneHit};
     use crate::camera::lane_vec3;
-    use crate::render::integrator::UniformSurface;
+    use crate::render::eye_light::UniformSurface;
     use crate::render::renderer::RendererSettings;
     use glam::{Vec2, Vec3};
 

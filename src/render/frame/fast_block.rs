@@ -10,7 +10,7 @@ use glam::{Vec2, Vec4};
 
 use crate::accel::SceneHit;
 use crate::camera::{BLOCK_RAYS, BlockRays, EyeRays, lane_vec3};
-use crate::render::integrator::{UniformSurface, fast_surface_color, fast_surface_sample};
+use crate::render::eye_light::{UniformSurface, fast_surface_color, fast_surface_sample};
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
 
