@@ -50,6 +50,7 @@ mod procedural;
 mod scene;
 mod single_ray;
 mod tube;
+mod binned_sah;
 mod wide_bvh;
 
 #[cfg(test)]

@@ -25,6 +25,7 @@ use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::ploc::{PlocBuilder, SortPrecision};
 
+use crate::accel::binned_sah;
 use crate::accel::{EMPTY_BOUNDS, MAX_COORDINATE};
 use rayon::iter::{
     IndexedParallelIterator, IntoParallelIterator, IntoParallelRefIterator, ParallelIterator,
@@ -153,34 +154,11 @@ pub(crate) fn build_wide_bvh(
             bounds: EMPTY_BOUNDS,
         };
     }
-    // obvhs' PLOC merges the leaves it is given: runs of neighbours for whole leaves, else one
-    // per box (what its `build` would make).
-    let leaves: Vec<Bvh2Node> = match sizing {
-        LeafSizing::Whole => neighbour_clusters(boxes),
-        LeafSizing::Split => boxes
-            .par_iter()
-            .enumerate()
-            .map(|(index, aabb)| Bvh2Node::new(*aabb, 1, index as u32))
-            .collect(),
+    let bvh2 = match sizing {
+        LeafSizing::Whole => binned_sah::build_binned_sah(boxes),
+        LeafSizing::Split => ploc_bvh2(boxes),
     };
-    let total = leaves
-        .par_iter()
-        .map(|leaf| *leaf.aabb())
-        .reduce(Aabb::empty, |a, b| a.union(&b));
-    // Sized for PLOC, which writes every node.
-    let mut bvh2 = Bvh2::zeroed(leaves.len());
-    bvh2.primitive_indices = (0..boxes.len() as u32).into_par_iter().collect();
-    let mut builder = PlocBuilder {
-        current_nodes: leaves,
-        ..PlocBuilder::default()
-    };
-    builder.build_ploc_from_leaves::<PLOC_SEARCH_DISTANCE, false>(
-        &mut bvh2,
-        total,
-        SortPrecision::U64,
-        1,
-    );
-    ReinsertionOptimizer::default().run(&mut bvh2, 0.01, None);
+    let total = *bvh2.nodes[0].aabb();
     let (nodes, order) = collapse_to_wide(&bvh2, sizing, alignment);
     #[cfg(feature = "kernel-counters")]
     if std::env::var_os("CAVETRACE_TREE_STATISTICS").is_some() {
@@ -203,6 +181,34 @@ pub(crate) fn build_wide_bvh(
         order,
         bounds: (total.min.into(), total.max.into()),
     }
+}
+
+/// obvhs' PLOC (search distance 2) plus 1% reinsertion over one leaf per box.
+fn ploc_bvh2(boxes: &[Aabb]) -> Bvh2 {
+    let leaves: Vec<Bvh2Node> = boxes
+        .par_iter()
+        .enumerate()
+        .map(|(index, aabb)| Bvh2Node::new(*aabb, 1, index as u32))
+        .collect();
+    let total = leaves
+        .par_iter()
+        .map(|leaf| *leaf.aabb())
+        .reduce(Aabb::empty, |a, b| a.union(&b));
+    // Sized for PLOC, which writes every node.
+    let mut bvh2 = Bvh2::zeroed(leaves.len());
+    bvh2.primitive_indices = (0..boxes.len() as u32).into_par_iter().collect();
+    let mut builder = PlocBuilder {
+        current_nodes: leaves,
+        ..PlocBuilder::default()
+    };
+    builder.build_ploc_from_leaves::<PLOC_SEARCH_DISTANCE, false>(
+        &mut bvh2,
+        total,
+        SortPrecision::U64,
+        1,
+    );
+    ReinsertionOptimizer::default().run(&mut bvh2, 0.01, None);
+    bvh2
 }
 
 /// A wide tree's shape and surface-area costs in the terms of Embree's BVH statistics.
