@@ -44,13 +44,13 @@
 pub mod counters;
 mod geometry;
 pub use crate::isa;
+mod binned_sah;
 mod packet;
 mod primitives;
 mod procedural;
 mod scene;
 mod single_ray;
 mod tube;
-mod binned_sah;
 mod wide_bvh;
 
 #[cfg(test)]

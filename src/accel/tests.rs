@@ -1553,7 +1553,7 @@ fn random_wide_nodes(rng: &mut Rng, count: usize) -> Vec<crate::accel::wide_bvh:
             obvhs::aabb::Aabb::new(a.min(b).min(d).into(), a.max(b).max(d).into())
         })
         .collect();
-    crate::accel::wide_bvh::build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group).nodes
+    crate::accel::wide_bvh::build_wide_bvh(boxes, LeafSizing::Whole, LeafAlignment::Group).nodes
 }
 
 #[test]
@@ -2396,7 +2396,7 @@ mod packet_and_structure {
     fn check_structure_with(boxes: &[Aabb], sizing: LeafSizing, alignment: LeafAlignment) {
         use crate::accel::wide_bvh::{LEAF_BIT, PADDING, leaf_range, occupied};
         let crate::accel::wide_bvh::WideBvh { nodes, order, .. } =
-            build_wide_bvh(boxes, sizing, alignment);
+            build_wide_bvh(boxes.to_vec(), sizing, alignment);
         let n = boxes.len();
         if n == 0 {
             assert!(nodes.is_empty() && order.is_empty());
@@ -2575,14 +2575,15 @@ fn whole_leaves_split_only_within_shared_groups_and_sphere_and_tube_leaves_split
             obvhs::aabb::Aabb::new(low.into(), (low + rng.point(0.0, 1.0)).into())
         })
         .collect();
-    let leaves = |sizing| leaf_count(&build_wide_bvh(&boxes, sizing, LeafAlignment::Packed).nodes);
+    let leaves =
+        |sizing| leaf_count(&build_wide_bvh(boxes.clone(), sizing, LeafAlignment::Packed).nodes);
     let (whole, split) = (leaves(LeafSizing::Whole), leaves(LeafSizing::Split));
     // Whole: leaves of up to four boxes; split: spare slots break them up.
     assert!(whole * 4 >= 3000 && whole < 1500, "{whole}");
     assert!(split > 2 * whole, "{split} vs {whole}");
     // Whole leaves in groups of four: spare slots split them too, but the node's leaves share
     // their groups, so the slots (groups of four, padding included) stay as few.
-    let whole_grouped = build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group);
+    let whole_grouped = build_wide_bvh(boxes.clone(), LeafSizing::Whole, LeafAlignment::Group);
     let grouped_leaves = leaf_count(&whole_grouped.nodes);
     let slots = whole_grouped.order.len();
     // (Fewer than twice as many: the nodes chosen by surface-area cost leave fewer spare slots.)

@@ -143,7 +143,7 @@ pub(crate) enum LeafAlignment {
 /// ~300 ms): the 1% reinsertion cost 15 ms and gained 4% on the default renderer's shadow rays,
 /// so it stays; search distance 6 or 5% reinsertion cost another 40-50 ms for at most 2%.
 pub(crate) fn build_wide_bvh(
-    boxes: &[Aabb],
+    boxes: Vec<Aabb>,
     sizing: LeafSizing,
     alignment: LeafAlignment,
 ) -> WideBvh {
@@ -154,12 +154,26 @@ pub(crate) fn build_wide_bvh(
             bounds: EMPTY_BOUNDS,
         };
     }
+    let timer = std::time::Instant::now();
     let bvh2 = match sizing {
-        LeafSizing::Whole => binned_sah::build_binned_sah(boxes),
-        LeafSizing::Split => ploc_bvh2(boxes),
+        LeafSizing::Whole if std::env::var_os("XSAH_PLOC").is_none() => {
+            binned_sah::build_binned_sah(boxes)
+        }
+
+        LeafSizing::Whole => ploc_bvh2_runs(&boxes),
+        LeafSizing::Split => ploc_bvh2(&boxes),
     };
+    let t1 = timer.elapsed();
     let total = *bvh2.nodes[0].aabb();
     let (nodes, order) = collapse_to_wide(&bvh2, sizing, alignment);
+    if std::env::var_os("XSAH_TIME").is_some() && bvh2.primitive_indices.len() > 100000 {
+        eprintln!(
+            "XSAH bvh2 {:.1} ms, collapse {:.1} ms, bvh2 nodes {}",
+            t1.as_secs_f64() * 1e3,
+            (timer.elapsed() - t1).as_secs_f64() * 1e3,
+            bvh2.nodes.len()
+        );
+    }
     #[cfg(feature = "kernel-counters")]
     if std::env::var_os("CAVETRACE_TREE_STATISTICS").is_some() {
         let shape = TreeShape::of(&nodes, (total.min.into(), total.max.into()));
@@ -184,7 +198,7 @@ pub(crate) fn build_wide_bvh(
 }
 
 /// obvhs' PLOC (search distance 2) plus 1% reinsertion over one leaf per box.
-fn ploc_bvh2(boxes: &[Aabb]) -> Bvh2 {
+pub(crate) fn ploc_bvh2(boxes: &[Aabb]) -> Bvh2 {
     let leaves: Vec<Bvh2Node> = boxes
         .par_iter()
         .enumerate()
@@ -195,6 +209,28 @@ fn ploc_bvh2(boxes: &[Aabb]) -> Bvh2 {
         .map(|leaf| *leaf.aabb())
         .reduce(Aabb::empty, |a, b| a.union(&b));
     // Sized for PLOC, which writes every node.
+    let mut bvh2 = Bvh2::zeroed(leaves.len());
+    bvh2.primitive_indices = (0..boxes.len() as u32).into_par_iter().collect();
+    let mut builder = PlocBuilder {
+        current_nodes: leaves,
+        ..PlocBuilder::default()
+    };
+    builder.build_ploc_from_leaves::<PLOC_SEARCH_DISTANCE, false>(
+        &mut bvh2,
+        total,
+        SortPrecision::U64,
+        1,
+    );
+    ReinsertionOptimizer::default().run(&mut bvh2, 0.01, None);
+    bvh2
+}
+
+fn ploc_bvh2_runs(boxes: &[Aabb]) -> Bvh2 {
+    let leaves = neighbour_clusters(boxes);
+    let total = leaves
+        .par_iter()
+        .map(|leaf| *leaf.aabb())
+        .reduce(Aabb::empty, |a, b| a.union(&b));
     let mut bvh2 = Bvh2::zeroed(leaves.len());
     bvh2.primitive_indices = (0..boxes.len() as u32).into_par_iter().collect();
     let mut builder = PlocBuilder {
