@@ -266,7 +266,7 @@ fn partition(
 }
 
 /// Splits a range of more than one primitive in two (both sides non-empty): at the binned
-/// SAH's best split, else (all centroids in one bin) in the middle.
+/// SAH's best split, else (all centroids in one bin) near the middle.
 fn split(boxes: &mut [Aabb], indices: &mut [u32], range: &Range) -> (usize, Range, Range) {
     fn binned<const B: usize>(
         boxes: &mut [Aabb],
@@ -292,7 +292,8 @@ fn split(boxes: &mut [Aabb], indices: &mut [u32], range: &Range) -> (usize, Rang
         binned::<8>(boxes, indices, range)
     };
     found.unwrap_or_else(|| {
-        let middle = count / 2;
+        // Whole groups of four on the left.
+        let middle = (count / 2).next_multiple_of(MAX_PRIMS_PER_LEAF as usize).min(count - 1);
         (
             middle,
             Range::of(&boxes[..middle]),
@@ -579,7 +580,7 @@ mod tests {
             assert_eq!(ids, (0..count as u32).collect::<Vec<_>>(), "{count}");
             // Leaves of four where the primitives allow it.
             assert!(
-                found.len() * 4 < count + 3 * count.div_ceil(4),
+                found.len() <= count / 3 + 1,
                 "{count}: {} leaves",
                 found.len()
             );
