@@ -293,7 +293,9 @@ fn split(boxes: &mut [Aabb], indices: &mut [u32], range: &Range) -> (usize, Rang
     };
     found.unwrap_or_else(|| {
         // Whole groups of four on the left.
-        let middle = (count / 2).next_multiple_of(MAX_PRIMS_PER_LEAF as usize).min(count - 1);
+        let middle = (count / 2)
+            .next_multiple_of(MAX_PRIMS_PER_LEAF as usize)
+            .min(count - 1);
         (
             middle,
             Range::of(&boxes[..middle]),
