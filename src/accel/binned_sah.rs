@@ -361,14 +361,9 @@ impl Built {
 fn build_parallel(boxes: &mut [Aabb], indices: &mut [u32], offset: u32, range: Range) -> Built {
     let count = boxes.len();
     if count < SEQUENTIAL_BELOW {
-        let t = std::time::Instant::now();
         let mut nodes = Vec::with_capacity(2 * count.div_ceil(2));
         nodes.push(Bvh2Node::default());
         build_sequential(boxes, indices, offset, range, &mut nodes, 0);
-        XSEQ.fetch_add(
-            t.elapsed().as_nanos() as u64,
-            std::sync::atomic::Ordering::Relaxed,
-        );
         return Built::Subtree(nodes);
     }
     let (middle, left, right) = split(boxes, indices, &range);
@@ -426,37 +421,20 @@ fn place(built: Built, root: &mut Bvh2Node, below: &mut [Bvh2Node], base: u32) {
 /// [`MAX_PRIMS_PER_LEAF`] primitives, in parallel on the current rayon pool.
 pub(crate) fn build_binned_sah(mut boxes: Vec<Aabb>) -> Bvh2 {
     debug_assert!(!boxes.is_empty());
-    let tstart = std::time::Instant::now();
     let mut indices: Vec<u32> = (0..boxes.len() as u32).into_par_iter().collect();
     let range = boxes
         .par_chunks(CHUNK)
         .map(Range::of)
         .reduce(Range::empty, Range::union);
-    let t0 = std::time::Instant::now();
     let built = build_parallel(&mut boxes, &mut indices, 0, range);
-    let t1 = t0.elapsed();
-    if boxes.len() > 100000 {
-        eprintln!(
-            "XSAH setup {:.1} build {:.1} (seq cpu {:.1}) place {:.1}",
-            t0.duration_since(tstart).as_secs_f64() * 1e3,
-            t1.as_secs_f64() * 1e3,
-            XSEQ.swap(0, std::sync::atomic::Ordering::Relaxed) as f64 * 1e-6,
-            (t0.elapsed() - t1).as_secs_f64() * 1e3
-        );
-    }
     // `Bvh2::zeroed(n)` holds 2n - 1 nodes, zeroed lazily by the allocator; the tree has
     // 1 + 2k.
     let mut bvh2 = Bvh2::zeroed(1 + built.descendants() / 2);
     let (root, below) = bvh2.nodes.split_at_mut(1);
     place(built, &mut root[0], below, 1);
     bvh2.primitive_indices = indices;
-    if boxes.len() > 100000 {
-        eprintln!("XSAH total {:.1}", tstart.elapsed().as_secs_f64() * 1e3);
-    }
     bvh2
 }
-
-static XSEQ: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
 #[cfg(test)]
 mod tests {

@@ -2471,35 +2471,10 @@ mod packet_and_structure {
         assert_eq!(ids, (0..n as u32).collect::<Vec<_>>());
     }
 
-    /// Checks that `clusters` partition `0..boxes.len()` into consecutive runs of one to three
-    /// primitives in order, each with the union of its boxes; returns the run lengths.
-    fn check_clusters(boxes: &[Aabb], clusters: &[obvhs::bvh2::node::Bvh2Node]) -> Vec<u32> {
-        let mut next = 0u32;
-        let mut lengths = Vec::new();
-        for cluster in clusters {
-            assert_eq!(cluster.first_index, next, "runs in order, without gaps");
-            assert!((1..=3).contains(&cluster.prim_count));
-            let mut union = Aabb::empty();
-            for b in &boxes[next as usize..(next + cluster.prim_count) as usize] {
-                union.extend(b.min);
-                union.extend(b.max);
-            }
-            assert_eq!(
-                (cluster.aabb().min, cluster.aabb().max),
-                (union.min, union.max)
-            );
-            next += cluster.prim_count;
-            lengths.push(cluster.prim_count);
-        }
-        assert_eq!(next as usize, boxes.len());
-        lengths
-    }
-
     #[test]
-    fn neighbouring_mesh_triangles_start_the_build_in_pairs() {
-        use crate::accel::wide_bvh::neighbour_clusters;
+    fn a_mesh_grid_over_two_scan_chunks_builds_well_formed() {
         // A grid listed cell by cell, two triangles per cell (both cover the cell's square):
-        // 5,000 cells span two scan chunks.
+        // 5,000 cells span more than one sequentially built range.
         let cells = 5000;
         let grid: Vec<Aabb> = (0..cells * 2)
             .map(|i| {
@@ -2508,32 +2483,6 @@ mod packet_and_structure {
                 Aabb::new(vec3(x, y, 0.0).into(), vec3(x + 1.0, y + 1.0, 0.1).into())
             })
             .collect();
-        let lengths = check_clusters(&grid, &neighbour_clusters(&grid));
-        // Pairs: a third triangle from the next cell would double the box.
-        assert!(lengths.iter().all(|&n| n == 2), "{:?}", &lengths[..10]);
-        // Boxes that do not touch their predecessor stay single.
-        let apart: Vec<Aabb> = (0..300)
-            .map(|i| {
-                let p = vec3(i as f32 * 2.0, 0.0, 0.0);
-                Aabb::new(p.into(), (p + Vec3::ONE).into())
-            })
-            .collect();
-        let lengths = check_clusters(&apart, &neighbour_clusters(&apart));
-        assert!(lengths.iter().all(|&n| n == 1));
-        // Touching, compact neighbours (a fan of slivers around one point) group by three.
-        let fan: Vec<Aabb> = (0..300)
-            .map(|i| {
-                let angle = i as f32 * 0.01;
-                let tip = vec3(angle.cos(), angle.sin(), 0.0);
-                Aabb::new(Vec3A::ZERO.min(tip.into()), Vec3A::ZERO.max(tip.into()))
-            })
-            .collect();
-        let lengths = check_clusters(&fan, &neighbour_clusters(&fan));
-        assert!(
-            lengths.iter().filter(|&&n| n == 3).count() > 80,
-            "{lengths:?}"
-        );
-        // The built BVH still holds every primitive once (and is checked in full below).
         check_structure(&grid);
     }
 
@@ -2663,41 +2612,6 @@ fn mesh_height_field(
 /// Single rays against brute force (t, id), each hit's record against the record of its
 /// primitive alone (uv and normal), and packets (2x2 and frustum) against single rays.
 fn check_mesh_against_references(prims: GeometryPrims, rng: &mut Rng, name: &str) {
-    // The usable primitives' boxes in build order: most runs are a cell's two halves, and the
-    // scan chunk boundary at box 4096 splits one cell.
-    let (positions, corners): (&[Vec3], Vec<[u32; 3]>) = match &prims {
-        GeometryPrims::Triangles { positions, indices } => {
-            (positions, indices.iter().map(|c| c.to_array()).collect())
-        }
-        GeometryPrims::Quads { positions, indices } => (
-            positions,
-            indices
-                .iter()
-                .flat_map(|q| [[q.x, q.y, q.z], [q.x, q.z, q.w]])
-                .collect(),
-        ),
-        GeometryPrims::Spheres { .. } => unreachable!(),
-    };
-    let boxes: Vec<obvhs::aabb::Aabb> = corners
-        .iter()
-        .filter_map(|c| {
-            let [a, b, c] = c.map(|i| positions[i as usize]);
-            PackedTriangle::new(a, b, c).map(|t| t.bounds())
-        })
-        .collect();
-    let runs = crate::accel::wide_bvh::neighbour_clusters(&boxes);
-    let pairs = runs.iter().filter(|run| run.prim_count == 2).count();
-    assert!(
-        pairs * 10 > runs.len() * 8,
-        "{name}: {pairs} of {} runs are pairs",
-        runs.len()
-    );
-    let at_boundary: Vec<(u32, u32)> = runs
-        .iter()
-        .filter(|run| (4094..=4096).contains(&run.first_index))
-        .map(|run| (run.first_index, run.prim_count))
-        .collect();
-    assert_eq!(at_boundary, [(4095, 1), (4096, 1)], "{name}");
     let geometry: TestGeometry = prims.into();
     let bvh = geometry.build();
     let (min, max) = bvh.bounds();
@@ -2761,14 +2675,12 @@ fn check_mesh_against_references(prims: GeometryPrims, rng: &mut Rng, name: &str
 }
 
 #[test]
-fn meshes_with_runs_across_a_scan_chunk_match_brute_force() {
+fn meshes_with_skipped_primitives_over_several_build_ranges_match_brute_force() {
     let mut rng = Rng::new(77);
-    // 2 * 4500 triangles (over 4,000 runs: PLOC's chunked search); with id 0 skipped, boxes
-    // 4095 and 4096 are the two halves of one cell.
+    // 2 * 4500 triangles (more than one range built sequentially), id 0 skipped.
     let prims = mesh_height_field(&mut rng, 100, 45, false, &[0, 4500]);
     check_mesh_against_references(prims, &mut rng, "triangles");
-    // Quads: 2400 quads, quad 3 keeps only one half, so the halves of quad 2048 are boxes
-    // 4095 and 4096.
+    // Quads: 2400 quads, quad 3 keeps only one half.
     let prims = mesh_height_field(&mut rng, 60, 40, true, &[3]);
     check_mesh_against_references(prims, &mut rng, "quads");
 }
@@ -2776,8 +2688,8 @@ fn meshes_with_runs_across_a_scan_chunk_match_brute_force() {
 #[test]
 fn tiny_meshes_form_a_single_leaf_and_match_brute_force() {
     let mut rng = Rng::new(78);
-    // Up to three pages turning about one shared edge: touching, nearly the same box, so
-    // they form one run and the binary BVH is a single leaf.
+    // Up to three pages turning about one shared edge: at most four triangles, so the
+    // binary BVH is a single leaf.
     let positions = vec![
         vec3(0.0, 0.0, 0.0),
         vec3(0.0, 1.0, 0.0),
@@ -2795,19 +2707,6 @@ fn tiny_meshes_form_a_single_leaf_and_match_brute_force() {
             positions: positions.clone(),
             indices: fan[..count].to_vec(),
         };
-        let boxes: Vec<obvhs::aabb::Aabb> = fan[..count]
-            .iter()
-            .map(|c| {
-                PackedTriangle::new(
-                    positions[c.x as usize],
-                    positions[c.y as usize],
-                    positions[c.z as usize],
-                )
-                .unwrap()
-                .bounds()
-            })
-            .collect();
-        let clusters = crate::accel::wide_bvh::neighbour_clusters(&boxes);
         let geometry: TestGeometry = prims.into();
         let bvh = geometry.build();
         let mut hit_count = 0;
@@ -2823,7 +2722,7 @@ fn tiny_meshes_form_a_single_leaf_and_match_brute_force() {
                 &geometry,
                 single.map(|h| (h.t, h.primitive)),
                 &traversal_ray(r),
-                &format!("{count} triangles, {} runs", clusters.len()),
+                &format!("{count} triangles"),
             );
             hit_count += usize::from(single.is_some());
         }
@@ -2833,7 +2732,7 @@ fn tiny_meshes_form_a_single_leaf_and_match_brute_force() {
             assert_eq!(bvh.intersect(r), *packet_hit);
         }
         assert!(hit_count > 50, "{count}: {hit_count}");
-        assert_eq!(clusters.len(), 1, "{count} triangles");
+        assert_eq!(bvh.leaf_count(), 1, "{count} triangles");
     }
 }
 
