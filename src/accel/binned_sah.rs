@@ -71,6 +71,9 @@ fn side_cost(half_area: f32, count: u32) -> f32 {
     half_area * count.div_ceil(MAX_PRIMS_PER_LEAF) as f32
 }
 
+/// Added to a value in `[0, 2^22)`, rounds it to an integer in the low mantissa bits.
+const ROUNDING: f32 = 8_388_608.0;
+
 /// Maps doubled centroids to `B` bins per axis over a range's centroid bounds.
 #[derive(Clone, Copy)]
 struct Binning<const B: usize> {
@@ -98,7 +101,6 @@ impl<const B: usize> Binning<B> {
     /// three saturating conversions; the clamp keeps NaN and out-of-range positions in the
     /// end bins.
     fn bins(&self, aabb: &Aabb) -> [usize; 3] {
-        const ROUNDING: f32 = 8_388_608.0;
         let position = (aabb.min + aabb.max - self.origin) * self.scale - Vec3A::splat(0.5);
         let clamped = position.max(Vec3A::ZERO).min(Vec3A::splat(B as f32 - 1.0));
         let rounded = clamped + Vec3A::splat(ROUNDING);
@@ -106,6 +108,15 @@ impl<const B: usize> Binning<B> {
         rounded
             .to_array()
             .map(|value| value.to_bits() as usize & (B - 1))
+    }
+
+    /// The bin of `aabb` along `axis`: [`Binning::bins`]' operations on one lane, so the
+    /// same bin.
+    fn bin(&self, aabb: &Aabb, axis: usize) -> usize {
+        let position =
+            (aabb.min[axis] + aabb.max[axis] - self.origin[axis]) * self.scale[axis] - 0.5;
+        let clamped = position.max(0.0).min(B as f32 - 1.0);
+        (clamped + ROUNDING).to_bits() as usize & (B - 1)
     }
 }
 
@@ -275,7 +286,7 @@ fn split(boxes: &mut [Aabb], indices: &mut [u32], range: &Range) -> (usize, Rang
     ) -> Option<(usize, Range, Range)> {
         let (binning, split) = find_split::<B>(boxes, range)?;
         let (middle, centroids) = partition(boxes, indices, |aabb| {
-            binning.bins(aabb)[split.axis] < split.position
+            binning.bin(aabb, split.axis) < split.position
         });
         let side = |side: usize| Range {
             bounds: split.bounds[side],

@@ -1,14 +1,15 @@
 //! The CPU layout of the BVH and its single-ray traversal.
 //!
 //! A binary BVH (binned SAH for whole leaves, else obvhs' PLOC) is laid out by
-//! [`collapse_to_wide`] as [`WideNode`]s: eight children per node with their boxes as plain floats, structure of arrays
-//! (per axis the eight minima, then the eight maxima), so that one vector instruction tests one
-//! plane of all children with nothing to decode. Children are placed in slots so that a ray
-//! visits them nearest-first by taking slot `i ^ octant` for `i = 0..8`, where `octant` has a
-//! bit set for each negative direction component. Leaves hold at most four primitives; with
-//! [`LeafAlignment::Group`] a leaf is a run of lanes within one group of four slots, the
-//! leaves of a node sharing groups (so spare child slots split them at no memory cost), and a
-//! triangle leaf is tested as one SIMD group (see `primitives::TriangleGroup`).
+//! [`collapse_to_wide`] as [`WideNode`]s: eight children per node with their boxes as plain
+//! floats, structure of arrays (per axis the eight minima, then the eight maxima), so that one
+//! vector instruction tests one plane of all children with nothing to decode. Children are
+//! placed in slots so that a ray visits them nearest-first by taking slot `i ^ octant` for
+//! `i = 0..8`, where `octant` has a bit set for each negative direction component. Leaves
+//! hold at most four primitives; with [`LeafAlignment::Group`] a leaf is a run of lanes
+//! within one group of four slots, the leaves of a node sharing groups (so spare child slots
+//! split them at no memory cost), and a triangle leaf is tested as one SIMD group (see
+//! `primitives::TriangleGroup`).
 //!
 //! The box test computes each slab distance as `(plane - origin) * inverse_direction`: two
 //! roundings of a value, so its relative error is bounded (three half-ulps with the rounded
