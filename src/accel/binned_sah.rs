@@ -148,8 +148,7 @@ impl<const B: usize> Bins<B> {
     fn add(&mut self, binning: &Binning<B>, boxes: &[Aabb]) {
         for aabb in boxes {
             let bins = binning.bins(aabb);
-            for axis in 0..3 {
-                let bin = bins[axis];
+            for (axis, &bin) in bins.iter().enumerate() {
                 self.lower[axis][bin] = self.lower[axis][bin].min(aabb.min);
                 self.upper[axis][bin] = self.upper[axis][bin].max(aabb.max);
                 self.counts[axis][bin] += 1;
