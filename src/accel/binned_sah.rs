@@ -3,14 +3,15 @@
 //!
 //! Top-down: each range of primitives is split where the surface area heuristic is least,
 //! found by binning the doubled centroids (box minimum plus maximum) into bins along each of
-//! the three axes. A leaf holds at most [`MAX_PRIMS_PER_LEAF`] primitives and is tested as one
-//! group whatever its count, so a side of a split costs its half area times the groups of four
-//! it needs (as Embree sizes its leaves by its block size): splits fill leaves toward four.
+//! the three axes (32 bins for 128 primitives and more, 16 from 24, else 8). A leaf holds at
+//! most [`MAX_PRIMS_PER_LEAF`] primitives and is tested as one group whatever its count, so a
+//! side of a split costs its half area times the groups of four it needs (as Embree sizes its
+//! leaves by its block size): splits fill leaves toward four.
 //!
-//! The primitives' boxes are copied once and partitioned in place beside their indices; the
-//! ranges below [`SEQUENTIAL_BELOW`] primitives are built by one task each into a node list
-//! of their own, the ranges above by `rayon::join` (binning the largest in parallel chunks),
-//! and [`place`] stitches the lists into obvhs' layout (children of a node side by side).
+//! The caller's boxes are partitioned in place beside the primitive indices; the ranges below
+//! [`SEQUENTIAL_BELOW`] primitives are built by one task each into a node list of their own,
+//! the ranges above by `rayon::join` (binning the largest in parallel chunks), and [`place`]
+//! stitches the lists into obvhs' layout (children of a node side by side).
 
 use glam::Vec3A;
 use obvhs::aabb::Aabb;
