@@ -139,6 +139,36 @@ fn trace(
     )
 }
 
+/// With `CAVETRACE_BENCH_HITS=PREFIX`, writes every ray's hit of frame 1, ray by ray then by
+/// packets, to `PREFIX-GRID.hits`: per ray the primitive and the bits of `t` (little-endian
+/// u32 each; `u32::MAX` twice for a miss), to compare two builds' trees hit by hit.
+fn write_hits(scene: &SceneBvh, rays: &[Ray], grid: u32) {
+    let Some(prefix) = std::env::var_os("CAVETRACE_BENCH_HITS") else {
+        return;
+    };
+    let mut bytes = Vec::with_capacity(rays.len() * 16);
+    let mut push = |hit: &Option<cavetrace::accel::SceneHit>| {
+        let (primitive, t) =
+            hit.map_or((u32::MAX, u32::MAX), |hit| (hit.primitive, hit.t.to_bits()));
+        bytes.extend(primitive.to_le_bytes());
+        bytes.extend(t.to_le_bytes());
+    };
+    let mut hit = None;
+    for ray in rays {
+        scene.intersect_into(ray, &mut hit);
+        push(&hit);
+    }
+    let mut scratch = PacketScratch::new();
+    let mut hits = [None; 64];
+    for chunk in rays.chunks(64) {
+        scene.intersect_packet_with(&mut scratch, chunk, &mut hits);
+        hits[..chunk.len()].iter().for_each(&mut push);
+    }
+    let mut path = prefix;
+    path.push(format!("-{grid}.hits"));
+    std::fs::write(&path, bytes).expect("writing the hits");
+}
+
 /// Per ray: the walks' inner nodes, leaves and triangles (`--features kernel-counters`).
 fn print_counts(triangles: u32, [packets, single]: &[TraversalCounts; 2]) {
     let per = |value: u64, rays: u64| value as f64 / rays.max(1) as f64;
@@ -314,6 +344,9 @@ fn main() {
                 let frame_cpu = cpu_ms() - cpu_start;
                 if f == 1 {
                     checksums[k] = [packet_sum, single_sum];
+                    if k == 0 {
+                        write_hits(&scene, &rays, grid);
+                    }
                 }
                 if f > 0 {
                     let values = [

@@ -245,8 +245,7 @@ fn bvh_over_collected<P: Copy + Send + Sync>(
         nodes,
         order,
         bounds,
-    } = build_wide_bvh(&boxes, sizing, alignment);
-    drop(boxes);
+    } = build_wide_bvh(boxes, sizing, alignment);
     let primitives = in_slot_order(&order, |i| collected.primitives[i as usize]);
     let source_ids = in_slot_order(&order, |i| collected.source_ids[i as usize]);
     let primitives = wrap(primitives, &source_ids);
@@ -286,8 +285,7 @@ impl GeometryBvh {
                     nodes,
                     order,
                     bounds,
-                } = build_wide_bvh(&boxes, LeafSizing::Whole, LeafAlignment::Group);
-                drop(boxes);
+                } = build_wide_bvh(boxes, LeafSizing::Whole, LeafAlignment::Group);
                 let source_ids = match usable_ids {
                     None => in_slot_order(&order, |i| i),
                     Some(ids) => in_slot_order(&order, |i| ids[i as usize]),

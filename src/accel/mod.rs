@@ -44,6 +44,7 @@
 pub mod counters;
 mod geometry;
 pub use crate::isa;
+mod binned_sah;
 mod packet;
 mod primitives;
 mod procedural;

@@ -125,7 +125,7 @@ impl SceneBvh {
             nodes,
             order,
             bounds,
-        } = build_wide_bvh(&boxes, LeafSizing::Split, LeafAlignment::Packed);
+        } = build_wide_bvh(boxes, LeafSizing::Split, LeafAlignment::Packed);
         let mut slots: Vec<Option<Placement>> = placements.into_iter().map(Some).collect();
         let placements = order
             .iter()

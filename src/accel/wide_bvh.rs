@@ -1,14 +1,15 @@
 //! The CPU layout of the BVH and its single-ray traversal.
 //!
-//! obvhs builds a binary BVH (PLOC plus reinsertion); [`collapse_to_wide`] lays it out as
-//! [`WideNode`]s: eight children per node with their boxes as plain floats, structure of arrays
-//! (per axis the eight minima, then the eight maxima), so that one vector instruction tests one
-//! plane of all children with nothing to decode. Children are placed in slots so that a ray
-//! visits them nearest-first by taking slot `i ^ octant` for `i = 0..8`, where `octant` has a
-//! bit set for each negative direction component. Leaves hold at most four primitives; with
-//! [`LeafAlignment::Group`] a leaf is a run of lanes within one group of four slots, the
-//! leaves of a node sharing groups (so spare child slots split them at no memory cost), and a
-//! triangle leaf is tested as one SIMD group (see `primitives::TriangleGroup`).
+//! A binary BVH (binned SAH for whole leaves, else obvhs' PLOC) is laid out by
+//! [`collapse_to_wide`] as [`WideNode`]s: eight children per node with their boxes as plain
+//! floats, structure of arrays (per axis the eight minima, then the eight maxima), so that one
+//! vector instruction tests one plane of all children with nothing to decode. Children are
+//! placed in slots so that a ray visits them nearest-first by taking slot `i ^ octant` for
+//! `i = 0..8`, where `octant` has a bit set for each negative direction component. Leaves
+//! hold at most four primitives; with [`LeafAlignment::Group`] a leaf is a run of lanes
+//! within one group of four slots, the leaves of a node sharing groups (so spare child slots
+//! split them at no memory cost), and a triangle leaf is tested as one SIMD group (see
+//! `primitives::TriangleGroup`).
 //!
 //! The box test computes each slab distance as `(plane - origin) * inverse_direction`: two
 //! roundings of a value, so its relative error is bounded (three half-ulps with the rounded
@@ -25,19 +26,16 @@ use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::ploc::{PlocBuilder, SortPrecision};
 
+use crate::accel::binned_sah;
 use crate::accel::{EMPTY_BOUNDS, MAX_COORDINATE};
 use rayon::iter::{
     IndexedParallelIterator, IntoParallelIterator, IntoParallelRefIterator, ParallelIterator,
 };
-use rayon::slice::ParallelSlice;
 use std::sync::atomic::AtomicU64;
 use std::sync::atomic::Ordering::Relaxed;
 
 /// Leaves hold at most four primitives (one SIMD group of triangles).
 pub(crate) const MAX_PRIMS_PER_LEAF: u32 = 4;
-
-/// Runs of neighbouring primitives that start the binary build are at most this long.
-const MAX_RUN: u32 = 3;
 
 /// How far PLOC looks for a node's nearest neighbour (obvhs' `PlocSearchDistance::VeryLow`).
 const PLOC_SEARCH_DISTANCE: usize = 2;
@@ -135,14 +133,14 @@ pub(crate) enum LeafAlignment {
 
 /// Builds a wide BVH over `boxes`, which must be finite; an empty input gives no nodes.
 ///
-/// obvhs builds the binary BVH (PLOC with search distance 2 plus 1% reinsertion, parallel
-/// through rayon with obvhs' `parallel` feature), for whole leaves starting from the runs of
-/// [`neighbour_clusters`]; [`collapse_to_wide`] then lays it out as [`WideNode`]s, greedily
-/// and in parallel. Measured on a 1M-triangle mesh (2 cores, when the whole build took
-/// ~300 ms): the 1% reinsertion cost 15 ms and gained 4% on the default renderer's shadow rays,
-/// so it stays; search distance 6 or 5% reinsertion cost another 40-50 ms for at most 2%.
+/// The binary BVH comes from [`binned_sah::build_binned_sah`] for whole leaves (leaves of up
+/// to four, filled toward four by its cost) and from obvhs' PLOC otherwise ([`ploc_bvh2`]);
+/// [`collapse_to_wide`] then lays it out as [`WideNode`]s, in parallel. On the benchmark's
+/// 1M-triangle height field the binned-SAH tree takes 19 % fewer node visits per ray than
+/// PLOC's with 1 % reinsertion and builds no slower (`docs/kernel.md`, "A binned-SAH binary
+/// tree").
 pub(crate) fn build_wide_bvh(
-    boxes: &[Aabb],
+    boxes: Vec<Aabb>,
     sizing: LeafSizing,
     alignment: LeafAlignment,
 ) -> WideBvh {
@@ -153,34 +151,11 @@ pub(crate) fn build_wide_bvh(
             bounds: EMPTY_BOUNDS,
         };
     }
-    // obvhs' PLOC merges the leaves it is given: runs of neighbours for whole leaves, else one
-    // per box (what its `build` would make).
-    let leaves: Vec<Bvh2Node> = match sizing {
-        LeafSizing::Whole => neighbour_clusters(boxes),
-        LeafSizing::Split => boxes
-            .par_iter()
-            .enumerate()
-            .map(|(index, aabb)| Bvh2Node::new(*aabb, 1, index as u32))
-            .collect(),
+    let bvh2 = match sizing {
+        LeafSizing::Whole => binned_sah::build_binned_sah(boxes),
+        LeafSizing::Split => ploc_bvh2(&boxes),
     };
-    let total = leaves
-        .par_iter()
-        .map(|leaf| *leaf.aabb())
-        .reduce(Aabb::empty, |a, b| a.union(&b));
-    // Sized for PLOC, which writes every node.
-    let mut bvh2 = Bvh2::zeroed(leaves.len());
-    bvh2.primitive_indices = (0..boxes.len() as u32).into_par_iter().collect();
-    let mut builder = PlocBuilder {
-        current_nodes: leaves,
-        ..PlocBuilder::default()
-    };
-    builder.build_ploc_from_leaves::<PLOC_SEARCH_DISTANCE, false>(
-        &mut bvh2,
-        total,
-        SortPrecision::U64,
-        1,
-    );
-    ReinsertionOptimizer::default().run(&mut bvh2, 0.01, None);
+    let total = *bvh2.nodes[0].aabb();
     let (nodes, order) = collapse_to_wide(&bvh2, sizing, alignment);
     #[cfg(feature = "kernel-counters")]
     if std::env::var_os("CAVETRACE_TREE_STATISTICS").is_some() {
@@ -203,6 +178,38 @@ pub(crate) fn build_wide_bvh(
         order,
         bounds: (total.min.into(), total.max.into()),
     }
+}
+
+/// obvhs' PLOC (search distance 2) plus 1% reinsertion, parallel through rayon with obvhs'
+/// `parallel` feature, over one leaf per box. Measured on a 1M-triangle mesh (2 cores, when
+/// the whole build took ~300 ms): the 1% reinsertion cost 15 ms and gained 4% on the default
+/// renderer's shadow rays; search distance 6 or 5% reinsertion cost another 40-50 ms for at
+/// most 2%.
+pub(crate) fn ploc_bvh2(boxes: &[Aabb]) -> Bvh2 {
+    let leaves: Vec<Bvh2Node> = boxes
+        .par_iter()
+        .enumerate()
+        .map(|(index, aabb)| Bvh2Node::new(*aabb, 1, index as u32))
+        .collect();
+    let total = leaves
+        .par_iter()
+        .map(|leaf| *leaf.aabb())
+        .reduce(Aabb::empty, |a, b| a.union(&b));
+    // Sized for PLOC, which writes every node.
+    let mut bvh2 = Bvh2::zeroed(leaves.len());
+    bvh2.primitive_indices = (0..boxes.len() as u32).into_par_iter().collect();
+    let mut builder = PlocBuilder {
+        current_nodes: leaves,
+        ..PlocBuilder::default()
+    };
+    builder.build_ploc_from_leaves::<PLOC_SEARCH_DISTANCE, false>(
+        &mut bvh2,
+        total,
+        SortPrecision::U64,
+        1,
+    );
+    ReinsertionOptimizer::default().run(&mut bvh2, 0.01, None);
+    bvh2
 }
 
 /// A wide tree's shape and surface-area costs in the terms of Embree's BVH statistics.
@@ -273,57 +280,6 @@ impl TreeShape {
         }
         shape
     }
-}
-
-/// Binary leaves for a build over `boxes`: runs of up to [`MAX_RUN`] consecutive primitives whose
-/// boxes touch one after the other and stay compact together (in a mesh: neighbouring
-/// triangles, such as the two halves of a quad), else single primitives. Meshes list
-/// neighbours next to each other, so the binary build starts from about half as many leaves.
-/// On the benchmark's 1M-triangle height field (2 cores) the BVH build went from 290 to 215 ms
-/// and packets of primary rays got 6 % faster; single rays were about 4 % slower. Runs of three
-/// regardless of shape built in 200 ms but cost single rays 8 %. Boxes are scanned in chunks in
-/// parallel; a run never crosses a chunk boundary.
-pub(crate) fn neighbour_clusters(boxes: &[Aabb]) -> Vec<Bvh2Node> {
-    const CHUNK: usize = 1 << 12;
-    let joins = |cluster: &Aabb, last: &Aabb, next: &Aabb| {
-        let touch = last.min.cmple(next.max).all() && next.min.cmple(last.max).all();
-        let mut union = *cluster;
-        union.extend(next.min);
-        union.extend(next.max);
-        // A run grows only while the union stays smaller than the parts side by side.
-        touch && union.half_area() <= 0.75 * (cluster.half_area() + next.half_area())
-    };
-    let chunks: Vec<Vec<Bvh2Node>> = boxes
-        .par_chunks(CHUNK)
-        .enumerate()
-        .map(|(chunk, boxes)| {
-            let base = chunk * CHUNK;
-            let mut clusters = Vec::with_capacity(boxes.len() / 2 + 1);
-            let mut first = 0;
-            let mut cluster = boxes[0];
-            for i in 1..=boxes.len() {
-                if i < boxes.len()
-                    && i - first < MAX_RUN as usize
-                    && joins(&cluster, &boxes[i - 1], &boxes[i])
-                {
-                    cluster.extend(boxes[i].min);
-                    cluster.extend(boxes[i].max);
-                    continue;
-                }
-                clusters.push(Bvh2Node::new(
-                    cluster,
-                    (i - first) as u32,
-                    (base + first) as u32,
-                ));
-                if i < boxes.len() {
-                    first = i;
-                    cluster = boxes[i];
-                }
-            }
-            clusters
-        })
-        .collect();
-    chunks.concat()
 }
 
 /// Number of leaves in `nodes`.
