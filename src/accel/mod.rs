@@ -45,6 +45,7 @@ pub mod counters;
 mod geometry;
 pub use crate::isa;
 mod binned_sah;
+mod collapse;
 mod packet;
 mod primitives;
 mod procedural;
