@@ -111,13 +111,70 @@ impl<const B: usize> Binning<B> {
             .map(|value| value.to_bits() as usize & (B - 1))
     }
 
-    /// The bin of `aabb` along `axis`: [`Binning::bins`]' operations on one lane, so the
-    /// same bin.
-    fn bin(&self, aabb: &Aabb, axis: usize) -> usize {
-        let position =
-            (aabb.min[axis] + aabb.max[axis] - self.origin[axis]) * self.scale[axis] - 0.5;
+    /// The bin along `axis` of a doubled centroid whose coordinate there is `doubled`:
+    /// [`Binning::bins`]' operations on one lane, so the same bin.
+    fn bin(&self, doubled: f32, axis: usize) -> usize {
+        let position = (doubled - self.origin[axis]) * self.scale[axis] - 0.5;
         let clamped = position.max(0.0).min(B as f32 - 1.0);
         (clamped + ROUNDING).to_bits() as usize & (B - 1)
+    }
+
+    /// The greatest doubled-centroid coordinate along `axis` whose bin is below `position`
+    /// (at least 1): every step of [`Binning::bin`] is monotonic, so a primitive's bin is
+    /// below `position` exactly when its coordinate is at most this. Found by galloping and
+    /// halving over the ordered floats from the exact bin boundary's estimate.
+    fn threshold(&self, axis: usize, position: usize) -> f32 {
+        // Floats (infinities included) as integers in the same order, and back.
+        let key = |value: f32| {
+            let bits = value.to_bits() as i32;
+            if bits < 0 { bits ^ i32::MAX } else { bits }
+        };
+        let value = |key: i32| f32::from_bits((if key < 0 { key ^ i32::MAX } else { key }) as u32);
+        let below = |key: i32| self.bin(value(key), axis) < position;
+        let (lowest, highest) = (key(f32::NEG_INFINITY), key(f32::INFINITY));
+        let estimate = self.origin[axis] + position as f32 / self.scale[axis];
+        let estimate = if estimate.is_nan() {
+            0
+        } else {
+            key(estimate)
+        };
+        // Gallop to a bracket: `below(low)` holds and `below(high)` does not (or high is past
+        // the end).
+        let (mut low, mut high);
+        if below(estimate) {
+            low = estimate;
+            let mut step = 1i64;
+            loop {
+                let next = (i64::from(low) + step).min(i64::from(highest) + 1);
+                if next > i64::from(highest) || !below(next as i32) {
+                    high = next;
+                    break;
+                }
+                low = next as i32;
+                step *= 2;
+            }
+        } else {
+            high = i64::from(estimate);
+            let mut step = 1i64;
+            loop {
+                let next = (high - step).max(i64::from(lowest));
+                if below(next as i32) {
+                    low = next as i32;
+                    break;
+                }
+                high = next;
+                step *= 2;
+            }
+        }
+        while i64::from(low) + 1 < high {
+            let middle = ((i64::from(low) + high) / 2) as i32;
+            if below(middle) {
+                low = middle;
+            } else {
+                high = i64::from(middle);
+            }
+        }
+        value(low)
     }
 }
 
@@ -296,9 +353,16 @@ fn split(
         range: &Range,
     ) -> Option<(usize, Range, Range)> {
         let (binning, split) = find_split::<B>(boxes, range)?;
-        let (middle, centroids) = partition(boxes, indices, |aabb| {
-            binning.bin(aabb, split.axis) < split.position
-        });
+        let threshold = binning.threshold(split.axis, split.position);
+        let (middle, centroids) = match split.axis {
+            0 => partition(boxes, indices, |aabb| aabb.min.x + aabb.max.x <= threshold),
+            1 => partition(boxes, indices, |aabb| aabb.min.y + aabb.max.y <= threshold),
+            _ => partition(boxes, indices, |aabb| aabb.min.z + aabb.max.z <= threshold),
+        };
+        debug_assert!(boxes.iter().enumerate().all(|(at, aabb)| {
+            let doubled = aabb.min[split.axis] + aabb.max[split.axis];
+            (binning.bin(doubled, split.axis) < split.position) == (at < middle)
+        }));
         let side = |side: usize| Range {
             bounds: split.bounds[side],
             centroids: centroids[side],
