@@ -586,6 +586,35 @@ mod tests {
     }
 
     #[test]
+    fn the_threshold_is_the_last_coordinate_below_the_split_bin() {
+        let next_up = |value: f32| {
+            let bits = value.to_bits();
+            f32::from_bits(if value >= 0.0 { bits + 1 } else { bits - 1 })
+        };
+        let ranges = [(-3.7f32, 12.25f32), (1.0e6, 1.0e6 + 0.5), (-1.0e-3, 2.0e-3)];
+        for (low, high) in ranges {
+            let centroids = Aabb {
+                min: Vec3A::new(low, 0.0, -high),
+                max: Vec3A::new(high, 1.0, -low),
+            };
+            let binning = Binning::<16>::new(&centroids);
+            for axis in 0..3 {
+                for position in 1..16 {
+                    let threshold = binning.threshold(axis, position);
+                    assert!(
+                        binning.bin(threshold, axis) < position,
+                        "{low} {axis} {position}"
+                    );
+                    assert!(
+                        binning.bin(next_up(threshold), axis) >= position,
+                        "{low} {axis} {position}: {threshold}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
     fn two_clusters_of_four_become_the_two_leaves_below_the_root() {
         // Interleaved in the input: even ids near x = 0, odd ids near x = 100.
         let boxes: Vec<Aabb> = (0..8)
