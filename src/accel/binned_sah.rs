@@ -3,7 +3,7 @@
 //!
 //! Top-down: each range of primitives is split where the surface area heuristic is least,
 //! found by binning the doubled centroids (box minimum plus maximum) into bins along each of
-//! the three axes (32 bins for 128 primitives and more, 16 from 24, else 8). A leaf holds at
+//! the three axes (32 bins for 128 primitives and more, 16 from 24, else 4). A leaf holds at
 //! most [`MAX_PRIMS_PER_LEAF`] primitives and is tested as one group whatever its count, so a
 //! side of a split costs its half area times the groups of four it needs (as Embree sizes its
 //! leaves by its block size): splits fill leaves toward four.
@@ -383,7 +383,7 @@ fn split(
     } else if count >= 24 {
         binned::<16>(boxes, indices, range)
     } else {
-        binned::<8>(boxes, indices, range)
+        binned::<4>(boxes, indices, range)
     };
     found.unwrap_or_else(|| {
         // Whole groups of four on the left.
