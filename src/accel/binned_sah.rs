@@ -3,7 +3,7 @@
 //!
 //! Top-down: each range of primitives is split where the surface area heuristic is least,
 //! found by binning the doubled centroids (box minimum plus maximum) into bins along each of
-//! the three axes (32 bins for 128 primitives and more, 16 from 24, else 8). A leaf holds at
+//! the three axes (32 bins for 128 primitives and more, 16 from 24, else 4). A leaf holds at
 //! most [`MAX_PRIMS_PER_LEAF`] primitives and is tested as one group whatever its count, so a
 //! side of a split costs its half area times the groups of four it needs (as Embree sizes its
 //! leaves by its block size): splits fill leaves toward four.
@@ -13,7 +13,7 @@
 //! the ranges above by `rayon::join` (binning the largest in parallel chunks), and [`place`]
 //! stitches the lists into obvhs' layout (children of a node side by side).
 
-use glam::Vec3A;
+use glam::{Vec3A, Vec4};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::node::Bvh2Node;
@@ -111,22 +111,81 @@ impl<const B: usize> Binning<B> {
             .map(|value| value.to_bits() as usize & (B - 1))
     }
 
-    /// The bin of `aabb` along `axis`: [`Binning::bins`]' operations on one lane, so the
-    /// same bin.
-    fn bin(&self, aabb: &Aabb, axis: usize) -> usize {
-        let position =
-            (aabb.min[axis] + aabb.max[axis] - self.origin[axis]) * self.scale[axis] - 0.5;
+    /// The bin along `axis` of a doubled centroid whose coordinate there is `doubled`:
+    /// [`Binning::bins`]' operations on one lane, so the same bin.
+    fn bin(&self, doubled: f32, axis: usize) -> usize {
+        let position = (doubled - self.origin[axis]) * self.scale[axis] - 0.5;
         let clamped = position.max(0.0).min(B as f32 - 1.0);
         (clamped + ROUNDING).to_bits() as usize & (B - 1)
+    }
+
+    /// The greatest doubled-centroid coordinate along `axis` whose bin is below `position`
+    /// (at least 1): every step of [`Binning::bin`] is monotonic, so a primitive's bin is
+    /// below `position` exactly when its coordinate is at most this. Found by galloping and
+    /// halving over the ordered floats from the exact bin boundary's estimate.
+    fn threshold(&self, axis: usize, position: usize) -> f32 {
+        // Floats (infinities included) as integers in the same order, and back.
+        let key = |value: f32| {
+            let bits = value.to_bits() as i32;
+            if bits < 0 { bits ^ i32::MAX } else { bits }
+        };
+        let value = |key: i32| f32::from_bits((if key < 0 { key ^ i32::MAX } else { key }) as u32);
+        let below = |key: i32| self.bin(value(key), axis) < position;
+        let (lowest, highest) = (key(f32::NEG_INFINITY), key(f32::INFINITY));
+        let estimate = self.origin[axis] + position as f32 / self.scale[axis];
+        let estimate = if estimate.is_nan() { 0 } else { key(estimate) };
+        // Gallop to a bracket: `below(low)` holds and `below(high)` does not (or high is past
+        // the end).
+        let (mut low, mut high);
+        if below(estimate) {
+            low = estimate;
+            let mut step = 1i64;
+            loop {
+                let next = (i64::from(low) + step).min(i64::from(highest) + 1);
+                if next > i64::from(highest) || !below(next as i32) {
+                    high = next;
+                    break;
+                }
+                low = next as i32;
+                step *= 2;
+            }
+        } else {
+            high = i64::from(estimate);
+            let mut step = 1i64;
+            loop {
+                let next = (high - step).max(i64::from(lowest));
+                if below(next as i32) {
+                    low = next as i32;
+                    break;
+                }
+                high = next;
+                step *= 2;
+            }
+        }
+        while i64::from(low) + 1 < high {
+            let middle = ((i64::from(low) + high) / 2) as i32;
+            if below(middle) {
+                low = middle;
+            } else {
+                high = i64::from(middle);
+            }
+        }
+        value(low)
     }
 }
 
 /// Per axis and bin: the union of the primitive boxes and their count.
 struct Bins<const B: usize> {
-    lower: [[Vec3A; B]; 3],
+    /// The boxes' minimum, and in `w` their count: one load and store per bin update
+    /// instead of two. The count is a float, exact below 2^24 primitives per range (above,
+    /// rounding may perturb the cost a little; a non-empty side never counts zero).
+    lower: [[Vec4; B]; 3],
     upper: [[Vec3A; B]; 3],
-    counts: [[u32; B]; 3],
 }
+
+/// Added to a bin's `lower` after the minimum: `-0.0` leaves every coordinate as it is,
+/// `w` counts one more primitive.
+const ONE_MORE: Vec4 = Vec4::new(-0.0, -0.0, -0.0, 1.0);
 
 /// Where a range is split: primitives whose bin along `axis` is below `position` go left.
 #[derive(Clone, Copy)]
@@ -140,19 +199,19 @@ struct Split {
 impl<const B: usize> Bins<B> {
     fn empty() -> Self {
         Bins {
-            lower: [[Vec3A::splat(f32::MAX); B]; 3],
+            lower: [[Vec3A::splat(f32::MAX).extend(0.0); B]; 3],
             upper: [[Vec3A::splat(f32::MIN); B]; 3],
-            counts: [[0; B]; 3],
         }
     }
 
     fn add(&mut self, binning: &Binning<B>, boxes: &[Aabb]) {
         for aabb in boxes {
             let bins = binning.bins(aabb);
+            // `w` infinite: the minimum keeps the count.
+            let low = aabb.min.extend(f32::INFINITY);
             for (axis, &bin) in bins.iter().enumerate() {
-                self.lower[axis][bin] = self.lower[axis][bin].min(aabb.min);
+                self.lower[axis][bin] = self.lower[axis][bin].min(low) + ONE_MORE;
                 self.upper[axis][bin] = self.upper[axis][bin].max(aabb.max);
-                self.counts[axis][bin] += 1;
             }
         }
     }
@@ -160,9 +219,10 @@ impl<const B: usize> Bins<B> {
     fn merge(mut self, other: Self) -> Self {
         for axis in 0..3 {
             for bin in 0..B {
-                self.lower[axis][bin] = self.lower[axis][bin].min(other.lower[axis][bin]);
+                let (mine, theirs) = (self.lower[axis][bin], other.lower[axis][bin]);
+                self.lower[axis][bin] =
+                    Vec3A::from_vec4(mine.min(theirs)).extend(mine.w + theirs.w);
                 self.upper[axis][bin] = self.upper[axis][bin].max(other.upper[axis][bin]);
-                self.counts[axis][bin] += other.counts[axis][bin];
             }
         }
         self
@@ -176,7 +236,10 @@ impl<const B: usize> Bins<B> {
         };
         let mut best: Option<(f32, usize, usize)> = None;
         for axis in 0..3 {
-            let (lower, upper, counts) = (&self.lower[axis], &self.upper[axis], &self.counts[axis]);
+            let lower: [Vec3A; B] =
+                std::array::from_fn(|bin| Vec3A::from_vec4(self.lower[axis][bin]));
+            let counts: [u32; B] = std::array::from_fn(|bin| self.lower[axis][bin].w as u32);
+            let upper = &self.upper[axis];
             // right_costs[i], right_counts[i]: bins i.. together.
             let mut right_costs = [0.0f32; B];
             let mut right_counts = [0u32; B];
@@ -209,7 +272,7 @@ impl<const B: usize> Bins<B> {
         let mut bounds = [Aabb::empty(); 2];
         for bin in 0..B {
             let side = &mut bounds[usize::from(bin >= position)];
-            side.min = side.min.min(self.lower[axis][bin]);
+            side.min = side.min.min(Vec3A::from_vec4(self.lower[axis][bin]));
             side.max = side.max.max(self.upper[axis][bin]);
         }
         Some(Split {
@@ -296,9 +359,16 @@ fn split(
         range: &Range,
     ) -> Option<(usize, Range, Range)> {
         let (binning, split) = find_split::<B>(boxes, range)?;
-        let (middle, centroids) = partition(boxes, indices, |aabb| {
-            binning.bin(aabb, split.axis) < split.position
-        });
+        let threshold = binning.threshold(split.axis, split.position);
+        let (middle, centroids) = match split.axis {
+            0 => partition(boxes, indices, |aabb| aabb.min.x + aabb.max.x <= threshold),
+            1 => partition(boxes, indices, |aabb| aabb.min.y + aabb.max.y <= threshold),
+            _ => partition(boxes, indices, |aabb| aabb.min.z + aabb.max.z <= threshold),
+        };
+        debug_assert!(boxes.iter().enumerate().all(|(at, aabb)| {
+            let doubled = aabb.min[split.axis] + aabb.max[split.axis];
+            (binning.bin(doubled, split.axis) < split.position) == (at < middle)
+        }));
         let side = |side: usize| Range {
             bounds: split.bounds[side],
             centroids: centroids[side],
@@ -313,7 +383,7 @@ fn split(
     } else if count >= 24 {
         binned::<16>(boxes, indices, range)
     } else {
-        binned::<8>(boxes, indices, range)
+        binned::<4>(boxes, indices, range)
     };
     found.unwrap_or_else(|| {
         // Whole groups of four on the left.
@@ -513,6 +583,35 @@ mod tests {
             }
         }
         found
+    }
+
+    #[test]
+    fn the_threshold_is_the_last_coordinate_below_the_split_bin() {
+        let next_up = |value: f32| {
+            let bits = value.to_bits();
+            f32::from_bits(if value >= 0.0 { bits + 1 } else { bits - 1 })
+        };
+        let ranges = [(-3.7f32, 12.25f32), (1.0e6, 1.0e6 + 0.5), (-1.0e-3, 2.0e-3)];
+        for (low, high) in ranges {
+            let centroids = Aabb {
+                min: Vec3A::new(low, 0.0, -high),
+                max: Vec3A::new(high, 1.0, -low),
+            };
+            let binning = Binning::<16>::new(&centroids);
+            for axis in 0..3 {
+                for position in 1..16 {
+                    let threshold = binning.threshold(axis, position);
+                    assert!(
+                        binning.bin(threshold, axis) < position,
+                        "{low} {axis} {position}"
+                    );
+                    assert!(
+                        binning.bin(next_up(threshold), axis) >= position,
+                        "{low} {axis} {position}: {threshold}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
