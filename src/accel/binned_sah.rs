@@ -559,6 +559,19 @@ mod tests {
 
     /// The primitive ids of every leaf reached from the root, in walk order; asserts that
     /// every node's box holds its children's boxes and each leaf's box its primitives'.
+    /// [`leaves`] with each leaf's ids sorted, and the leaves sorted.
+    fn sorted_leaf_sets(bvh2: &Bvh2, boxes: &[Aabb]) -> Vec<Vec<u32>> {
+        let mut sets: Vec<Vec<u32>> = leaves(bvh2, boxes)
+            .into_iter()
+            .map(|mut ids| {
+                ids.sort();
+                ids
+            })
+            .collect();
+        sets.sort();
+        sets
+    }
+
     fn leaves(bvh2: &Bvh2, boxes: &[Aabb]) -> Vec<Vec<u32>> {
         let holds = |outer: &Aabb, inner: &Aabb| {
             outer.min.cmple(inner.min).all() && inner.max.cmple(outer.max).all()
@@ -625,14 +638,7 @@ mod tests {
             .collect();
         let bvh2 = build_binned_sah(boxes.clone());
         assert_eq!(bvh2.nodes.len(), 3);
-        let mut sets: Vec<Vec<u32>> = leaves(&bvh2, &boxes)
-            .into_iter()
-            .map(|mut ids| {
-                ids.sort();
-                ids
-            })
-            .collect();
-        sets.sort();
+        let sets = sorted_leaf_sets(&bvh2, &boxes);
         assert_eq!(sets, [vec![0, 2, 4, 6], vec![1, 3, 5, 7]]);
     }
 
@@ -641,14 +647,7 @@ mod tests {
         // Splitting 4 | 4 tests two groups; 3 | 5 or 2 | 6 would test three.
         let boxes: Vec<Aabb> = (0..8).map(|i| unit_box(i as f32, 0.0, 0.0)).collect();
         let bvh2 = build_binned_sah(boxes.clone());
-        let mut sets: Vec<Vec<u32>> = leaves(&bvh2, &boxes)
-            .into_iter()
-            .map(|mut ids| {
-                ids.sort();
-                ids
-            })
-            .collect();
-        sets.sort();
+        let sets = sorted_leaf_sets(&bvh2, &boxes);
         assert_eq!(sets, [vec![0, 1, 2, 3], vec![4, 5, 6, 7]]);
     }
 
