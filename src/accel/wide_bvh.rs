@@ -136,8 +136,8 @@ pub(crate) enum LeafAlignment {
 /// to four, filled toward four by its cost) and from obvhs' PLOC otherwise ([`ploc_bvh2`]);
 /// [`collapse_to_wide`] then lays it out as [`WideNode`]s, in parallel. On the benchmark's
 /// 1M-triangle height field the binned-SAH tree takes 19 % fewer node visits per ray than
-/// PLOC's with 1 % reinsertion and builds no slower (`docs/kernel.md`, "A binned-SAH binary
-/// tree").
+/// PLOC's with 1 % reinsertion and builds no slower in wall time, for 12 % more CPU
+/// (`docs/kernel.md`, "A binned-SAH binary tree").
 pub(crate) fn build_wide_bvh(
     boxes: Vec<Aabb>,
     sizing: LeafSizing,
@@ -298,11 +298,10 @@ pub(crate) fn leaf_count(nodes: &[WideNode]) -> usize {
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub(crate) enum LeafSizing {
     /// Subtrees of up to four primitives stay one leaf: for cheap primitive tests
-    /// (triangles, tested four at a time), fewer box tests win. With
-    /// [`LeafAlignment::Group`] spare slots still split them: the node's leaves share their
-    /// groups, so a split costs no memory, and a packet's group of rays then tests only the
-    /// triangles under the smaller boxes it reaches (frustum packets 5 % faster at 968 and
-    /// 100k triangles, single rays unchanged).
+    /// (triangles, tested four at a time), fewer box tests win. The binned-SAH builder makes
+    /// every such range a leaf of the binary tree, so spare slots no longer split them; the
+    /// collapse plan still can, with [`LeafAlignment::Group`], for binary trees that hold
+    /// leaf-sized inner subtrees (PLOC's, in the tests).
     Whole,
     /// Spare slots split small subtrees into smaller leaves: for costly primitive tests
     /// (spheres and tubes in f64, instances), tighter boxes win.
