@@ -13,9 +13,10 @@ use rayon::iter::{
 use std::sync::atomic::AtomicU64;
 use std::sync::atomic::Ordering::Relaxed;
 
+use crate::accel::walk::prefetch;
 use crate::accel::wide_bvh::{
     LEAF_BIT, LeafAlignment, LeafSizing, MAX_PRIMS_PER_LEAF, PADDING, WIDTH, WideNode, leaf_code,
-    occupied, prefetch,
+    occupied,
 };
 
 /// Marks an empty slot in [`assign_slots`]' result.

@@ -3,7 +3,7 @@
 //! took.
 //!
 //! With the feature, single rays over triangles take the generic walk
-//! (`wide_bvh::traverse_with`, same visiting order and hits as the per-octant walk of
+//! (`walk::traverse_with`, same visiting order and hits as the per-octant walk of
 //! `single_ray`), counting its inner nodes, leaves and triangle lanes; the frustum walk counts
 //! the nodes it pops (once per packet) and, per leaf, the groups of four rays and the rays that
 //! test it.

@@ -10,9 +10,10 @@ use crate::accel::primitives::{
 use crate::accel::procedural::{ProceduralPrimitives, ProceduralSlots};
 use crate::accel::single_ray;
 use crate::accel::tube::{PackedTube, TubePart, TubeSegment, tube_hit, tube_surface};
+use crate::accel::walk::{TraversalRay, prefetch, traverse};
 use crate::accel::wide_bvh::{
-    LeafAlignment, LeafSizing, MAX_PRIMITIVES, PADDING, TraversalRay, WideBvh, WideNode,
-    build_wide_bvh, group_leaf, leaf_range, prefetch, traverse,
+    LeafAlignment, LeafSizing, MAX_PRIMITIVES, PADDING, WideBvh, WideNode, build_wide_bvh,
+    group_leaf, leaf_range,
 };
 use crate::accel::{GeometryPrims, PrimHit, Ray};
 use glam::{Vec2, Vec3, Vec3A};
@@ -978,7 +979,7 @@ fn closest_triangle_slot(
     ray: &mut TraversalRay,
 ) -> Option<(u32, Vec2)> {
     use crate::accel::counters;
-    use crate::accel::wide_bvh::{BoxRay, BoxTest, child_hits, traverse_with};
+    use crate::accel::walk::{BoxRay, BoxTest, child_hits, traverse_with};
     struct CountingBoxTest;
     impl BoxTest for CountingBoxTest {
         fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {

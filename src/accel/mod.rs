@@ -52,6 +52,7 @@ mod procedural;
 mod scene;
 mod single_ray;
 mod tube;
+mod walk;
 mod wide_bvh;
 
 #[cfg(test)]

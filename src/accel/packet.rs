@@ -16,10 +16,11 @@
 
 use crate::accel::geometry::prepare as prepare_one;
 use crate::accel::primitives::{TriangleGroup, triangle_t_uv};
-use crate::accel::wide_bvh::{
-    BoxRay, LEAF_BIT, MAX_INV_DIRECTION, ORDER, SLAB_ERROR, TraversalRay, TraversalStack, WideNode,
-    child_hits, prefetch_node,
+use crate::accel::walk::{
+    BoxRay, MAX_INV_DIRECTION, ORDER, SLAB_ERROR, TraversalRay, TraversalStack, child_hits,
+    prefetch_node,
 };
+use crate::accel::wide_bvh::{LEAF_BIT, WideNode};
 use crate::accel::{MAX_COORDINATE, Ray};
 use glam::{BVec4A, Vec3A, Vec4};
 
@@ -1147,7 +1148,8 @@ fn frustum_box_hits<const SPREAD: bool>(
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use super::{PlaneRows, RayBounds};
-    use crate::accel::wide_bvh::{SLAB_ERROR, WideNode};
+    use crate::accel::walk::SLAB_ERROR;
+    use crate::accel::wide_bvh::WideNode;
     use std::arch::x86_64::*;
 
     #[target_feature(enable = "avx2")]

@@ -12,7 +12,7 @@
 //! Every test accepts `t` only in `[ray.t_min, ray.t_max]` after rounding to f32.
 
 use crate::accel::MAX_COORDINATE;
-use crate::accel::wide_bvh::TraversalRay;
+use crate::accel::walk::TraversalRay;
 use glam::{DVec3, Vec2, Vec3, Vec3A, Vec4, Vec4Swizzles};
 use obvhs::aabb::Aabb;
 

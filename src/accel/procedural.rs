@@ -8,7 +8,7 @@ use std::sync::Arc;
 use glam::{Vec2, Vec3};
 
 use crate::accel::Ray;
-use crate::accel::wide_bvh::TraversalRay;
+use crate::accel::walk::TraversalRay;
 
 /// A hit on one procedural primitive, in object space.
 #[derive(Clone, Copy, Debug, PartialEq)]

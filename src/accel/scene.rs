@@ -10,9 +10,9 @@ use crate::accel::packet::{
     FRUSTUM_RAYS, FrustumPacket, LANES, PacketScratch, RayArrays, RayPacket, traverse_frustum,
     traverse_packet,
 };
+use crate::accel::walk::{TraversalRay, traverse};
 use crate::accel::wide_bvh::{
-    LeafAlignment, LeafSizing, MAX_PRIMITIVES, TraversalRay, WideBvh, WideNode, build_wide_bvh,
-    leaf_range, traverse,
+    LeafAlignment, LeafSizing, MAX_PRIMITIVES, WideBvh, WideNode, build_wide_bvh, leaf_range,
 };
 use crate::accel::{EMPTY_BOUNDS, InstanceDesc, PrimHit, Ray, SceneHit, bounds_are_empty};
 use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A};

@@ -1,7 +1,7 @@
 //! Single rays through a BVH of triangle groups: the closest-hit and any-hit walks, compiled
 //! once per instruction set and per direction octant.
 //!
-//! The walk visits the children in the order of `wide_bvh::traverse_with` and tests leaves with
+//! The walk visits the children in the order of `walk::traverse_with` and tests leaves with
 //! the same arithmetic, so it finds the same hits, ids included; what differs is the work per
 //! node and per ray:
 //!
@@ -25,15 +25,14 @@
 //! within `[t_min, t_max]` is never culled, also when the ray meets it on a face, edge or
 //! corner. A negative distance stays negative (its sign is exact), so with `t_min >= 0` it never
 //! decides an entry (the maximum with `t_min` does) and a negative exit culls only boxes behind
-//! `t_min`. Rays with `t_min < 0` take the generic walk (`wide_bvh::traverse`, the widened
-//! reference test). Against `wide_bvh::child_hits` this test costs four operations fewer per
+//! `t_min`. Rays with `t_min < 0` take the generic walk (`walk::traverse`, the widened
+//! reference test). Against `walk::child_hits` this test costs four operations fewer per
 //! node and is shorter on the walk's dependency chain (node, box test, next node); it may reach
 //! a few more or fewer boxes that hold no hit, so the hits are the same.
 
 use crate::accel::primitives::{GROUP_LANES, GroupRay, TriangleGroup, closest_lane, group_closest};
-use crate::accel::wide_bvh::{
-    LEAF_BIT, SLAB_ERROR, TraversalRay, WIDTH, WideNode, group_leaf, traverse,
-};
+use crate::accel::walk::{SLAB_ERROR, TraversalRay, traverse};
+use crate::accel::wide_bvh::{LEAF_BIT, WIDTH, WideNode, group_leaf};
 use glam::{Vec2, Vec3, Vec4};
 use std::mem::MaybeUninit;
 
@@ -775,7 +774,7 @@ pub(crate) mod test_paths {
 
     #[test]
     fn the_visit_table_lists_hit_children_in_the_walks_order() {
-        use crate::accel::wide_bvh::ORDER;
+        use crate::accel::walk::ORDER;
         for order in 0..8 {
             for mask in 1..256usize {
                 // The reference: positions of the ordered mask, nearest first, as slots.

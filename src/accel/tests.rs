@@ -3,7 +3,8 @@
 use crate::accel::geometry::BUILDS_ON_THIS_THREAD;
 use crate::accel::primitives::{PackedSphere, PackedTriangle, sphere_t, triangle_t};
 use crate::accel::tube::{PackedTube, tube_hit};
-use crate::accel::wide_bvh::{LeafAlignment, LeafSizing, TraversalRay};
+use crate::accel::walk::TraversalRay;
+use crate::accel::wide_bvh::{LeafAlignment, LeafSizing};
 use crate::accel::*;
 use glam::{Affine3A, Quat, UVec3, UVec4, Vec3, Vec3A, vec3};
 use std::sync::Arc;
@@ -1558,7 +1559,7 @@ fn random_wide_nodes(rng: &mut Rng, count: usize) -> Vec<crate::accel::wide_bvh:
 
 #[test]
 fn every_box_test_path_matches_the_scalar_reference() {
-    use crate::accel::wide_bvh::{BoxRay, child_hits, child_hits_four_wide, child_hits_scalar};
+    use crate::accel::walk::{BoxRay, child_hits, child_hits_four_wide, child_hits_scalar};
     let mut rng = Rng::new(17);
     let nodes = random_wide_nodes(&mut rng, 4000);
     let mut mismatches = 0;
@@ -1580,7 +1581,7 @@ fn every_box_test_path_matches_the_scalar_reference() {
             if isa::Isa::Avx2.supported() {
                 // SAFETY: the CPU has AVX2.
                 paths.push(unsafe {
-                    crate::accel::wide_bvh::avx2::child_hits(node, &box_ray, t_min, t_max)
+                    crate::accel::walk::avx2::child_hits(node, &box_ray, t_min, t_max)
                 });
             }
             mismatches += paths.into_iter().filter(|path| !same(*path)).count();

@@ -19,7 +19,7 @@
 use crate::accel::primitives::{
     ball_roots, in_interval, is_usable_box, is_usable_point, quadratic_roots, unit_or_axis,
 };
-use crate::accel::wide_bvh::TraversalRay;
+use crate::accel::walk::TraversalRay;
 use glam::{DVec3, Vec2, Vec3};
 use obvhs::aabb::Aabb;
 
