@@ -24,6 +24,9 @@
 //! nodes, leaves and triangles per ray of both walks (`accel::counters`; the single-ray times
 //! are then those of the counting generic walk, not the real one), and with
 //! `CAVETRACE_TREE_STATISTICS=1` each tree's shape and surface-area costs.
+//! `CAVETRACE_BENCH_LATTICE=rows|columns|checker`: trace one eye of an interleaved stereo frame
+//! instead (half the rays, each 64-ray packet spanning 8×16 or 16×8 pixels; the Embree probe
+//! still traces the whole frame, so its ratios do not apply).
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -191,6 +194,43 @@ fn print_counts(triangles: u32, [packets, single]: &[TraversalCounts; 2]) {
     );
 }
 
+/// The rays of one eye of an interleaved stereo frame (`CAVETRACE_BENCH_LATTICE`): `rows`
+/// (every other row), `columns` (every other column), `checker` (x + y even), as that eye's
+/// lattice in 8×8 blocks of 2×2 quads, as the renderer packs them; `mono` (default): all
+/// `rays` (already in blocks) unchanged. A lattice holds half the rays, each block spanning
+/// 8×16 pixels (16×8 for columns).
+fn lattice_rays(rays: Vec<((u32, u32), Ray)>, size: u32, lattice: &str) -> Vec<Ray> {
+    let pixel: fn(u32, u32) -> (u32, u32) = match lattice {
+        "mono" => return rays.into_iter().map(|(_, ray)| ray).collect(),
+        "rows" => |x, y| (x, 2 * y),
+        "columns" => |x, y| (2 * x, y),
+        "checker" => |x, y| (2 * x + (y & 1), y),
+        other => panic!("CAVETRACE_BENCH_LATTICE={other}: mono, rows, columns or checker"),
+    };
+    let (width, height) = match lattice {
+        "rows" => (size, size / 2),
+        _ => (size / 2, size),
+    };
+    let mut by_pixel = vec![None; (size * size) as usize];
+    for ((x, y), ray) in rays {
+        by_pixel[(y * size + x) as usize] = Some(ray);
+    }
+    let mut lattice_rays = Vec::with_capacity((width * height) as usize);
+    for by in (0..height).step_by(8) {
+        for bx in (0..width).step_by(8) {
+            for i in 0..64 {
+                let (quad, lane) = (i / 4, i % 4);
+                let (x, y) = pixel(
+                    bx + (quad % 4) * 2 + lane % 2,
+                    by + (quad / 4) * 2 + lane / 2,
+                );
+                lattice_rays.push(by_pixel[(y * size + x) as usize].expect("a pixel's ray"));
+            }
+        }
+    }
+    lattice_rays
+}
+
 /// One run of the Embree probe: its median wall ms per mode and its hit checksum.
 struct EmbreeRun {
     single_ms: f64,
@@ -269,6 +309,8 @@ fn main() {
             .is_none_or(|list| list.split(',').any(|p| p.trim() == part))
     };
     let (run_packets, run_single, run_frame) = (runs("packets"), runs("single"), runs("frame"));
+    let lattice = std::env::var("CAVETRACE_BENCH_LATTICE").ok();
+    let lattice = lattice.as_deref().unwrap_or("mono");
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     let chosen_isas = std::env::var("CAVETRACE_BENCH_ISAS").ok();
@@ -316,7 +358,7 @@ fn main() {
         let mut counts = [TraversalCounts::default(); 2];
         for f in 0..=frames {
             place_camera(dev, camera, f);
-            let rays = camera_rays(dev, camera, size);
+            let rays = lattice_rays(camera_rays_with_pixels(dev, camera, size), size, lattice);
             for (k, isa) in isas.iter().enumerate() {
                 set_string(dev, dev, "isa", isa.name());
                 commit(dev, dev);
