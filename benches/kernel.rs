@@ -194,38 +194,58 @@ fn print_counts(triangles: u32, [packets, single]: &[TraversalCounts; 2]) {
     );
 }
 
-/// The rays of one eye of an interleaved stereo frame (`CAVETRACE_BENCH_LATTICE`): `rows`
-/// (every other row), `columns` (every other column), `checker` (x + y even), as that eye's
-/// lattice in 8×8 blocks of 2×2 quads, as the renderer packs them; `mono` (default): all
-/// `rays` (already in blocks) unchanged. A lattice holds half the rays, each block spanning
-/// 8×16 pixels (16×8 for columns).
+/// The rays of an interleaved stereo frame's eyes (`CAVETRACE_BENCH_LATTICE`), each eye's
+/// pixels as a lattice of 8×8 blocks of 2×2 quads, as the renderer packs them: `rows` (every
+/// other row), `columns` (every other column), `checker` (x + y even): one eye, half the rays,
+/// each 64-ray packet spanning 8×16 or 16×8 pixels; `rows-both`: both eyes of rows, one eye's
+/// whole lattice after the other's; `rows-pairs`: both eyes, the other eye's block right after
+/// each block of the same pixels. `mono` (default): all `rays` (already in blocks) unchanged.
 fn lattice_rays(rays: Vec<((u32, u32), Ray)>, size: u32, lattice: &str) -> Vec<Ray> {
-    let pixel: fn(u32, u32) -> (u32, u32) = match lattice {
+    type Pixel = fn(u32, u32, u32) -> (u32, u32);
+    let rows: Pixel = |x, y, eye| (x, 2 * y + eye);
+    let (pixel, eyes, pairs): (Pixel, u32, bool) = match lattice {
         "mono" => return rays.into_iter().map(|(_, ray)| ray).collect(),
-        "rows" => |x, y| (x, 2 * y),
-        "columns" => |x, y| (2 * x, y),
-        "checker" => |x, y| (2 * x + (y & 1), y),
-        other => panic!("CAVETRACE_BENCH_LATTICE={other}: mono, rows, columns or checker"),
+        "rows" => (rows, 1, false),
+        "rows-both" => (rows, 2, false),
+        "rows-pairs" => (rows, 2, true),
+        "columns" => (|x, y, eye| (2 * x + eye, y), 1, false),
+        "checker" => (|x, y, eye| (2 * x + ((y + eye) & 1), y), 1, false),
+        other => panic!(
+            "CAVETRACE_BENCH_LATTICE={other}: mono, rows, rows-both, rows-pairs, columns or \
+             checker"
+        ),
     };
     let (width, height) = match lattice {
-        "rows" => (size, size / 2),
+        "rows" | "rows-both" | "rows-pairs" => (size, size / 2),
         _ => (size / 2, size),
     };
     let mut by_pixel = vec![None; (size * size) as usize];
     for ((x, y), ray) in rays {
         by_pixel[(y * size + x) as usize] = Some(ray);
     }
-    let mut lattice_rays = Vec::with_capacity((width * height) as usize);
-    for by in (0..height).step_by(8) {
-        for bx in (0..width).step_by(8) {
-            for i in 0..64 {
-                let (quad, lane) = (i / 4, i % 4);
-                let (x, y) = pixel(
-                    bx + (quad % 4) * 2 + lane % 2,
-                    by + (quad / 4) * 2 + lane / 2,
-                );
-                lattice_rays.push(by_pixel[(y * size + x) as usize].expect("a pixel's ray"));
-            }
+    let blocks: Vec<(u32, u32)> = (0..height)
+        .step_by(8)
+        .flat_map(|by| (0..width).step_by(8).map(move |bx| (bx, by)))
+        .collect();
+    let order: Vec<(u32, (u32, u32))> = match pairs {
+        true => blocks
+            .iter()
+            .flat_map(|block| (0..eyes).map(move |eye| (eye, *block)))
+            .collect(),
+        false => (0..eyes)
+            .flat_map(|eye| blocks.iter().map(move |block| (eye, *block)))
+            .collect(),
+    };
+    let mut lattice_rays = Vec::with_capacity(order.len() * 64);
+    for (eye, (bx, by)) in order {
+        for i in 0..64 {
+            let (quad, lane) = (i / 4, i % 4);
+            let (x, y) = pixel(
+                bx + (quad % 4) * 2 + lane % 2,
+                by + (quad / 4) * 2 + lane / 2,
+                eye,
+            );
+            lattice_rays.push(by_pixel[(y * size + x) as usize].expect("a pixel's ray"));
         }
     }
     lattice_rays
