@@ -597,6 +597,37 @@ pub(crate) unsafe fn closest_triangle_slot(
     groups: &[TriangleGroup],
     ray: &mut TraversalRay,
 ) -> Option<(u32, Vec2)> {
+    // SAFETY: the caller's promise.
+    unsafe { closest_slot_on::<false>(nodes, groups, ray) }
+}
+
+/// [`closest_triangle_slot`] with the AVX2 walk inlined, for callers compiled for AVX2 as a
+/// whole (one call's set-up per ray instead of two).
+///
+/// # Safety
+/// `codes_in_range(nodes, groups.len())`; the caller is compiled for AVX2 (so the CPU has it).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) unsafe fn closest_triangle_slot_avx2(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &mut TraversalRay,
+) -> Option<(u32, Vec2)> {
+    // SAFETY: the caller's promise.
+    unsafe { closest_slot_on::<true>(nodes, groups, ray) }
+}
+
+/// [`closest_triangle_slot`]; `INLINE_AVX2`: the AVX2 walk inlined (only inside functions
+/// compiled for AVX2), else the instruction set chosen at run time.
+///
+/// # Safety
+/// `codes_in_range(nodes, groups.len())`; with `INLINE_AVX2` the caller is compiled for AVX2.
+#[inline(always)]
+unsafe fn closest_slot_on<const INLINE_AVX2: bool>(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &mut TraversalRay,
+) -> Option<(u32, Vec2)> {
     if nodes.is_empty() {
         return None;
     }
@@ -606,7 +637,10 @@ pub(crate) unsafe fn closest_triangle_slot(
         return closest_by_generic_walk(nodes, groups, ray);
     }
     #[cfg(target_arch = "x86_64")]
-    let (hit, t) = if crate::isa::avx2_selected() {
+    let (hit, t) = if INLINE_AVX2 {
+        // SAFETY: the caller is compiled for AVX2; the caller's promise.
+        unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray) }
+    } else if crate::isa::avx2_selected() {
         // SAFETY: AVX2 is selected only on CPUs that have it; the caller's promise.
         unsafe { avx2_walks::closest(nodes, groups, ray) }
     } else {
