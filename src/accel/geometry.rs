@@ -1010,6 +1010,9 @@ fn closest_triangle_slot(
     // warnings.
     let _per_octant_walk: unsafe fn(&[WideNode], &[TriangleGroup], &mut TraversalRay) -> _ =
         single_ray::closest_triangle_slot;
+    #[cfg(target_arch = "x86_64")]
+    let _inlined_avx2_walk: unsafe fn(&[WideNode], &[TriangleGroup], &mut TraversalRay) -> _ =
+        single_ray::closest_triangle_slot_avx2;
     counters::add(|counts| counts.rays += 1);
     let mut closest = None;
     let mut test_leaf = |code: u32, ray: &mut TraversalRay| {
