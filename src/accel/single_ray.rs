@@ -35,7 +35,7 @@ use crate::accel::primitives::{
 };
 use crate::accel::walk::{SLAB_ERROR, TraversalRay, traverse};
 use crate::accel::wide_bvh::{LEAF_BIT, WIDTH, WideNode, group_leaf};
-use glam::{Vec2, Vec3, Vec3A, Vec4};
+use glam::{Vec2, Vec3, Vec3A, Vec4, Vec4Swizzles};
 use std::mem::MaybeUninit;
 
 /// `VISIT[order][mask]` for the hit children `mask` (bit per slot) of a ray whose children
@@ -660,7 +660,11 @@ unsafe fn closest_slot_on<const INLINE_AVX2: bool>(
     ray.t_max = t;
     let inv = 1.0 / determinant[lane];
     let slot = (group * GROUP_LANES + lane) as u32;
-    Some((slot, Vec2::new(v[lane] * inv, w[lane] * inv)))
+    // Both products in one vector (each lane the scalar product), so that the pair is written
+    // with one store: the caller may read it back as one 8-byte load, which two 4-byte stores
+    // could not forward (a stall per hit).
+    let bary = (Vec4::new(v[lane], w[lane], 0.0, 0.0) * inv).xy();
+    Some((slot, bary))
 }
 
 /// Whether any of `groups` under `nodes` is hit.
