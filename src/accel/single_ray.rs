@@ -658,12 +658,15 @@ unsafe fn closest_slot_on<const INLINE_AVX2: bool>(
         determinant,
     } = hit?;
     ray.t_max = t;
-    let inv = 1.0 / determinant[lane];
+    // Lanes read from arrays (an indexed load), not by `Vec4`'s index, which branches on the
+    // lane through a jump table (a mispredicted jump per hit).
+    let lane_of = |lanes: Vec4| lanes.to_array()[lane];
+    let inv = 1.0 / lane_of(determinant);
     let slot = (group * GROUP_LANES + lane) as u32;
     // Both products in one vector (each lane the scalar product), so that the pair is written
     // with one store: the caller may read it back as one 8-byte load, which two 4-byte stores
     // could not forward (a stall per hit).
-    let bary = (Vec4::new(v[lane], w[lane], 0.0, 0.0) * inv).xy();
+    let bary = (Vec4::new(lane_of(v), lane_of(w), 0.0, 0.0) * inv).xy();
     Some((slot, bary))
 }
 
