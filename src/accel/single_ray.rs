@@ -33,7 +33,7 @@
 use crate::accel::primitives::{
     GROUP_LANES, GroupRay, GroupRayValues, SplatOnUse, TriangleGroup, closest_lane, group_closest,
 };
-use crate::accel::walk::{SLAB_ERROR, TraversalRay, traverse};
+use crate::accel::walk::{SLAB_ERROR, TraversalRay, prefetch, prefetch_node, traverse};
 use crate::accel::wide_bvh::{LEAF_BIT, WIDTH, WideNode, group_leaf};
 use glam::{Vec2, Vec3, Vec3A, Vec4, Vec4Swizzles};
 use std::mem::MaybeUninit;
@@ -435,6 +435,19 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
                     }
                     // SAFETY: just checked.
                     unsafe { I::push(node, visit >> 3, others, nears, stack) };
+                    // The child popped next (the last pushed: the nearest of the others) starts
+                    // loading while the walk descends into the nearest.
+                    let next = node.children[((visit >> (3 * others)) & 7) as usize];
+                    if next & LEAF_BIT == 0 {
+                        // SAFETY: inner codes index `nodes` (the caller's promise).
+                        prefetch_node(unsafe { nodes.get_unchecked(next as usize) });
+                    } else {
+                        // SAFETY: leaf codes address existing groups (the caller's promise).
+                        let group = unsafe { groups.get_unchecked(group_leaf(next).0) };
+                        prefetch(group);
+                        prefetch(&group.vertices[1][1]);
+                        prefetch(&group.vertices[2][2]);
+                    }
                 }
                 continue;
             }
