@@ -558,10 +558,18 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
     } else {
         &group_ray
     };
-    // SAFETY (both): a reference is valid and aligned for reads; volatile, as in
-    // `field_by_field`.
-    let octant_inv = unsafe { std::ptr::read_volatile(&ray.octant_inv) };
-    let t_max_start = unsafe { std::ptr::read_volatile(&ray.t_max) };
+    // Read in place: volatile, as in `field_by_field`; a copy is read as it is.
+    let (octant_inv, t_max_start) = if I::COPIES_RAY {
+        (ray.octant_inv, ray.t_max)
+    } else {
+        // SAFETY: a reference is valid and aligned for reads.
+        unsafe {
+            (
+                std::ptr::read_volatile(&ray.octant_inv),
+                std::ptr::read_volatile(&ray.t_max),
+            )
+        }
+    };
     let order = (7 ^ (octant_inv & 7)) as usize;
     let mut codes = [MaybeUninit::<u32>::uninit(); INLINE];
     let mut nears = [MaybeUninit::<f32>::uninit(); INLINE];
