@@ -14,7 +14,10 @@
 //! - the stack is two fixed arrays (codes, entry distances) checked once per node; a walk
 //!   that would overflow them restarts with a larger stack on the heap (the same walk, so the
 //!   same hits);
-//! - the ray's values for the box test and for the triangle test are set up once per ray.
+//! - the ray's values for the box test and for the triangle test are set up once per ray: on
+//!   the baseline path as splats, with AVX2 as scalars broadcast where they are used (a
+//!   broadcast load costs what a vector load does); the scene's ray query compiled for AVX2
+//!   inlines the whole walk (`closest_triangle_slot_avx2`).
 //!
 //! The box test computes each slab distance as `(origin - plane) * scale`, the plane being the
 //! instruction's memory operand, with the widening folded into the scale: entries are scaled by
