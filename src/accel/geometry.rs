@@ -519,6 +519,25 @@ impl GeometryBvh {
         }
     }
 
+    /// [`Self::closest_slot`] for callers compiled for AVX2 as a whole: the triangle walk is
+    /// inlined into them.
+    ///
+    /// # Safety
+    /// The caller is compiled for AVX2 (so the CPU has it).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub(crate) unsafe fn closest_slot_avx2(&self, ray: &mut TraversalRay) -> Option<(u32, Vec2)> {
+        match &self.primitives {
+            #[cfg(not(feature = "kernel-counters"))]
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                // SAFETY: triangle and quad BVHs are checked with `codes_in_range` when built
+                // (`GeometryBvh::checked`) and never change afterwards; the caller's promise.
+                unsafe { single_ray::closest_triangle_slot_avx2(&self.nodes, groups, ray) }
+            }
+            _ => self.closest_slot(ray),
+        }
+    }
+
     /// [`Self::closest_slot`] for spheres, tubes and procedural primitives.
     #[inline(never)]
     fn closest_other_slot(&self, ray: &mut TraversalRay) -> Option<(u32, Vec2)> {
@@ -991,6 +1010,9 @@ fn closest_triangle_slot(
     // warnings.
     let _per_octant_walk: unsafe fn(&[WideNode], &[TriangleGroup], &mut TraversalRay) -> _ =
         single_ray::closest_triangle_slot;
+    #[cfg(target_arch = "x86_64")]
+    let _inlined_avx2_walk: unsafe fn(&[WideNode], &[TriangleGroup], &mut TraversalRay) -> _ =
+        single_ray::closest_triangle_slot_avx2;
     counters::add(|counts| counts.rays += 1);
     let mut closest = None;
     let mut test_leaf = |code: u32, ray: &mut TraversalRay| {

@@ -149,8 +149,28 @@ impl TriangleGroup {
     }
 }
 
-/// What a group's watertight test needs of one ray, set up once per ray: the permuted axes,
-/// and the permuted origin, the shear and `t_min` splat across the lanes.
+/// What a group's watertight test reads of one ray: the permuted axes, and the permuted
+/// origin, the shear and `t_min` across the lanes. [`GroupRay`] splats them once per ray;
+/// [`SplatOnUse`] reads them from the [`TraversalRay`] where the test needs them (with AVX a
+/// broadcast load costs what a vector load does, so nothing is set up per ray).
+pub(crate) trait GroupRayValues {
+    /// Each below 3 (checked where the values are made).
+    fn axes(&self) -> [usize; 3];
+    fn origin(&self) -> [Vec4; 3];
+    fn shear(&self) -> [Vec4; 3];
+    fn t_min(&self) -> Vec4;
+
+    /// A group's watertight test, lane by lane the arithmetic of [`triangle_t_uv`] (the same
+    /// `t` and barycentrics), with `t` accepted in `[t_min, t_max]`: the hit lanes among
+    /// `lanes` (bit per lane), their `t`, and the edge functions `V`, `W` with the determinant
+    /// `U + V + W`.
+    #[inline(always)]
+    fn hits(&self, group: &TriangleGroup, lanes: u32, t_max: f32) -> (u32, Vec4, [Vec4; 3]) {
+        hits_with::<false, _>(self, group, lanes, t_max)
+    }
+}
+
+/// [`GroupRayValues`] splat once per ray and kept.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct GroupRay {
     axes: [usize; 3],
@@ -173,80 +193,124 @@ impl GroupRay {
             t_min: Vec4::splat(ray.t_min),
         }
     }
+}
 
-    /// A group's watertight test, lane by lane the arithmetic of [`triangle_t_uv`] (the same
-    /// `t` and barycentrics), with `t` accepted in `[t_min, t_max]`: the hit lanes among
-    /// `lanes` (bit per lane), their `t`, and the edge functions `V`, `W` with the determinant
-    /// `U + V + W`.
+impl GroupRayValues for GroupRay {
     #[inline(always)]
-    pub fn hits(&self, group: &TriangleGroup, lanes: u32, t_max: f32) -> (u32, Vec4, [Vec4; 3]) {
-        self.hits_with::<false>(group, lanes, t_max)
+    fn axes(&self) -> [usize; 3] {
+        self.axes
     }
-
-    /// [`Self::hits`] for a group where some lane's edge function came out exactly zero: the
-    /// whole test again, those lanes' edge functions redone in f64. Out of line, so that the
-    /// common path keeps no sheared coordinates around for it.
-    #[cold]
-    #[inline(never)]
-    fn hits_on_edges(
-        &self,
-        group: &TriangleGroup,
-        lanes: u32,
-        t_max: f32,
-    ) -> (u32, Vec4, [Vec4; 3]) {
-        self.hits_with::<true>(group, lanes, t_max)
-    }
-
     #[inline(always)]
-    fn hits_with<const ON_EDGES: bool>(
-        &self,
-        group: &TriangleGroup,
-        lanes: u32,
-        t_max: f32,
-    ) -> (u32, Vec4, [Vec4; 3]) {
-        let [kx, ky, kz] = self.axes;
-        let [origin_x, origin_y, origin_z] = self.origin;
-        let [shear_x, shear_y, shear_z] = self.shear;
-        let sheared = |vertex: &[Vec4; 3]| {
-            // SAFETY: `new` checked that every axis is below 3.
-            let row = |axis: usize| unsafe { *vertex.get_unchecked(axis) };
-            let z = row(kz) - origin_z;
-            let x = (row(kx) - origin_x) - shear_x * z;
-            let y = (row(ky) - origin_y) - shear_y * z;
-            (x, y, z)
-        };
-        let (x0, y0, z0) = sheared(&group.vertices[0]);
-        let (x1, y1, z1) = sheared(&group.vertices[1]);
-        let (x2, y2, z2) = sheared(&group.vertices[2]);
-        let mut u = x2 * y1 - y2 * x1;
-        let mut v = x0 * y2 - y0 * x2;
-        let mut w = x1 * y0 - y1 * x0;
-        let zero = Vec4::ZERO;
-        let mut on_edge = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & lanes;
-        if !ON_EDGES && on_edge != 0 {
-            return self.hits_on_edges(group, lanes, t_max);
-        }
-        while on_edge != 0 {
-            let lane = on_edge.trailing_zeros() as usize;
-            on_edge &= on_edge - 1;
-            let exact = edge_functions_f64(
-                Vec4::new(x0[lane], x1[lane], x2[lane], 0.0),
-                Vec4::new(y0[lane], y1[lane], y2[lane], 0.0),
-            );
-            (u[lane], v[lane], w[lane]) = (exact.x, exact.y, exact.z);
-        }
-        let negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
-        let positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
-        let determinant = u + v + w;
-        let candidates = (!(negative & positive) & determinant.cmpne(zero)).bitmask() & lanes;
-        if candidates == 0 {
-            return (0, zero, [v, w, determinant]);
-        }
-        let scaled_t = u * (z0 * shear_z) + v * (z1 * shear_z) + w * (z2 * shear_z);
-        let t = scaled_t / determinant;
-        let inside = t.cmpge(self.t_min) & t.cmple(Vec4::splat(t_max));
-        (inside.bitmask() & candidates, t, [v, w, determinant])
+    fn origin(&self) -> [Vec4; 3] {
+        self.origin
     }
+    #[inline(always)]
+    fn shear(&self) -> [Vec4; 3] {
+        self.shear
+    }
+    #[inline(always)]
+    fn t_min(&self) -> Vec4 {
+        self.t_min
+    }
+}
+
+/// [`GroupRayValues`] splat from the ray's fields at each use.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct SplatOnUse<'a>(&'a TraversalRay);
+
+impl<'a> SplatOnUse<'a> {
+    #[inline(always)]
+    pub fn new(ray: &'a TraversalRay) -> SplatOnUse<'a> {
+        // `hits` indexes vertex rows by these without bounds checks.
+        assert!(ray.shear_axes.iter().all(|&axis| axis < 3));
+        SplatOnUse(ray)
+    }
+}
+
+impl GroupRayValues for SplatOnUse<'_> {
+    #[inline(always)]
+    fn axes(&self) -> [usize; 3] {
+        self.0.shear_axes
+    }
+    #[inline(always)]
+    fn origin(&self) -> [Vec4; 3] {
+        let origin = &self.0.permuted_origin;
+        [origin.x, origin.y, origin.z].map(Vec4::splat)
+    }
+    #[inline(always)]
+    fn shear(&self) -> [Vec4; 3] {
+        let shear = &self.0.shear;
+        [shear.x, shear.y, shear.z].map(Vec4::splat)
+    }
+    #[inline(always)]
+    fn t_min(&self) -> Vec4 {
+        Vec4::splat(self.0.t_min)
+    }
+}
+
+/// [`GroupRayValues::hits`] for a group where some lane's edge function came out exactly zero:
+/// the whole test again, those lanes' edge functions redone in f64. Out of line, so that the
+/// common path keeps no sheared coordinates around for it.
+#[cold]
+#[inline(never)]
+fn hits_on_edges<R: GroupRayValues + ?Sized>(
+    ray: &R,
+    group: &TriangleGroup,
+    lanes: u32,
+    t_max: f32,
+) -> (u32, Vec4, [Vec4; 3]) {
+    hits_with::<true, R>(ray, group, lanes, t_max)
+}
+
+#[inline(always)]
+fn hits_with<const ON_EDGES: bool, R: GroupRayValues + ?Sized>(
+    ray: &R,
+    group: &TriangleGroup,
+    lanes: u32,
+    t_max: f32,
+) -> (u32, Vec4, [Vec4; 3]) {
+    let [kx, ky, kz] = ray.axes();
+    let [origin_x, origin_y, origin_z] = ray.origin();
+    let [shear_x, shear_y, shear_z] = ray.shear();
+    let sheared = |vertex: &[Vec4; 3]| {
+        // SAFETY: every `GroupRayValues` maker checked that every axis is below 3.
+        let row = |axis: usize| unsafe { *vertex.get_unchecked(axis) };
+        let z = row(kz) - origin_z;
+        let x = (row(kx) - origin_x) - shear_x * z;
+        let y = (row(ky) - origin_y) - shear_y * z;
+        (x, y, z)
+    };
+    let (x0, y0, z0) = sheared(&group.vertices[0]);
+    let (x1, y1, z1) = sheared(&group.vertices[1]);
+    let (x2, y2, z2) = sheared(&group.vertices[2]);
+    let mut u = x2 * y1 - y2 * x1;
+    let mut v = x0 * y2 - y0 * x2;
+    let mut w = x1 * y0 - y1 * x0;
+    let zero = Vec4::ZERO;
+    let mut on_edge = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & lanes;
+    if !ON_EDGES && on_edge != 0 {
+        return hits_on_edges(ray, group, lanes, t_max);
+    }
+    while on_edge != 0 {
+        let lane = on_edge.trailing_zeros() as usize;
+        on_edge &= on_edge - 1;
+        let exact = edge_functions_f64(
+            Vec4::new(x0[lane], x1[lane], x2[lane], 0.0),
+            Vec4::new(y0[lane], y1[lane], y2[lane], 0.0),
+        );
+        (u[lane], v[lane], w[lane]) = (exact.x, exact.y, exact.z);
+    }
+    let negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
+    let positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
+    let determinant = u + v + w;
+    let candidates = (!(negative & positive) & determinant.cmpne(zero)).bitmask() & lanes;
+    if candidates == 0 {
+        return (0, zero, [v, w, determinant]);
+    }
+    let scaled_t = u * (z0 * shear_z) + v * (z1 * shear_z) + w * (z2 * shear_z);
+    let t = scaled_t / determinant;
+    let inside = t.cmpge(ray.t_min()) & t.cmple(Vec4::splat(t_max));
+    (inside.bitmask() & candidates, t, [v, w, determinant])
 }
 
 /// [`GroupRay::hits`] for a ray used once.

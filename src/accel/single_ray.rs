@@ -14,7 +14,10 @@
 //! - the stack is two fixed arrays (codes, entry distances) checked once per node; a walk
 //!   that would overflow them restarts with a larger stack on the heap (the same walk, so the
 //!   same hits);
-//! - the ray's values for the box test and for the triangle test are set up once per ray.
+//! - the ray's values for the box test and for the triangle test are set up once per ray: on
+//!   the baseline path as splats, with AVX2 as scalars broadcast where they are used (a
+//!   broadcast load costs what a vector load does); the scene's ray query compiled for AVX2
+//!   inlines the whole walk (`closest_triangle_slot_avx2`).
 //!
 //! The box test computes each slab distance as `(origin - plane) * scale`, the plane being the
 //! instruction's memory operand, with the widening folded into the scale: entries are scaled by
@@ -30,10 +33,12 @@
 //! node and is shorter on the walk's dependency chain (node, box test, next node); it may reach
 //! a few more or fewer boxes that hold no hit, so the hits are the same.
 
-use crate::accel::primitives::{GROUP_LANES, GroupRay, TriangleGroup, closest_lane, group_closest};
-use crate::accel::walk::{SLAB_ERROR, TraversalRay, traverse};
+use crate::accel::primitives::{
+    GROUP_LANES, GroupRay, GroupRayValues, SplatOnUse, TriangleGroup, closest_lane, group_closest,
+};
+use crate::accel::walk::{SLAB_ERROR, TraversalRay, prefetch, prefetch_node, traverse};
 use crate::accel::wide_bvh::{LEAF_BIT, WIDTH, WideNode, group_leaf};
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Vec2, Vec3, Vec3A, Vec4, Vec4Swizzles};
 use std::mem::MaybeUninit;
 
 /// `VISIT[order][mask]` for the hit children `mask` (bit per slot) of a ray whose children
@@ -105,8 +110,16 @@ trait Lanes {
     type BoxRay: Copy;
     /// The widened entry distances of a node's children.
     type Nears: Copy;
+    /// What the triangle test needs of the ray.
+    type GroupRay<'a>: GroupRayValues;
+    /// Whether the walk reads the caller's ray field by field into a copy first (see
+    /// [`field_by_field`]); a path that reads each field once at most, no wider than it was
+    /// written, needs no copy.
+    const COPIES_RAY: bool;
 
     fn box_ray(ray: &TraversalRay) -> Self::BoxRay;
+
+    fn group_ray(ray: &TraversalRay) -> Self::GroupRay<'_>;
 
     /// The children hit within `[t_min, t_max]` (bit per slot) and their entry distances, for a
     /// ray whose children are visited in slots `i ^ ORDER`.
@@ -159,6 +172,13 @@ fn slab_scales(ray: &TraversalRay) -> [[f32; 3]; 2] {
 impl Lanes for FourWide {
     type BoxRay = FourWideRay;
     type Nears = [f32; WIDTH];
+    type GroupRay<'a> = GroupRay;
+    const COPIES_RAY: bool = true;
+
+    #[inline(always)]
+    fn group_ray(ray: &TraversalRay) -> GroupRay {
+        GroupRay::new(ray)
+    }
 
     #[inline(always)]
     fn box_ray(ray: &TraversalRay) -> FourWideRay {
@@ -229,33 +249,44 @@ struct Avx2;
 
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::{FourWideRay, Stack, WideNode, rows};
+    use super::{SLAB_ERROR, Stack, TraversalRay, Vec3A, WideNode, rows};
     use std::arch::x86_64::*;
 
+    /// The box test's per-ray values as scalars: the test broadcasts each where it uses it (a
+    /// broadcast load costs what a vector load does), so setting a ray up takes four stores
+    /// instead of ten broadcasts and ten stores.
     #[derive(Clone, Copy)]
+    #[repr(C, align(16))]
     pub(super) struct Avx2Ray {
-        origin: [__m256; 3],
-        entry_scale: [__m256; 3],
-        exit_scale: [__m256; 3],
-        t_min: __m256,
+        origin: [f32; 4],
+        entry_scale: [f32; 4],
+        exit_scale: [f32; 4],
+        t_min: f32,
     }
 
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    pub(super) fn box_ray(ray: &FourWideRay) -> Avx2Ray {
-        let splat = |value: glam::Vec4| _mm256_set1_ps(value.x);
+    #[inline(always)]
+    pub(super) fn box_ray(ray: &TraversalRay) -> Avx2Ray {
+        // The arithmetic of `slab_scales`, kept in vectors.
+        let negated_inverse = -ray.inv_direction;
+        let lanes = |v: Vec3A| v.extend(0.0).to_array();
         Avx2Ray {
-            origin: ray.origin.map(splat),
-            entry_scale: ray.entry_scale.map(splat),
-            exit_scale: ray.exit_scale.map(splat),
-            t_min: splat(ray.t_min),
+            origin: lanes(ray.origin),
+            entry_scale: lanes(negated_inverse * (1.0 - SLAB_ERROR)),
+            exit_scale: lanes(negated_inverse * (1.0 + SLAB_ERROR)),
+            // SAFETY: a reference is valid and aligned for reads. Volatile: never merged with
+            // its neighbours into a wider load than the caller's stores (see `field_by_field`).
+            t_min: unsafe { std::ptr::read_volatile(&ray.t_min) },
         }
     }
 
     #[target_feature(enable = "avx2")]
     #[inline]
     fn distances(node: &WideNode, ray: &Avx2Ray, axis: usize, rows: (usize, usize)) -> [__m256; 2] {
-        let origin = ray.origin[axis];
+        let origin = _mm256_broadcast_ss(&ray.origin[axis]);
+        let (entry_scale, exit_scale) = (
+            _mm256_broadcast_ss(&ray.entry_scale[axis]),
+            _mm256_broadcast_ss(&ray.exit_scale[axis]),
+        );
         // SAFETY: every plane row is eight floats, 32-byte aligned (`WideNode` is).
         let (entry, exit) = unsafe {
             (
@@ -264,8 +295,8 @@ mod avx2 {
             )
         };
         [
-            _mm256_mul_ps(_mm256_sub_ps(origin, entry), ray.entry_scale[axis]),
-            _mm256_mul_ps(_mm256_sub_ps(origin, exit), ray.exit_scale[axis]),
+            _mm256_mul_ps(_mm256_sub_ps(origin, entry), entry_scale),
+            _mm256_mul_ps(_mm256_sub_ps(origin, exit), exit_scale),
         ]
     }
 
@@ -281,7 +312,7 @@ mod avx2 {
         let [near_z, far_z] = distances(node, ray, 2, rows(ORDER, 2));
         let near = _mm256_max_ps(
             _mm256_max_ps(near_x, near_y),
-            _mm256_max_ps(near_z, ray.t_min),
+            _mm256_max_ps(near_z, _mm256_broadcast_ss(&ray.t_min)),
         );
         let far = _mm256_min_ps(
             _mm256_min_ps(far_x, far_y),
@@ -328,11 +359,17 @@ mod avx2 {
 impl Lanes for Avx2 {
     type BoxRay = avx2::Avx2Ray;
     type Nears = std::arch::x86_64::__m256;
+    type GroupRay<'a> = SplatOnUse<'a>;
+    const COPIES_RAY: bool = false;
 
     #[inline(always)]
     fn box_ray(ray: &TraversalRay) -> avx2::Avx2Ray {
-        // SAFETY: only walks entered when AVX2 is selected (so the CPU has it) use this path.
-        unsafe { avx2::box_ray(&FourWide::box_ray(ray)) }
+        avx2::box_ray(ray)
+    }
+
+    #[inline(always)]
+    fn group_ray(ray: &TraversalRay) -> SplatOnUse<'_> {
+        SplatOnUse::new(ray)
     }
 
     #[inline(always)]
@@ -341,13 +378,13 @@ impl Lanes for Avx2 {
         ray: &avx2::Avx2Ray,
         t_max: f32,
     ) -> (u32, Self::Nears) {
-        // SAFETY: as in `box_ray`.
+        // SAFETY: only walks entered when AVX2 is selected (so the CPU has it) use this path.
         unsafe { avx2::child_hits::<ORDER>(node, ray, t_max) }
     }
 
     #[inline(always)]
     unsafe fn push(node: &WideNode, slots: u32, count: u32, nears: Self::Nears, stack: &mut Stack) {
-        // SAFETY: as in `box_ray`; the stack has room (the caller's promise).
+        // SAFETY: as in `child_hits`; the stack has room (the caller's promise).
         unsafe { avx2::push(node, slots, count, nears, stack) }
     }
 }
@@ -380,7 +417,7 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
     box_ray: &I::BoxRay,
-    group_ray: &GroupRay,
+    group_ray: &impl GroupRayValues,
     mut t_max: f32,
     stack: &mut Stack,
 ) -> Result<(Option<Hit>, f32), Overflow> {
@@ -401,6 +438,19 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
                     }
                     // SAFETY: just checked.
                     unsafe { I::push(node, visit >> 3, others, nears, stack) };
+                    // The child popped next (the last pushed: the nearest of the others) starts
+                    // loading while the walk descends into the nearest.
+                    let next = node.children[((visit >> (3 * others)) & 7) as usize];
+                    if next & LEAF_BIT == 0 {
+                        // SAFETY: inner codes index `nodes` (the caller's promise).
+                        prefetch_node(unsafe { nodes.get_unchecked(next as usize) });
+                    } else {
+                        // SAFETY: leaf codes address existing groups (the caller's promise).
+                        let group = unsafe { groups.get_unchecked(group_leaf(next).0) };
+                        prefetch(group);
+                        prefetch(&group.vertices[1][1]);
+                        prefetch(&group.vertices[2][2]);
+                    }
                 }
                 continue;
             }
@@ -484,7 +534,13 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
     ray: &TraversalRay,
 ) -> (Option<Hit>, f32) {
     const { assert!(INLINE >= WIDTH) };
-    let ray = &field_by_field(ray);
+    let copy;
+    let ray = if I::COPIES_RAY {
+        copy = field_by_field(ray);
+        &copy
+    } else {
+        ray
+    };
     // Both kept in memory (opaque to the optimiser), the box test's values too: the walk's
     // instructions read them as memory operands, where otherwise the compiler kept copies in
     // registers, spilled them at the start and reloaded them after every leaf (fewer cycles per
@@ -494,9 +550,30 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
     // Kept in memory (opaque to the optimiser): the leaf test then reads its values as memory
     // operands, where otherwise copies of them were spilled for the whole walk (13 fewer
     // instructions per ray at 968 triangles).
-    let group_ray = GroupRay::new(ray);
-    let group_ray: &GroupRay = std::hint::black_box(&group_ray);
-    let order = (7 ^ (ray.octant_inv & 7)) as usize;
+    // (A path that reads the ray in place keeps only the pointer to it opaque.)
+    let group_ray = if I::COPIES_RAY {
+        I::group_ray(ray)
+    } else {
+        I::group_ray(std::hint::black_box(ray))
+    };
+    let group_ray = if I::COPIES_RAY {
+        std::hint::black_box(&group_ray)
+    } else {
+        &group_ray
+    };
+    // Read in place: volatile, as in `field_by_field`; a copy is read as it is.
+    let (octant_inv, t_max_start) = if I::COPIES_RAY {
+        (ray.octant_inv, ray.t_max)
+    } else {
+        // SAFETY: a reference is valid and aligned for reads.
+        unsafe {
+            (
+                std::ptr::read_volatile(&ray.octant_inv),
+                std::ptr::read_volatile(&ray.t_max),
+            )
+        }
+    };
+    let order = (7 ^ (octant_inv & 7)) as usize;
     let mut codes = [MaybeUninit::<u32>::uninit(); INLINE];
     let mut nears = [MaybeUninit::<f32>::uninit(); INLINE];
     let mut stack = Stack {
@@ -512,7 +589,7 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
             ($($order:literal)*) => {
                 match order {
                     $($order => unsafe {
-                        walk::<I, $order, ANY_HIT>(nodes, groups, box_ray, group_ray, ray.t_max, &mut stack)
+                        walk::<I, $order, ANY_HIT>(nodes, groups, box_ray, group_ray, t_max_start, &mut stack)
                     },)*
                     _ => unreachable!(),
                 }
@@ -544,6 +621,37 @@ pub(crate) unsafe fn closest_triangle_slot(
     groups: &[TriangleGroup],
     ray: &mut TraversalRay,
 ) -> Option<(u32, Vec2)> {
+    // SAFETY: the caller's promise.
+    unsafe { closest_slot_on::<false>(nodes, groups, ray) }
+}
+
+/// [`closest_triangle_slot`] with the AVX2 walk inlined, for callers compiled for AVX2 as a
+/// whole (one call's set-up per ray instead of two).
+///
+/// # Safety
+/// `codes_in_range(nodes, groups.len())`; the caller is compiled for AVX2 (so the CPU has it).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub(crate) unsafe fn closest_triangle_slot_avx2(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &mut TraversalRay,
+) -> Option<(u32, Vec2)> {
+    // SAFETY: the caller's promise.
+    unsafe { closest_slot_on::<true>(nodes, groups, ray) }
+}
+
+/// [`closest_triangle_slot`]; `INLINE_AVX2`: the AVX2 walk inlined (only inside functions
+/// compiled for AVX2), else the instruction set chosen at run time.
+///
+/// # Safety
+/// `codes_in_range(nodes, groups.len())`; with `INLINE_AVX2` the caller is compiled for AVX2.
+#[inline(always)]
+unsafe fn closest_slot_on<const INLINE_AVX2: bool>(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &mut TraversalRay,
+) -> Option<(u32, Vec2)> {
     if nodes.is_empty() {
         return None;
     }
@@ -553,7 +661,10 @@ pub(crate) unsafe fn closest_triangle_slot(
         return closest_by_generic_walk(nodes, groups, ray);
     }
     #[cfg(target_arch = "x86_64")]
-    let (hit, t) = if crate::isa::avx2_selected() {
+    let (hit, t) = if INLINE_AVX2 {
+        // SAFETY: the caller is compiled for AVX2; the caller's promise.
+        unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray) }
+    } else if crate::isa::avx2_selected() {
         // SAFETY: AVX2 is selected only on CPUs that have it; the caller's promise.
         unsafe { avx2_walks::closest(nodes, groups, ray) }
     } else {
@@ -571,9 +682,16 @@ pub(crate) unsafe fn closest_triangle_slot(
         determinant,
     } = hit?;
     ray.t_max = t;
-    let inv = 1.0 / determinant[lane];
+    // Lanes read from arrays (an indexed load), not by `Vec4`'s index, which branches on the
+    // lane through a jump table (a mispredicted jump per hit).
+    let lane_of = |lanes: Vec4| lanes.to_array()[lane];
+    let inv = 1.0 / lane_of(determinant);
     let slot = (group * GROUP_LANES + lane) as u32;
-    Some((slot, Vec2::new(v[lane] * inv, w[lane] * inv)))
+    // Both products in one vector (each lane the scalar product), so that the pair is written
+    // with one store: the caller may read it back as one 8-byte load, which two 4-byte stores
+    // could not forward (a stall per hit).
+    let bary = (Vec4::new(lane_of(v), lane_of(w), 0.0, 0.0) * inv).xy();
+    Some((slot, bary))
 }
 
 /// Whether any of `groups` under `nodes` is hit.
