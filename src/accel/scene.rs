@@ -244,6 +244,115 @@ impl SceneBvh {
         Some(self.scene_hit(placement, hit))
     }
 
+    /// Closest hits of eight rays with any origins (prototype, branch `lanes8`): `hits[i]`
+    /// receives exactly what [`Self::intersect_into`] writes for `rays[i]`. Rays sharing a
+    /// direction octant walk a single untransformed triangle geometry together (`lanes8`);
+    /// everything else goes ray by ray.
+    pub fn intersect8(&self, rays: &[Ray; 8], hits: &mut [Option<SceneHit>; 8]) {
+        self.intersect8_with(rays, hits, true);
+    }
+
+    /// [`Self::intersect8`]; `hybrid`: subtrees one lane reaches are walked by it alone.
+    pub fn intersect8_with(&self, rays: &[Ray; 8], hits: &mut [Option<SceneHit>; 8], hybrid: bool) {
+        #[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
+        if crate::isa::avx2_selected()
+            && let [placement] = self.placements.as_slice()
+            && placement.world_to_object.is_none()
+            && placement.geometry.triangle_walk_data().is_some()
+        {
+            // SAFETY: AVX2 is selected only on CPUs that have it (`crate::isa`).
+            unsafe { self.intersect8_avx2(placement, rays, hits, hybrid) };
+            return;
+        }
+        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+            self.intersect_into(ray, hit);
+        }
+    }
+
+    /// [`Self::intersect8_with`] on one untransformed triangle placement.
+    ///
+    /// # Safety
+    /// The CPU has AVX2.
+    #[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    unsafe fn intersect8_avx2(
+        &self,
+        placement: &Placement,
+        rays: &[Ray; 8],
+        hits: &mut [Option<SceneHit>; 8],
+        hybrid: bool,
+    ) {
+        use crate::accel::lanes8::{RAYS, closest8};
+        let geometry = &placement.geometry;
+        let Some((nodes, groups)) = geometry.triangle_walk_data() else {
+            return;
+        };
+        let prepared: [Option<TraversalRay>; RAYS] =
+            std::array::from_fn(|lane| prepare(&rays[lane]));
+        // Lanes the walk of eight may take: valid, `t_min >= 0` (others take the single-ray
+        // walk's generic path).
+        let mut pending = 0u32;
+        for (lane, ray) in prepared.iter().enumerate() {
+            match ray {
+                None => hits[lane] = None,
+                Some(ray) if ray.t_min >= 0.0 => pending |= 1 << lane,
+                Some(_) => self.intersect_into(&rays[lane], &mut hits[lane]),
+            }
+        }
+        while pending != 0 {
+            let first = prepared[pending.trailing_zeros() as usize].unwrap();
+            let mut lanes = 0u32;
+            for (lane, ray) in prepared.iter().enumerate() {
+                if pending & (1 << lane) != 0 && ray.unwrap().octant_inv == first.octant_inv {
+                    lanes |= 1 << lane;
+                }
+            }
+            pending &= !lanes;
+            let walked = if lanes.count_ones() >= 2 && !nodes.is_empty() {
+                let packed: [TraversalRay; RAYS] =
+                    std::array::from_fn(|lane| prepared[lane].unwrap_or(first));
+                // SAFETY: AVX2 is enabled here; triangle BVHs are checked with
+                // `codes_in_range` when built; `nodes` is not empty.
+                unsafe { closest8(nodes, groups, &packed, lanes, hybrid) }
+            } else {
+                None
+            };
+            let Some((found, t)) = walked else {
+                for lane in (0..RAYS).filter(|lane| lanes & (1 << lane) != 0) {
+                    self.intersect_into(&rays[lane], &mut hits[lane]);
+                }
+                continue;
+            };
+            for lane in (0..RAYS).filter(|lane| lanes & (1 << lane) != 0) {
+                let Some(hit) = found[lane] else {
+                    hits[lane] = None;
+                    continue;
+                };
+                let mut object = prepared[lane].unwrap();
+                object.t_max = t[lane];
+                // As `single_ray::closest_slot_on` and `Self::closest_hit` finish a hit.
+                let lane_of = |values: glam::Vec4| values.to_array()[hit.lane];
+                let inv = 1.0 / lane_of(hit.determinant);
+                let primitive_slot =
+                    (hit.group * crate::accel::primitives::GROUP_LANES + hit.lane) as u32;
+                let bary = (glam::Vec4::new(lane_of(hit.v), lane_of(hit.w), 0.0, 0.0) * inv)
+                    .truncate()
+                    .truncate();
+                let normal = geometry.triangle_normal(primitive_slot);
+                hits[lane] = Some(
+                    match geometry.triangle_hit_from_uv(primitive_slot, object.t_max, bary, normal)
+                    {
+                        Some(hit) => self.scene_hit(placement, hit),
+                        None => {
+                            self.scene_hit(placement, geometry.hit_details(primitive_slot, &object))
+                        }
+                    },
+                );
+            }
+        }
+    }
+
     /// Closest hits of many rays: `hits[i]` receives what `intersect(&rays[i])` would return
     /// (the same `t`; only among surfaces hit at exactly the same `t` the reported one may
     /// differ). Meant for primary rays: every 64 consecutive rays should be one 8x8 pixel tile
