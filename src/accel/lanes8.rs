@@ -10,7 +10,8 @@
 //! entry distance, popped with each lane's `near <= t_max` test, and leaves tested lane by lane
 //! with the single-ray group test: each lane's sequence of leaf tests is its single-ray walk's,
 //! so it finds the same hit, ties between surfaces included. A subtree only one lane reaches is
-//! walked by the single-ray walk itself (hybrid).
+//! walked by the single-ray walk itself, lane after lane, when at most `single_up_to` lanes reach
+//! it (hybrid; lanes are independent, so each keeps its own order).
 
 use std::arch::x86_64::*;
 
@@ -37,10 +38,14 @@ struct BoxRays {
 
 /// What a walk of eight rays found: per lane the hit (if any) and its `t` (the lane's `t_max`
 /// if none).
-pub(crate) type Found = ([Option<Hit>; RAYS], [f32; RAYS]);
+pub(crate) struct Found {
+    pub hits: [Option<Hit>; RAYS],
+    pub t: [f32; RAYS],
+}
 
 /// The closest hits of the rays in `lanes` (bit per lane), which must share their direction
-/// octant and have `t_min >= 0`; `None` if the walk's stack would overflow.
+/// octant and have `t_min >= 0`, into `found` (lanes in `lanes` only); false if the walk's
+/// stack would overflow. The rays' `t_max` may change.
 ///
 /// # Safety
 /// The CPU has AVX2; `single_ray::codes_in_range(nodes, groups.len())`; `nodes` not empty.
@@ -48,33 +53,40 @@ pub(crate) type Found = ([Option<Hit>; RAYS], [f32; RAYS]);
 pub(crate) unsafe fn closest8(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
-    rays: &[TraversalRay; RAYS],
+    rays: &mut [TraversalRay; RAYS],
     lanes: u32,
-    hybrid: bool,
-) -> Option<Found> {
+    single_up_to: u32,
+    found: &mut Found,
+) -> bool {
     let first = &rays[lanes.trailing_zeros() as usize];
     debug_assert!((0..RAYS).all(|lane| lanes & (1 << lane) == 0
         || (rays[lane].octant_inv == first.octant_inv && rays[lane].t_min >= 0.0)));
-    let lane_values = |value: &dyn Fn(&TraversalRay) -> f32| {
-        let values: [f32; RAYS] = std::array::from_fn(|lane| value(&rays[lane]));
-        // SAFETY: eight floats.
-        unsafe { _mm256_loadu_ps(values.as_ptr()) }
-    };
-    // The arithmetic of `single_ray::slab_scales`, lane by lane.
+    // The arithmetic of `single_ray::slab_scales`, lane by lane, transposed through arrays.
+    let mut values = [[0.0f32; RAYS]; 10];
+    for (lane, ray) in rays.iter().enumerate() {
+        let entry = -ray.inv_direction * (1.0 - SLAB_ERROR);
+        let exit = -ray.inv_direction * (1.0 + SLAB_ERROR);
+        for axis in 0..3 {
+            values[axis][lane] = ray.origin[axis];
+            values[3 + axis][lane] = entry[axis];
+            values[6 + axis][lane] = exit[axis];
+        }
+        values[9][lane] = ray.t_min;
+    }
+    // SAFETY: eight floats per row.
+    let row = |index: usize| unsafe { _mm256_loadu_ps(values[index].as_ptr()) };
     let box_rays = BoxRays {
-        origin: [0, 1, 2].map(|axis| lane_values(&|ray| ray.origin[axis])),
-        entry_scale: [0, 1, 2]
-            .map(|axis| lane_values(&|ray| (-ray.inv_direction * (1.0 - SLAB_ERROR))[axis])),
-        exit_scale: [0, 1, 2]
-            .map(|axis| lane_values(&|ray| (-ray.inv_direction * (1.0 + SLAB_ERROR))[axis])),
-        t_min: lane_values(&|ray| ray.t_min),
+        origin: [row(0), row(1), row(2)],
+        entry_scale: [row(3), row(4), row(5)],
+        exit_scale: [row(6), row(7), row(8)],
+        t_min: row(9),
     };
     let order = (7 ^ (first.octant_inv & 7)) as usize;
     macro_rules! octants {
         ($($order:literal)*) => {
             match order {
                 // SAFETY: the caller's promise.
-                $($order => unsafe { walk::<$order>(nodes, groups, rays, &box_rays, lanes, hybrid) },)*
+                $($order => unsafe { walk::<$order>(nodes, groups, &mut *rays, &box_rays, lanes, single_up_to, found) },)*
                 _ => unreachable!(),
             }
         };
@@ -144,15 +156,24 @@ fn child_lanes<const ORDER: usize>(
 unsafe fn walk<const ORDER: usize>(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
-    rays: &[TraversalRay; RAYS],
+    rays: &mut [TraversalRay; RAYS],
     box_rays: &BoxRays,
     lanes: u32,
-    hybrid: bool,
-) -> Option<Found> {
-    let mut t_max_lanes: [f32; RAYS] = std::array::from_fn(|lane| rays[lane].t_max);
+    single_up_to: u32,
+    found: &mut Found,
+) -> bool {
+    let t_max_lanes = &mut found.t;
+    for (t, ray) in t_max_lanes.iter_mut().zip(rays.iter()) {
+        *t = ray.t_max;
+    }
     // SAFETY: eight floats.
     let mut t_max = unsafe { _mm256_loadu_ps(t_max_lanes.as_ptr()) };
-    let mut found: [Option<Hit>; RAYS] = [None; RAYS];
+    let found = &mut found.hits;
+    let mut rest = lanes;
+    while rest != 0 {
+        found[rest.trailing_zeros() as usize] = None;
+        rest &= rest - 1;
+    }
     let mut codes = [std::mem::MaybeUninit::<u32>::uninit(); STACK];
     let mut masks = [std::mem::MaybeUninit::<u32>::uninit(); STACK];
     let mut nears = [std::mem::MaybeUninit::<__m256>::uninit(); STACK];
@@ -199,21 +220,27 @@ unsafe fn walk<const ORDER: usize>(
             }
             continue;
         }
-        if hybrid && active.count_ones() == 1 {
-            let lane = active.trailing_zeros() as usize;
-            let mut ray = rays[lane];
-            ray.t_max = t_max_lanes[lane];
-            // SAFETY: the caller's promise; inner codes index `nodes`; AVX2 is enabled here.
-            let (hit, t) = unsafe { single_ray::closest_from_avx2(nodes, groups, &ray, code) };
-            if hit.is_some() {
-                found[lane] = hit;
-                t_max_lanes[lane] = t;
-                t_max = set_lane(t_max, lane, t);
+        if active.count_ones() <= single_up_to {
+            // Lanes are independent: each walks the subtree alone, in its own order.
+            let mut rest = active;
+            while rest != 0 {
+                let lane = rest.trailing_zeros() as usize;
+                rest &= rest - 1;
+                // The lane's own ray with its current `t_max` (no copy of the ray).
+                rays[lane].t_max = t_max_lanes[lane];
+                // SAFETY: the caller's promise; inner codes index `nodes`; AVX2 is enabled
+                // here.
+                let (hit, t) = unsafe { walk_alone(nodes, groups, &rays[lane], code) };
+                if hit.is_some() {
+                    found[lane] = hit;
+                    t_max_lanes[lane] = t;
+                    t_max = set_lane(t_max, lane, t);
+                }
             }
             continue;
         }
         if len + WIDTH > STACK {
-            return None;
+            return false;
         }
         // SAFETY: inner codes index `nodes` (the caller's promise).
         let node = unsafe { nodes.get_unchecked(code as usize) };
@@ -240,5 +267,22 @@ unsafe fn walk<const ORDER: usize>(
             }
         }
     }
-    Some((found, t_max_lanes))
+    true
+}
+
+/// One lane's subtree walk, out of line: one copy of the single-ray walk instead of one
+/// inlined into each octant's walk.
+///
+/// # Safety
+/// As `single_ray::closest_from_avx2`.
+#[target_feature(enable = "avx2")]
+#[inline(never)]
+unsafe fn walk_alone(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &TraversalRay,
+    root: u32,
+) -> (Option<Hit>, f32) {
+    // SAFETY: the caller's promise.
+    unsafe { single_ray::closest_from_avx2(nodes, groups, ray, root) }
 }

@@ -249,11 +249,17 @@ impl SceneBvh {
     /// direction octant walk a single untransformed triangle geometry together (`lanes8`);
     /// everything else goes ray by ray.
     pub fn intersect8(&self, rays: &[Ray; 8], hits: &mut [Option<SceneHit>; 8]) {
-        self.intersect8_with(rays, hits, true);
+        self.intersect8_with(rays, hits, 1);
     }
 
-    /// [`Self::intersect8`]; `hybrid`: subtrees one lane reaches are walked by it alone.
-    pub fn intersect8_with(&self, rays: &[Ray; 8], hits: &mut [Option<SceneHit>; 8], hybrid: bool) {
+    /// [`Self::intersect8`]; subtrees that at most `single_up_to` lanes reach are walked by
+    /// each of them alone (0: never).
+    pub fn intersect8_with(
+        &self,
+        rays: &[Ray; 8],
+        hits: &mut [Option<SceneHit>; 8],
+        single_up_to: u32,
+    ) {
         #[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
         if crate::isa::avx2_selected()
             && let [placement] = self.placements.as_slice()
@@ -261,7 +267,7 @@ impl SceneBvh {
             && placement.geometry.triangle_walk_data().is_some()
         {
             // SAFETY: AVX2 is selected only on CPUs that have it (`crate::isa`).
-            unsafe { self.intersect8_avx2(placement, rays, hits, hybrid) };
+            unsafe { self.intersect8_avx2(placement, rays, hits, single_up_to) };
             return;
         }
         for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
@@ -281,56 +287,66 @@ impl SceneBvh {
         placement: &Placement,
         rays: &[Ray; 8],
         hits: &mut [Option<SceneHit>; 8],
-        hybrid: bool,
+        single_up_to: u32,
     ) {
-        use crate::accel::lanes8::{RAYS, closest8};
+        use crate::accel::lanes8::{Found, RAYS, closest8};
         let geometry = &placement.geometry;
         let Some((nodes, groups)) = geometry.triangle_walk_data() else {
             return;
         };
-        let prepared: [Option<TraversalRay>; RAYS] =
-            std::array::from_fn(|lane| prepare(&rays[lane]));
+        // Invalid lanes hold a filler ray and are never walked.
+        let filler = TraversalRay::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0).unwrap();
+        let mut valid = 0u32;
+        let mut packed: [TraversalRay; RAYS] =
+            std::array::from_fn(|lane| match prepare(&rays[lane]) {
+                Some(ray) => {
+                    valid |= 1 << lane;
+                    ray
+                }
+                None => filler,
+            });
         // Lanes the walk of eight may take: valid, `t_min >= 0` (others take the single-ray
         // walk's generic path).
         let mut pending = 0u32;
-        for (lane, ray) in prepared.iter().enumerate() {
-            match ray {
-                None => hits[lane] = None,
-                Some(ray) if ray.t_min >= 0.0 => pending |= 1 << lane,
-                Some(_) => self.intersect_into(&rays[lane], &mut hits[lane]),
+        for (lane, ray) in packed.iter().enumerate() {
+            if valid & (1 << lane) == 0 {
+                hits[lane] = None;
+            } else if ray.t_min >= 0.0 {
+                pending |= 1 << lane;
+            } else {
+                self.intersect_into(&rays[lane], &mut hits[lane]);
             }
         }
+        let mut found = Found {
+            hits: [None; RAYS],
+            t: [0.0; RAYS],
+        };
         while pending != 0 {
-            let first = prepared[pending.trailing_zeros() as usize].unwrap();
+            let octant = packed[pending.trailing_zeros() as usize].octant_inv;
             let mut lanes = 0u32;
-            for (lane, ray) in prepared.iter().enumerate() {
-                if pending & (1 << lane) != 0 && ray.unwrap().octant_inv == first.octant_inv {
+            for (lane, ray) in packed.iter().enumerate() {
+                if pending & (1 << lane) != 0 && ray.octant_inv == octant {
                     lanes |= 1 << lane;
                 }
             }
             pending &= !lanes;
-            let walked = if lanes.count_ones() >= 2 && !nodes.is_empty() {
-                let packed: [TraversalRay; RAYS] =
-                    std::array::from_fn(|lane| prepared[lane].unwrap_or(first));
-                // SAFETY: AVX2 is enabled here; triangle BVHs are checked with
-                // `codes_in_range` when built; `nodes` is not empty.
-                unsafe { closest8(nodes, groups, &packed, lanes, hybrid) }
-            } else {
-                None
-            };
-            let Some((found, t)) = walked else {
+            // SAFETY: AVX2 is enabled here; triangle BVHs are checked with `codes_in_range`
+            // when built; `nodes` is not empty.
+            let walked = lanes.count_ones() >= 2
+                && !nodes.is_empty()
+                && unsafe { closest8(nodes, groups, &mut packed, lanes, single_up_to, &mut found) };
+            if !walked {
                 for lane in (0..RAYS).filter(|lane| lanes & (1 << lane) != 0) {
                     self.intersect_into(&rays[lane], &mut hits[lane]);
                 }
                 continue;
-            };
+            }
             for lane in (0..RAYS).filter(|lane| lanes & (1 << lane) != 0) {
-                let Some(hit) = found[lane] else {
+                let Some(hit) = found.hits[lane] else {
                     hits[lane] = None;
                     continue;
                 };
-                let mut object = prepared[lane].unwrap();
-                object.t_max = t[lane];
+                let t = found.t[lane];
                 // As `single_ray::closest_slot_on` and `Self::closest_hit` finish a hit.
                 let lane_of = |values: glam::Vec4| values.to_array()[hit.lane];
                 let inv = 1.0 / lane_of(hit.determinant);
@@ -341,10 +357,11 @@ impl SceneBvh {
                     .truncate();
                 let normal = geometry.triangle_normal(primitive_slot);
                 hits[lane] = Some(
-                    match geometry.triangle_hit_from_uv(primitive_slot, object.t_max, bary, normal)
-                    {
+                    match geometry.triangle_hit_from_uv(primitive_slot, t, bary, normal) {
                         Some(hit) => self.scene_hit(placement, hit),
                         None => {
+                            let mut object = packed[lane];
+                            object.t_max = t;
                             self.scene_hit(placement, geometry.hit_details(primitive_slot, &object))
                         }
                     },

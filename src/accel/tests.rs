@@ -3436,7 +3436,7 @@ fn rays_in_eights_get_the_records_of_single_rays() {
             }));
         }
         for rays in &eights {
-            for hybrid in [true, false] {
+            for hybrid in [0, 1, 3, 8] {
                 let mut hits = [None; 8];
                 scene.intersect8_with(rays, &mut hits, hybrid);
                 for (ray, hit) in rays.iter().zip(&hits) {
