@@ -539,6 +539,7 @@ impl GeometryBvh {
     }
 
     /// The nodes and triangle groups of a triangle or quad BVH (for `lanes8`).
+    #[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
     pub(crate) fn triangle_walk_data(&self) -> Option<(&[WideNode], &[TriangleGroup])> {
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {

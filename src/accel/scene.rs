@@ -270,6 +270,8 @@ impl SceneBvh {
             unsafe { self.intersect8_avx2(placement, rays, hits, single_up_to) };
             return;
         }
+        #[cfg(any(not(target_arch = "x86_64"), feature = "kernel-counters"))]
+        let _ = single_up_to;
         for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
             self.intersect_into(ray, hit);
         }

@@ -619,7 +619,7 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
 /// # Safety
 /// `codes_in_range(nodes, groups.len())`, `root` indexes `nodes`, `ray.t_min >= 0`; the caller
 /// is compiled for AVX2.
-#[cfg(target_arch = "x86_64")]
+#[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
 #[inline(always)]
 pub(crate) unsafe fn closest_from_avx2(
     nodes: &[WideNode],
