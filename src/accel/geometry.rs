@@ -538,6 +538,17 @@ impl GeometryBvh {
         }
     }
 
+    /// The nodes and triangle groups of a triangle or quad BVH (for `lanes8`).
+    #[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
+    pub(crate) fn triangle_walk_data(&self) -> Option<(&[WideNode], &[TriangleGroup])> {
+        match &self.primitives {
+            PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {
+                Some((&self.nodes, groups))
+            }
+            _ => None,
+        }
+    }
+
     /// [`Self::closest_slot`] for spheres, tubes and procedural primitives.
     #[inline(never)]
     fn closest_other_slot(&self, ray: &mut TraversalRay) -> Option<(u32, Vec2)> {

@@ -43,6 +43,8 @@
 
 pub mod counters;
 mod geometry;
+#[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
+mod lanes8;
 pub use crate::isa;
 mod binned_sah;
 mod collapse;

@@ -244,6 +244,134 @@ impl SceneBvh {
         Some(self.scene_hit(placement, hit))
     }
 
+    /// Closest hits of eight rays with any origins (prototype, branch `lanes8`): `hits[i]`
+    /// receives exactly what [`Self::intersect_into`] writes for `rays[i]`. Rays sharing a
+    /// direction octant walk a single untransformed triangle geometry together (`lanes8`);
+    /// everything else goes ray by ray.
+    pub fn intersect8(&self, rays: &[Ray; 8], hits: &mut [Option<SceneHit>; 8]) {
+        self.intersect8_with(rays, hits, 1);
+    }
+
+    /// [`Self::intersect8`]; subtrees that at most `single_up_to` lanes reach are walked by
+    /// each of them alone (0: never).
+    pub fn intersect8_with(
+        &self,
+        rays: &[Ray; 8],
+        hits: &mut [Option<SceneHit>; 8],
+        single_up_to: u32,
+    ) {
+        #[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
+        if crate::isa::avx2_selected()
+            && let [placement] = self.placements.as_slice()
+            && placement.world_to_object.is_none()
+            && placement.geometry.triangle_walk_data().is_some()
+        {
+            // SAFETY: AVX2 is selected only on CPUs that have it (`crate::isa`).
+            unsafe { self.intersect8_avx2(placement, rays, hits, single_up_to) };
+            return;
+        }
+        #[cfg(any(not(target_arch = "x86_64"), feature = "kernel-counters"))]
+        let _ = single_up_to;
+        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+            self.intersect_into(ray, hit);
+        }
+    }
+
+    /// [`Self::intersect8_with`] on one untransformed triangle placement.
+    ///
+    /// # Safety
+    /// The CPU has AVX2.
+    #[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
+    #[target_feature(enable = "avx2")]
+    #[inline(never)]
+    unsafe fn intersect8_avx2(
+        &self,
+        placement: &Placement,
+        rays: &[Ray; 8],
+        hits: &mut [Option<SceneHit>; 8],
+        single_up_to: u32,
+    ) {
+        use crate::accel::lanes8::{Found, RAYS, closest8};
+        let geometry = &placement.geometry;
+        let Some((nodes, groups)) = geometry.triangle_walk_data() else {
+            return;
+        };
+        // Invalid lanes hold a filler ray and are never walked.
+        let filler = TraversalRay::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0).unwrap();
+        let mut valid = 0u32;
+        let mut packed: [TraversalRay; RAYS] =
+            std::array::from_fn(|lane| match prepare(&rays[lane]) {
+                Some(ray) => {
+                    valid |= 1 << lane;
+                    ray
+                }
+                None => filler,
+            });
+        // Lanes the walk of eight may take: valid, `t_min >= 0` (others take the single-ray
+        // walk's generic path).
+        let mut pending = 0u32;
+        for (lane, ray) in packed.iter().enumerate() {
+            if valid & (1 << lane) == 0 {
+                hits[lane] = None;
+            } else if ray.t_min >= 0.0 {
+                pending |= 1 << lane;
+            } else {
+                self.intersect_into(&rays[lane], &mut hits[lane]);
+            }
+        }
+        let mut found = Found {
+            hits: [None; RAYS],
+            t: [0.0; RAYS],
+        };
+        while pending != 0 {
+            let octant = packed[pending.trailing_zeros() as usize].octant_inv;
+            let mut lanes = 0u32;
+            for (lane, ray) in packed.iter().enumerate() {
+                if pending & (1 << lane) != 0 && ray.octant_inv == octant {
+                    lanes |= 1 << lane;
+                }
+            }
+            pending &= !lanes;
+            // SAFETY: AVX2 is enabled here; triangle BVHs are checked with `codes_in_range`
+            // when built; `nodes` is not empty.
+            let walked = lanes.count_ones() >= 2
+                && !nodes.is_empty()
+                && unsafe { closest8(nodes, groups, &mut packed, lanes, single_up_to, &mut found) };
+            if !walked {
+                for lane in (0..RAYS).filter(|lane| lanes & (1 << lane) != 0) {
+                    self.intersect_into(&rays[lane], &mut hits[lane]);
+                }
+                continue;
+            }
+            for lane in (0..RAYS).filter(|lane| lanes & (1 << lane) != 0) {
+                let Some(hit) = found.hits[lane] else {
+                    hits[lane] = None;
+                    continue;
+                };
+                let t = found.t[lane];
+                // As `single_ray::closest_slot_on` and `Self::closest_hit` finish a hit.
+                let lane_of = |values: glam::Vec4| values.to_array()[hit.lane];
+                let inv = 1.0 / lane_of(hit.determinant);
+                let primitive_slot =
+                    (hit.group * crate::accel::primitives::GROUP_LANES + hit.lane) as u32;
+                let bary = (glam::Vec4::new(lane_of(hit.v), lane_of(hit.w), 0.0, 0.0) * inv)
+                    .truncate()
+                    .truncate();
+                let normal = geometry.triangle_normal(primitive_slot);
+                hits[lane] = Some(
+                    match geometry.triangle_hit_from_uv(primitive_slot, t, bary, normal) {
+                        Some(hit) => self.scene_hit(placement, hit),
+                        None => {
+                            let mut object = packed[lane];
+                            object.t_max = t;
+                            self.scene_hit(placement, geometry.hit_details(primitive_slot, &object))
+                        }
+                    },
+                );
+            }
+        }
+    }
+
     /// Closest hits of many rays: `hits[i]` receives what `intersect(&rays[i])` would return
     /// (the same `t`; only among surfaces hit at exactly the same `t` the reported one may
     /// differ). Meant for primary rays: every 64 consecutive rays should be one 8x8 pixel tile

@@ -96,12 +96,12 @@ struct Overflow;
 /// A hit: its group and lane, and the group's edge functions `V`, `W` and determinants its
 /// barycentrics come from (lanes are picked once the walk is over).
 #[derive(Clone, Copy)]
-struct Hit {
-    group: usize,
-    lane: usize,
-    v: Vec4,
-    w: Vec4,
-    determinant: Vec4,
+pub(crate) struct Hit {
+    pub group: usize,
+    pub lane: usize,
+    pub v: Vec4,
+    pub w: Vec4,
+    pub determinant: Vec4,
 }
 
 /// An instruction set's box test and push.
@@ -139,7 +139,7 @@ trait Lanes {
 /// The plane rows of axis `axis` through which a ray of visiting order `order` enters and
 /// leaves children (`order` has bit `2 - axis` set for a negative direction).
 #[inline(always)]
-const fn rows(order: usize, axis: usize) -> (usize, usize) {
+pub(crate) const fn rows(order: usize, axis: usize) -> (usize, usize) {
     if (order >> (2 - axis)) & 1 != 0 {
         (2 * axis + 1, 2 * axis)
     } else {
@@ -420,9 +420,10 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool>(
     group_ray: &impl GroupRayValues,
     mut t_max: f32,
     stack: &mut Stack,
+    root: u32,
 ) -> Result<(Option<Hit>, f32), Overflow> {
     let mut found = None;
-    let mut code = 0u32;
+    let mut code = root;
     loop {
         if code & LEAF_BIT == 0 {
             // SAFETY: inner codes index `nodes` (the caller's promise).
@@ -532,6 +533,7 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
     ray: &TraversalRay,
+    root: u32,
 ) -> (Option<Hit>, f32) {
     const { assert!(INLINE >= WIDTH) };
     let copy;
@@ -589,7 +591,7 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
             ($($order:literal)*) => {
                 match order {
                     $($order => unsafe {
-                        walk::<I, $order, ANY_HIT>(nodes, groups, box_ray, group_ray, t_max_start, &mut stack)
+                        walk::<I, $order, ANY_HIT>(nodes, groups, box_ray, group_ray, t_max_start, &mut stack, root)
                     },)*
                     _ => unreachable!(),
                 }
@@ -608,6 +610,25 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
             last_push: capacity - WIDTH,
         };
     }
+}
+
+/// The AVX2 closest-hit walk of one ray through the subtree at inner node `root`, from
+/// `ray.t_max` on: the hit it finds and its `t` (`ray.t_max` if none). `lanes8` walks a
+/// subtree only one of its rays reaches with it.
+///
+/// # Safety
+/// `codes_in_range(nodes, groups.len())`, `root` indexes `nodes`, `ray.t_min >= 0`; the caller
+/// is compiled for AVX2.
+#[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
+#[inline(always)]
+pub(crate) unsafe fn closest_from_avx2(
+    nodes: &[WideNode],
+    groups: &[TriangleGroup],
+    ray: &TraversalRay,
+    root: u32,
+) -> (Option<Hit>, f32) {
+    // SAFETY: the caller's promise.
+    unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray, root) }
 }
 
 /// The closest hit among `groups` under `nodes`: its slot and barycentrics `(b1, b2)`;
@@ -663,7 +684,7 @@ unsafe fn closest_slot_on<const INLINE_AVX2: bool>(
     #[cfg(target_arch = "x86_64")]
     let (hit, t) = if INLINE_AVX2 {
         // SAFETY: the caller is compiled for AVX2; the caller's promise.
-        unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray) }
+        unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray, 0) }
     } else if crate::isa::avx2_selected() {
         // SAFETY: AVX2 is selected only on CPUs that have it; the caller's promise.
         unsafe { avx2_walks::closest(nodes, groups, ray) }
@@ -732,7 +753,7 @@ unsafe fn closest_baseline(
     ray: &TraversalRay,
 ) -> (Option<Hit>, f32) {
     // SAFETY: the caller's promise.
-    unsafe { walk_ray::<FourWide, false, INLINE_STACK>(nodes, groups, ray) }
+    unsafe { walk_ray::<FourWide, false, INLINE_STACK>(nodes, groups, ray, 0) }
 }
 
 /// The baseline path's any-hit walk (as [`closest_baseline`]).
@@ -742,7 +763,7 @@ unsafe fn closest_baseline(
 #[inline(never)]
 unsafe fn any_baseline(nodes: &[WideNode], groups: &[TriangleGroup], ray: &TraversalRay) -> bool {
     // SAFETY: the caller's promise.
-    unsafe { walk_ray::<FourWide, true, INLINE_STACK>(nodes, groups, ray) }
+    unsafe { walk_ray::<FourWide, true, INLINE_STACK>(nodes, groups, ray, 0) }
         .0
         .is_some()
 }
@@ -796,7 +817,7 @@ mod avx2_walks {
         ray: &TraversalRay,
     ) -> (Option<Hit>, f32) {
         // SAFETY: the caller's promise.
-        unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray) }
+        unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray, 0) }
     }
 
     /// # Safety
@@ -808,7 +829,7 @@ mod avx2_walks {
         ray: &TraversalRay,
     ) -> bool {
         // SAFETY: the caller's promise.
-        unsafe { walk_ray::<Avx2, true, INLINE_STACK>(nodes, groups, ray) }
+        unsafe { walk_ray::<Avx2, true, INLINE_STACK>(nodes, groups, ray, 0) }
             .0
             .is_some()
     }
@@ -875,15 +896,15 @@ pub(crate) mod test_paths {
             #[cfg(target_arch = "x86_64")]
             if crate::isa::avx2_selected() {
                 return (
-                    slot(walk_ray::<Avx2, false, WIDTH>(nodes, groups, ray)),
-                    walk_ray::<Avx2, true, WIDTH>(nodes, groups, ray)
+                    slot(walk_ray::<Avx2, false, WIDTH>(nodes, groups, ray, 0)),
+                    walk_ray::<Avx2, true, WIDTH>(nodes, groups, ray, 0)
                         .0
                         .is_some(),
                 );
             }
             (
-                slot(walk_ray::<FourWide, false, WIDTH>(nodes, groups, ray)),
-                walk_ray::<FourWide, true, WIDTH>(nodes, groups, ray)
+                slot(walk_ray::<FourWide, false, WIDTH>(nodes, groups, ray, 0)),
+                walk_ray::<FourWide, true, WIDTH>(nodes, groups, ray, 0)
                     .0
                     .is_some(),
             )

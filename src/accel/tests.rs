@@ -3398,3 +3398,62 @@ fn rays_in_a_box_face_plane_find_the_same_hits_on_every_path() {
         }
     }
 }
+
+/// `SceneBvh::intersect8` against `intersect_into`, record by record, on random rays in eights
+/// (mixed octants and intervals), on coherent eights (eight origins centimetres apart looking
+/// at one spot, as light-field subpixels) and on eights aimed at a grid's vertices and edges
+/// (ties between triangles, where only the same visiting order gives the same record).
+#[test]
+fn rays_in_eights_get_the_records_of_single_rays() {
+    // The walk of eights is AVX2 only (else the rays go one by one).
+    if !isa::Isa::Avx2.supported() {
+        return;
+    }
+    let mut rng = Rng::new(808);
+    let cloud = Arc::new(GeometryBvh::build(random_triangles(
+        &mut rng, 3000, 4.0, 0.6,
+    )));
+    let (_, grid_prims) = bumpy_grid(24);
+    let grid = Arc::new(GeometryBvh::build(grid_prims));
+    let mut compared = 0;
+    for (geometry, extent) in [(cloud, 4.0f32), (grid, 12.0)] {
+        let scene = SceneBvh::build(vec![identity_instance(vec![geometry])]);
+        let mut eights: Vec<[Ray; 8]> = Vec::new();
+        let random = random_rays(&mut rng, 8 * 200, extent);
+        eights.extend(
+            random
+                .chunks_exact(8)
+                .map(|c| std::array::from_fn(|i| c[i])),
+        );
+        for _ in 0..400 {
+            let eye = rng.point(-1.5 * extent, 1.5 * extent) + vec3(0.0, 0.0, 2.0 * extent);
+            let target = rng.point(-extent, extent);
+            let snap = rng.unit() < 0.5;
+            eights.push(std::array::from_fn(|i| {
+                let origin = eye + vec3(0.05 * (i % 4) as f32, 0.05 * (i / 4) as f32, 0.0);
+                let mut aim = target + rng.point(-0.02 * extent, 0.02 * extent);
+                if snap {
+                    // Grid vertices and edge midpoints.
+                    aim = (aim * 2.0).round() * 0.5;
+                }
+                Ray::new(origin, (aim - origin).normalize(), 0.0, f32::INFINITY)
+            }));
+        }
+        for rays in &eights {
+            for hybrid in [0, 1, 3, 8] {
+                let mut hits = [None; 8];
+                // Selected at every call: other tests switch the path for a while.
+                isa::select(isa::Isa::Avx2);
+                scene.intersect8_with(rays, &mut hits, hybrid);
+                for (ray, hit) in rays.iter().zip(&hits) {
+                    let mut expected = None;
+                    scene.intersect_into(ray, &mut expected);
+                    assert_eq!(*hit, expected, "ray {ray:?}, hybrid {hybrid}");
+                    compared += usize::from(expected.is_some());
+                }
+            }
+        }
+    }
+    isa::select(isa::Isa::from_environment());
+    assert!(compared > 5_000, "only {compared} hits compared");
+}
