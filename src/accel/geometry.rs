@@ -538,8 +538,9 @@ impl GeometryBvh {
         }
     }
 
-    /// The nodes and triangle groups of a triangle or quad BVH (for `lanes8`).
-    #[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
+    /// The nodes and triangle groups of a triangle or quad BVH (for the walk of eight rays,
+    /// `lanes8`).
+    #[cfg(target_arch = "x86_64")]
     pub(crate) fn triangle_walk_data(&self) -> Option<(&[WideNode], &[TriangleGroup])> {
         match &self.primitives {
             PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) => {

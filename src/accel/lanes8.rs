@@ -1,6 +1,5 @@
 //! Eight rays with any origins (light-field subpixels, interleaved stereo lattices) walked
-//! together through a BVH of triangle groups, one ray per AVX2 lane (prototype, branch
-//! `lanes8`).
+//! together through a BVH of triangle groups, one ray per AVX2 lane.
 //!
 //! A node's occupied children are tested one at a time against the eight rays, lane by lane
 //! in the single-ray walk's arithmetic (`single_ray`'s box test: `(origin - plane) * scale`,
@@ -9,9 +8,16 @@
 //! so children are pushed in the single-ray walk's order (slots `i ^ order`) with each lane's
 //! entry distance, popped with each lane's `near <= t_max` test, and leaves tested lane by lane
 //! with the single-ray group test: each lane's sequence of leaf tests is its single-ray walk's,
-//! so it finds the same hit, ties between surfaces included. A subtree only one lane reaches is
-//! walked by the single-ray walk itself, lane after lane, when at most `single_up_to` lanes reach
-//! it (hybrid; lanes are independent, so each keeps its own order).
+//! so it finds the same hit, ties between surfaces included. A subtree that at most
+//! `single_up_to` lanes reach is walked by the single-ray walk itself, lane after lane (lanes
+//! are independent, so each keeps its own order): past the first levels, rays from different
+//! eyes part, and a lone ray's walk tests a node's eight children in one vector where this
+//! walk spends one vector per child.
+//!
+//! Pays only for rays that start close together (one eye, neighbouring eyes): eight rays of
+//! eyes centimetres apart cost what they cost one by one (docs/light-field.md). The caller
+//! (`SceneBvh::intersect8_with`) takes the rays this walk does not: other instruction sets,
+//! several placements, lone rays of an octant, `t_min < 0`, a full stack.
 
 use std::arch::x86_64::*;
 
@@ -23,8 +29,9 @@ use crate::accel::wide_bvh::{LEAF_BIT, WIDTH, WideNode, group_leaf};
 /// Rays walked together.
 pub(crate) const RAYS: usize = 8;
 
-/// Stack entries; a walk that would need more gives up (its rays are then traced alone).
-const STACK: usize = 256;
+/// Stack entries of the walk; a walk that would need more gives up (its rays are then traced
+/// alone). 256 entries hold 36 levels of full nodes, far more than a built tree has.
+pub(crate) const STACK: usize = 256;
 
 /// The box test's values of the eight rays, one per lane.
 struct BoxRays {
@@ -44,13 +51,14 @@ pub(crate) struct Found {
 }
 
 /// The closest hits of the rays in `lanes` (bit per lane), which must share their direction
-/// octant and have `t_min >= 0`, into `found` (lanes in `lanes` only); false if the walk's
-/// stack would overflow. The rays' `t_max` may change.
+/// octant and have `t_min >= 0`, into `found` (lanes in `lanes` only); false if the walk would
+/// need more than `ENTRIES` stack entries (then `found` is unspecified). The rays' `t_max` may
+/// change.
 ///
 /// # Safety
 /// The CPU has AVX2; `single_ray::codes_in_range(nodes, groups.len())`; `nodes` not empty.
 #[target_feature(enable = "avx2")]
-pub(crate) unsafe fn closest8(
+pub(crate) unsafe fn closest8<const ENTRIES: usize>(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
     rays: &mut [TraversalRay; RAYS],
@@ -86,7 +94,7 @@ pub(crate) unsafe fn closest8(
         ($($order:literal)*) => {
             match order {
                 // SAFETY: the caller's promise.
-                $($order => unsafe { walk::<$order>(nodes, groups, &mut *rays, &box_rays, lanes, single_up_to, found) },)*
+                $($order => unsafe { walk::<$order, ENTRIES>(nodes, groups, &mut *rays, &box_rays, lanes, single_up_to, found) },)*
                 _ => unreachable!(),
             }
         };
@@ -153,7 +161,7 @@ fn child_lanes<const ORDER: usize>(
 /// As [`closest8`].
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn walk<const ORDER: usize>(
+unsafe fn walk<const ORDER: usize, const ENTRIES: usize>(
     nodes: &[WideNode],
     groups: &[TriangleGroup],
     rays: &mut [TraversalRay; RAYS],
@@ -174,9 +182,9 @@ unsafe fn walk<const ORDER: usize>(
         found[rest.trailing_zeros() as usize] = None;
         rest &= rest - 1;
     }
-    let mut codes = [std::mem::MaybeUninit::<u32>::uninit(); STACK];
-    let mut masks = [std::mem::MaybeUninit::<u32>::uninit(); STACK];
-    let mut nears = [std::mem::MaybeUninit::<__m256>::uninit(); STACK];
+    let mut codes = [std::mem::MaybeUninit::<u32>::uninit(); ENTRIES];
+    let mut masks = [std::mem::MaybeUninit::<u32>::uninit(); ENTRIES];
+    let mut nears = [std::mem::MaybeUninit::<__m256>::uninit(); ENTRIES];
     codes[0].write(0);
     masks[0].write(lanes);
     nears[0].write(_mm256_set1_ps(f32::NEG_INFINITY));
@@ -239,7 +247,7 @@ unsafe fn walk<const ORDER: usize>(
             }
             continue;
         }
-        if len + WIDTH > STACK {
+        if len + WIDTH > ENTRIES {
             return false;
         }
         // SAFETY: inner codes index `nodes` (the caller's promise).

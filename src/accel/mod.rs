@@ -43,7 +43,7 @@
 
 pub mod counters;
 mod geometry;
-#[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
+#[cfg(target_arch = "x86_64")]
 mod lanes8;
 pub use crate::isa;
 mod binned_sah;

@@ -10,6 +10,8 @@ use crate::accel::packet::{
     FRUSTUM_RAYS, FrustumPacket, LANES, PacketScratch, RayArrays, RayPacket, traverse_frustum,
     traverse_packet,
 };
+#[cfg(target_arch = "x86_64")]
+use crate::accel::primitives::TriangleGroup;
 use crate::accel::walk::{TraversalRay, traverse};
 use crate::accel::wide_bvh::{
     LeafAlignment, LeafSizing, MAX_PRIMITIVES, WideBvh, WideNode, build_wide_bvh, leaf_range,
@@ -45,6 +47,11 @@ impl Placement {
         }
     }
 }
+
+/// [`SceneBvh::intersect8`]: a subtree that at most this many of the eight rays reach is walked
+/// by each of them alone (the single-ray walk; fewer box tests than the walk of eights there).
+/// 3 and 4 measured best on light-field subpixels grouped by eye (docs/light-field.md).
+const SINGLE_UP_TO: u32 = 3;
 
 /// A BVH over instance placements; cheap to rebuild, never rebuilds geometry BVHs.
 pub struct SceneBvh {
@@ -244,12 +251,13 @@ impl SceneBvh {
         Some(self.scene_hit(placement, hit))
     }
 
-    /// Closest hits of eight rays with any origins (prototype, branch `lanes8`): `hits[i]`
-    /// receives exactly what [`Self::intersect_into`] writes for `rays[i]`. Rays sharing a
-    /// direction octant walk a single untransformed triangle geometry together (`lanes8`);
-    /// everything else goes ray by ray.
+    /// Closest hits of eight rays with any origins (light-field subpixels, interleaved stereo
+    /// lattices): `hits[i]` receives exactly what [`Self::intersect_into`] writes for `rays[i]`.
+    /// Pays when the eight rays start close together (one eye, or neighbouring eyes): on a
+    /// scene of one triangle (or quad) geometry, with or without a transform, rays sharing a
+    /// direction octant walk it together (`lanes8`, AVX2); everything else goes ray by ray.
     pub fn intersect8(&self, rays: &[Ray; 8], hits: &mut [Option<SceneHit>; 8]) {
-        self.intersect8_with(rays, hits, 1);
+        self.intersect8_with(rays, hits, SINGLE_UP_TO);
     }
 
     /// [`Self::intersect8`]; subtrees that at most `single_up_to` lanes reach are walked by
@@ -260,58 +268,104 @@ impl SceneBvh {
         hits: &mut [Option<SceneHit>; 8],
         single_up_to: u32,
     ) {
-        #[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
-        if crate::isa::avx2_selected()
-            && let [placement] = self.placements.as_slice()
-            && placement.world_to_object.is_none()
-            && placement.geometry.triangle_walk_data().is_some()
-        {
-            // SAFETY: AVX2 is selected only on CPUs that have it (`crate::isa`).
-            unsafe { self.intersect8_avx2(placement, rays, hits, single_up_to) };
+        #[cfg(target_arch = "x86_64")]
+        if let Some((placement, nodes, groups)) = self.walk_of_eights() {
+            // SAFETY: `walk_of_eights` answers only where AVX2 is selected, which it is only on
+            // CPUs that have it (`crate::isa`).
+            unsafe {
+                self.intersect8_avx2::<{ crate::accel::lanes8::STACK }>(
+                    placement,
+                    nodes,
+                    groups,
+                    rays,
+                    hits,
+                    single_up_to,
+                )
+            };
             return;
         }
-        #[cfg(any(not(target_arch = "x86_64"), feature = "kernel-counters"))]
         let _ = single_up_to;
         for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
             self.intersect_into(ray, hit);
         }
     }
 
-    /// [`Self::intersect8_with`] on one untransformed triangle placement.
+    /// The placement, nodes and triangle groups that eight rays can walk together: the AVX2
+    /// path is selected, the scene is one triangle or quad placement, and traversal is not
+    /// being counted (a counting build walks rays one by one with the generic walk, whose
+    /// records the walk of eights does not follow step by step).
+    #[cfg(target_arch = "x86_64")]
+    #[inline]
+    fn walk_of_eights(&self) -> Option<(&Placement, &[WideNode], &[TriangleGroup])> {
+        if crate::accel::counters::ENABLED || !crate::isa::avx2_selected() {
+            return None;
+        }
+        let [placement] = self.placements.as_slice() else {
+            return None;
+        };
+        let (nodes, groups) = placement.geometry.triangle_walk_data()?;
+        (!nodes.is_empty()).then_some((placement, nodes, groups))
+    }
+
+    /// [`Self::intersect8_with`] with a walk of eights whose stack holds `ENTRIES` entries (a
+    /// small one in tests, so that the overflow path runs).
+    #[cfg(all(test, target_arch = "x86_64"))]
+    pub(crate) fn intersect8_with_stack<const ENTRIES: usize>(
+        &self,
+        rays: &[Ray; 8],
+        hits: &mut [Option<SceneHit>; 8],
+        single_up_to: u32,
+    ) {
+        let (placement, nodes, groups) = self
+            .walk_of_eights()
+            .expect("a scene that eight rays walk together, AVX2 selected");
+        // SAFETY: as in `intersect8_with`.
+        unsafe {
+            self.intersect8_avx2::<ENTRIES>(placement, nodes, groups, rays, hits, single_up_to)
+        };
+    }
+
+    /// [`Self::intersect8_with`] through `placement`'s triangle walk `nodes`/`groups`: the
+    /// object rays of each direction octant walk together ([`crate::accel::lanes8`]); a lone
+    /// ray of its octant, a ray with `t_min < 0` (the single-ray walk's generic path) and the
+    /// rays of a walk whose stack would overflow go ray by ray. Hits are finished as
+    /// `closest_hit` finishes them.
     ///
     /// # Safety
-    /// The CPU has AVX2.
-    #[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
+    /// The CPU has AVX2; `nodes`/`groups` are `placement`'s triangle walk data, `nodes` not
+    /// empty.
+    #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
     #[inline(never)]
-    unsafe fn intersect8_avx2(
+    unsafe fn intersect8_avx2<const ENTRIES: usize>(
         &self,
         placement: &Placement,
+        nodes: &[WideNode],
+        groups: &[TriangleGroup],
         rays: &[Ray; 8],
         hits: &mut [Option<SceneHit>; 8],
         single_up_to: u32,
     ) {
         use crate::accel::lanes8::{Found, RAYS, closest8};
         let geometry = &placement.geometry;
-        let Some((nodes, groups)) = geometry.triangle_walk_data() else {
-            return;
-        };
-        // Invalid lanes hold a filler ray and are never walked.
-        let filler = TraversalRay::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0).unwrap();
-        let mut valid = 0u32;
-        let mut packed: [TraversalRay; RAYS] =
-            std::array::from_fn(|lane| match prepare(&rays[lane]) {
+        // Lanes without an object ray hold a filler and are never walked.
+        let filler = TraversalRay::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0)
+            .expect("a unit direction makes a ray");
+        let mut usable = 0u32;
+        let mut object_rays: [TraversalRay; RAYS] = std::array::from_fn(|lane| {
+            match prepare(&rays[lane]).and_then(|world| placement.object_ray(&world)) {
                 Some(ray) => {
-                    valid |= 1 << lane;
+                    usable |= 1 << lane;
                     ray
                 }
                 None => filler,
-            });
-        // Lanes the walk of eight may take: valid, `t_min >= 0` (others take the single-ray
-        // walk's generic path).
+            }
+        });
+        // Lanes the walk of eights may take: usable with `t_min >= 0`; a ray that is not
+        // usable has no hit (as in `closest_hit`).
         let mut pending = 0u32;
-        for (lane, ray) in packed.iter().enumerate() {
-            if valid & (1 << lane) == 0 {
+        for (lane, ray) in object_rays.iter().enumerate() {
+            if usable & (1 << lane) == 0 {
                 hits[lane] = None;
             } else if ray.t_min >= 0.0 {
                 pending |= 1 << lane;
@@ -324,19 +378,27 @@ impl SceneBvh {
             t: [0.0; RAYS],
         };
         while pending != 0 {
-            let octant = packed[pending.trailing_zeros() as usize].octant_inv;
+            let octant = object_rays[pending.trailing_zeros() as usize].octant_inv;
             let mut lanes = 0u32;
-            for (lane, ray) in packed.iter().enumerate() {
+            for (lane, ray) in object_rays.iter().enumerate() {
                 if pending & (1 << lane) != 0 && ray.octant_inv == octant {
                     lanes |= 1 << lane;
                 }
             }
             pending &= !lanes;
-            // SAFETY: AVX2 is enabled here; triangle BVHs are checked with `codes_in_range`
-            // when built; `nodes` is not empty.
+            // SAFETY: AVX2 is enabled here; triangle and quad BVHs are checked with
+            // `codes_in_range` when built; `nodes` is not empty (the caller's promise).
             let walked = lanes.count_ones() >= 2
-                && !nodes.is_empty()
-                && unsafe { closest8(nodes, groups, &mut packed, lanes, single_up_to, &mut found) };
+                && unsafe {
+                    closest8::<ENTRIES>(
+                        nodes,
+                        groups,
+                        &mut object_rays,
+                        lanes,
+                        single_up_to,
+                        &mut found,
+                    )
+                };
             if !walked {
                 for lane in (0..RAYS).filter(|lane| lanes & (1 << lane) != 0) {
                     self.intersect_into(&rays[lane], &mut hits[lane]);
@@ -362,7 +424,7 @@ impl SceneBvh {
                     match geometry.triangle_hit_from_uv(primitive_slot, t, bary, normal) {
                         Some(hit) => self.scene_hit(placement, hit),
                         None => {
-                            let mut object = packed[lane];
+                            let mut object = object_rays[lane];
                             object.t_max = t;
                             self.scene_hit(placement, geometry.hit_details(primitive_slot, &object))
                         }

@@ -613,13 +613,13 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
 }
 
 /// The AVX2 closest-hit walk of one ray through the subtree at inner node `root`, from
-/// `ray.t_max` on: the hit it finds and its `t` (`ray.t_max` if none). `lanes8` walks a
-/// subtree only one of its rays reaches with it.
+/// `ray.t_max` on: the hit it finds and its `t` (`ray.t_max` if none). The walk of eight rays
+/// (`lanes8`) walks a subtree that only a few of its rays reach with it, ray by ray.
 ///
 /// # Safety
 /// `codes_in_range(nodes, groups.len())`, `root` indexes `nodes`, `ray.t_min >= 0`; the caller
 /// is compiled for AVX2.
-#[cfg(all(target_arch = "x86_64", not(feature = "kernel-counters")))]
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 pub(crate) unsafe fn closest_from_avx2(
     nodes: &[WideNode],

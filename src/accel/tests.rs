@@ -3400,9 +3400,12 @@ fn rays_in_a_box_face_plane_find_the_same_hits_on_every_path() {
 }
 
 /// `SceneBvh::intersect8` against `intersect_into`, record by record, on random rays in eights
-/// (mixed octants and intervals), on coherent eights (eight origins centimetres apart looking
-/// at one spot, as light-field subpixels) and on eights aimed at a grid's vertices and edges
-/// (ties between triangles, where only the same visiting order gives the same record).
+/// (mixed octants and intervals, a few with `t_min < 0` or no direction), on coherent eights
+/// (eight origins centimetres apart looking at one spot, as light-field subpixels) and on eights
+/// aimed at a grid's vertices and edges (ties between triangles, where only the same visiting
+/// order gives the same record); on one untransformed placement, one transformed placement and
+/// two placements (ray by ray); and with a stack too small for the walk of eights, so that its
+/// rays fall back to the single-ray walk.
 #[test]
 fn rays_in_eights_get_the_records_of_single_rays() {
     // The walk of eights is AVX2 only (else the rays go one by one).
@@ -3415,11 +3418,32 @@ fn rays_in_eights_get_the_records_of_single_rays() {
     )));
     let (_, grid_prims) = bumpy_grid(24);
     let grid = Arc::new(GeometryBvh::build(grid_prims));
+    let turned = InstanceDesc {
+        transform: Affine3A::from_scale_rotation_translation(
+            Vec3::splat(0.75),
+            glam::Quat::from_rotation_z(0.3),
+            vec3(-6.0, -5.0, 0.5),
+        ),
+        geometries: vec![grid.clone()],
+    };
+    let scenes = [
+        (vec![identity_instance(vec![cloud.clone()])], 4.0f32, true),
+        (vec![identity_instance(vec![grid.clone()])], 12.0, true),
+        (vec![turned], 12.0, true),
+        (vec![identity_instance(vec![cloud, grid])], 12.0, false),
+    ];
     let mut compared = 0;
-    for (geometry, extent) in [(cloud, 4.0f32), (grid, 12.0)] {
-        let scene = SceneBvh::build(vec![identity_instance(vec![geometry])]);
+    for (instances, extent, walked_together) in scenes {
+        let scene = SceneBvh::build(instances);
         let mut eights: Vec<[Ray; 8]> = Vec::new();
-        let random = random_rays(&mut rng, 8 * 200, extent);
+        let mut random = random_rays(&mut rng, 8 * 200, extent);
+        for (i, ray) in random.iter_mut().enumerate() {
+            match i % 53 {
+                0 => ray.t_min = -1.0,
+                1 => ray.direction = Vec3::ZERO,
+                _ => {}
+            }
+        }
         eights.extend(
             random
                 .chunks_exact(8)
@@ -3440,16 +3464,26 @@ fn rays_in_eights_get_the_records_of_single_rays() {
             }));
         }
         for rays in &eights {
+            let mut expected = [None; 8];
+            for (ray, hit) in rays.iter().zip(&mut expected) {
+                scene.intersect_into(ray, hit);
+                compared += usize::from(hit.is_some());
+            }
             for hybrid in [0, 1, 3, 8] {
                 let mut hits = [None; 8];
                 // Selected at every call: other tests switch the path for a while.
                 isa::select(isa::Isa::Avx2);
                 scene.intersect8_with(rays, &mut hits, hybrid);
-                for (ray, hit) in rays.iter().zip(&hits) {
-                    let mut expected = None;
-                    scene.intersect_into(ray, &mut expected);
-                    assert_eq!(*hit, expected, "ray {ray:?}, hybrid {hybrid}");
-                    compared += usize::from(expected.is_some());
+                assert_eq!(hits, expected, "rays {rays:?}, hybrid {hybrid}");
+                if walked_together {
+                    // Twelve entries overflow below the second level.
+                    let mut hits = [None; 8];
+                    isa::select(isa::Isa::Avx2);
+                    scene.intersect8_with_stack::<12>(rays, &mut hits, hybrid);
+                    assert_eq!(
+                        hits, expected,
+                        "rays {rays:?}, hybrid {hybrid}, small stack"
+                    );
                 }
             }
         }
