@@ -1,7 +1,9 @@
 //! The ray kernels' instruction-set paths (device parameter `isa`): a frame rendered on the
 //! AVX2 path equals the baseline's bit for bit — a light-field frame (one single ray per
 //! subpixel), a `default` frame with shadow rays and a mirror, and `fast` stereo frames (eyes
-//! shaded from their cyclopean point) — and bad values are reported.
+//! shaded from their cyclopean point) — and bad values are reported. On a scene of one triangle
+//! mesh the AVX2 light-field frame traces its subpixel rays eight at a time grouped by eye: the
+//! same frame again.
 
 mod common;
 use common::*;
@@ -141,5 +143,108 @@ fn every_path_renders_the_baselines_frame_bit_for_bit() {
         "{errors:?}"
     );
     anariRelease(dev, world);
+    release_device(lib, dev);
+}
+
+/// The triangle grid of [`world`] alone, lit, as one surface of the world or in an instance with
+/// a transform: a scene of one placement, whose light-field subpixel rays the AVX2 path traces
+/// eight at a time, grouped by eye.
+fn grid_world(dev: ANARIDevice, turned: bool) -> ANARIWorld {
+    let mut triangles = Vec::new();
+    for i in 0..24 {
+        for j in 0..16 {
+            let (x, y) = (-0.6 + 0.05 * i as f32, -0.4 + 0.05 * j as f32);
+            let z = -0.1 * ((i + j) % 3) as f32;
+            triangles.extend([[x, y, z], [x + 0.05, y, z], [x + 0.05, y + 0.05, z]]);
+            triangles.extend([[x, y, z], [x + 0.05, y + 0.05, z], [x, y + 0.05, z]]);
+        }
+    }
+    let grid = triangle_geometry(dev, &triangles);
+    let surface = matte_surface(dev, grid, [0.9, 0.7, 0.3]);
+    let world = if turned {
+        let group = anariNewGroup(dev);
+        let surfaces = object_array(dev, ANARI_SURFACE, &[surface]);
+        set_object(dev, group, "surface", ANARI_ARRAY1D, surfaces);
+        commit(dev, group);
+        let instance = anariNewInstance(dev, c("transform").as_ptr());
+        set_object(dev, instance, "group", ANARI_GROUP, group);
+        // Scaled by 0.9, turned by 0.2 rad about z, moved 5 cm right and back.
+        let (sin, cos) = 0.2f32.sin_cos();
+        let transform: [f32; 16] = [
+            0.9 * cos,
+            0.9 * sin,
+            0.0,
+            0.0,
+            -0.9 * sin,
+            0.9 * cos,
+            0.0,
+            0.0,
+            0.0,
+            0.0,
+            0.9,
+            0.0,
+            0.05,
+            0.0,
+            -0.05,
+            1.0,
+        ];
+        set(dev, instance, "transform", ANARI_FLOAT32_MAT4, &transform);
+        commit(dev, instance);
+        let world = anariNewWorld(dev);
+        let instances = object_array(dev, ANARI_INSTANCE, &[instance]);
+        set_object(dev, world, "instance", ANARI_ARRAY1D, instances);
+        commit(dev, world);
+        release_all(dev, &[surfaces, group, instance, instances]);
+        world
+    } else {
+        world_of(dev, &[surface])
+    };
+    light_world(dev, world, [-0.3f32, -0.4, -1.0]);
+    release_all(dev, &[grid, surface]);
+    world
+}
+
+#[test]
+fn a_light_field_frame_traced_by_eye_is_the_baselines_frame() {
+    let log = Log::new();
+    let (lib, dev) = device_with_log(&log);
+    for turned in [false, true] {
+        let world = grid_world(dev, turned);
+        for (views, renderer_type) in [(0u32, "fast"), (45, "fast"), (0, "default")] {
+            let camera = light_field_camera(dev);
+            set(dev, camera, "views", ANARI_UINT32, &views);
+            commit(dev, camera);
+            let renderer = plain_renderer(dev, renderer_type);
+            // Three tiles by two: whole tiles of whole 8×8 blocks (traced by eye), and partial
+            // blocks at the right and top (traced ray by ray).
+            let frame = frame_for(dev, world, camera, renderer, [84, 64]);
+            let mut images = Vec::new();
+            for isa in ["baseline", "avx2"] {
+                set_string(dev, dev, "isa", isa);
+                commit(dev, dev);
+                images.push(render_bits(dev, frame));
+            }
+            let differing = images[1]
+                .iter()
+                .zip(&images[0])
+                .filter(|(a, b)| a != b)
+                .count();
+            let hits = images[0][images[0].len() - 84 * 64..]
+                .iter()
+                .filter(|id| **id != u32::MAX)
+                .count();
+            let what = format!("{renderer_type}, {views} views, turned: {turned}");
+            assert!(
+                hits > 84 * 64 / 2,
+                "{what}: only {hits} pixels hit the grid"
+            );
+            assert_eq!(differing, 0, "{what}: avx2 against baseline");
+            release_all(dev, &[frame, renderer, camera]);
+        }
+        anariRelease(dev, world);
+    }
+    set_string(dev, dev, "isa", "auto");
+    commit(dev, dev);
+    assert!(log.errors().is_empty(), "{:?}", log.errors());
     release_device(lib, dev);
 }

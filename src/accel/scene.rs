@@ -290,6 +290,15 @@ impl SceneBvh {
         }
     }
 
+    /// Whether [`Self::intersect8`] walks eight rays together here (else it takes them one by
+    /// one, and grouping rays for it gains nothing).
+    pub fn walks_eights_together(&self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        return self.walk_of_eights().is_some();
+        #[cfg(not(target_arch = "x86_64"))]
+        false
+    }
+
     /// The placement, nodes and triangle groups that eight rays can walk together: the AVX2
     /// path is selected, the scene is one triangle or quad placement, and traversal is not
     /// being counted (a counting build walks rays one by one with the generic walk, whose

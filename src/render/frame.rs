@@ -8,6 +8,7 @@ mod budget;
 mod channels;
 mod cyclopean_shading_avx2;
 mod cyclopean_views;
+mod eye_groups;
 mod fast_block;
 mod pixel_work;
 mod records;

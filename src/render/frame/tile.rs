@@ -15,6 +15,7 @@ use crate::scene::light::LightSampling;
 
 use super::anaglyph::{anaglyph, anaglyph_eyes};
 use super::channels::PackedRows;
+use super::eye_groups::EyeGroups;
 use super::fast_block::FastBlock;
 use super::records::TileRecords;
 use super::samples::{jitter, lens_sample};
@@ -141,6 +142,8 @@ pub(super) struct TileScratch {
     records: TileRecords,
     /// One channel's pixels of a tile, encoded.
     encoded: Vec<u8>,
+    /// A light-field tile's subpixel rays, traced grouped by eye.
+    eye_groups: EyeGroups,
 }
 
 pub(super) fn render_tile(
@@ -176,6 +179,7 @@ pub(super) fn render_tile(
                 true,
                 all,
                 0,
+                Grouping::Off,
             );
             let mut right_colors = [Vec4::ZERO; TILE_PIXELS];
             trace_blocks(
@@ -188,6 +192,7 @@ pub(super) fn render_tile(
                 false,
                 all,
                 1,
+                Grouping::Off,
             );
             for (color, right) in colors[..pixel_count].iter_mut().zip(&right_colors) {
                 *color = anaglyph(*color, *right);
@@ -195,12 +200,41 @@ pub(super) fn render_tile(
         }
         (None, Some(channels)) => {
             // A light-field display: a ray per subpixel, each giving its colour channel; alpha
-            // and the other channels come from the green subpixel's ray.
+            // and the other channels come from the green subpixel's ray. Where eight rays can
+            // be walked together, the three passes' rays are made first and traced grouped by
+            // eye (`EyeGroups`), then shaded pass by pass.
             let mut passes = [[Vec4::ZERO; TILE_PIXELS]; 3];
+            let mut groups = std::mem::take(&mut scratch.eye_groups);
+            let grouped = setup.scene.bvh.walks_eights_together();
+            if grouped {
+                groups.clear();
+                for (k, pass) in passes.iter_mut().enumerate() {
+                    let rays = PixelRays::Subpixel(k as u32);
+                    let collect = Grouping::Collect(&mut groups);
+                    trace_blocks(
+                        job,
+                        eyes,
+                        map,
+                        scratch,
+                        pass,
+                        &mut covered,
+                        false,
+                        rays,
+                        k as u32,
+                        collect,
+                    );
+                }
+                groups.trace(&setup.scene.bvh);
+            }
             for (k, pass) in passes.iter_mut().enumerate() {
                 let green = channels[k] == 1;
                 let rays = PixelRays::Subpixel(k as u32);
                 let variant = k as u32;
+                let grouping = if grouped {
+                    Grouping::Replay(&mut groups)
+                } else {
+                    Grouping::Off
+                };
                 trace_blocks(
                     job,
                     eyes,
@@ -211,8 +245,10 @@ pub(super) fn render_tile(
                     green,
                     rays,
                     variant,
+                    grouping,
                 );
             }
+            scratch.eye_groups = groups;
             let green = channels.iter().position(|c| *c == 1).unwrap_or(1);
             for (index, color) in colors[..pixel_count].iter_mut().enumerate() {
                 *color = passes[green][index];
@@ -233,6 +269,7 @@ pub(super) fn render_tile(
                 true,
                 all,
                 0,
+                Grouping::Off,
             );
         }
     }
@@ -346,6 +383,19 @@ impl PixelRays {
     }
 }
 
+/// Whether [`trace_blocks`] traces as it goes, or takes part in tracing a light-field tile's
+/// rays grouped by eye ([`EyeGroups`]).
+pub(super) enum Grouping<'a> {
+    /// Each block traced as it is made.
+    Off,
+    /// Only makes the blocks whose rays are made together and stores them (nothing traced or
+    /// shaded; other blocks are left to the replay).
+    Collect(&'a mut EyeGroups),
+    /// The same blocks in the same order: the stored ones shaded from their stored rays and
+    /// hits, the others made, traced and shaded as with `Off`.
+    Replay(&'a mut EyeGroups),
+}
+
 /// An eye's viewport with its ray generator for the frame.
 pub(super) type PreparedEye = (crate::camera::EyeViewport, EyeRays);
 
@@ -353,7 +403,7 @@ pub(super) type PreparedEye = (crate::camera::EyeViewport, EyeRays);
 /// marking it `covered`; with `record_hits` (and a frame that keeps hits), each pixel's first
 /// hit's channel values go into `scratch.records`. `variant` numbers the frame's rays of a
 /// pixel's sample (the eye of an anaglyph, a subpixel), as [`super::rays_per_pixel_sample`]
-/// counts them.
+/// counts them. `grouping`: see [`Grouping`].
 #[allow(clippy::too_many_arguments)]
 pub(super) fn trace_blocks(
     job: &Job,
@@ -365,6 +415,7 @@ pub(super) fn trace_blocks(
     record_hits: bool,
     pixel_rays: PixelRays,
     variant: u32,
+    mut grouping: Grouping,
 ) {
     let setup = &job.setup;
     let area = map.area();
@@ -408,52 +459,80 @@ pub(super) fn trace_blocks(
                 let index = job.pass * samples + s;
                 let offset = jitter(index);
                 let lens = lens_sample(index);
-                let block_rays = block_maker.and_then(|(viewport, eye_rays)| {
-                    let mut s_lanes = [0.0; BLOCK_RAYS];
-                    let mut t_lanes = [0.0; BLOCK_RAYS];
-                    let height = viewport.height as f32;
-                    // As below, ray by ray.
-                    let s_of = |x: u32| pixel_rays.viewport_s(x, viewport, offset.x);
-                    let t_of = |y: u32| ((y - viewport.y) as f32 + offset.y) / height;
-                    if let Some(pixels) = map.block_pixels(bx, by) {
-                        // s depends on a point's column (and in an interleaved lattice on its
-                        // row's parity), t on its row: 16 divisions for the block's 64 rays
-                        // (24 where the parities differ).
-                        let [even_columns, odd_columns] = pixels.columns;
-                        let even = even_columns.map(s_of);
-                        let odd = if odd_columns == even_columns {
-                            even
+                // A block stored by `Grouping::Collect` comes back with its rays and hits;
+                // `Grouping::Collect` makes the block where it is stored.
+                let (replayed_index, made_into) = match &mut grouping {
+                    Grouping::Replay(groups) => (groups.replay(), &mut block),
+                    Grouping::Collect(groups) => (None, groups.next_block()),
+                    Grouping::Off => (None, &mut block),
+                };
+                let replayed = replayed_index.is_some();
+                let made = block_maker
+                    .filter(|_| !replayed)
+                    .and_then(|(viewport, eye_rays)| {
+                        let mut s_lanes = [0.0; BLOCK_RAYS];
+                        let mut t_lanes = [0.0; BLOCK_RAYS];
+                        let height = viewport.height as f32;
+                        // As below, ray by ray.
+                        let s_of = |x: u32| pixel_rays.viewport_s(x, viewport, offset.x);
+                        let t_of = |y: u32| ((y - viewport.y) as f32 + offset.y) / height;
+                        if let Some(pixels) = map.block_pixels(bx, by) {
+                            // s depends on a point's column (and in an interleaved lattice on its
+                            // row's parity), t on its row: 16 divisions for the block's 64 rays
+                            // (24 where the parities differ).
+                            let [even_columns, odd_columns] = pixels.columns;
+                            let even = even_columns.map(s_of);
+                            let odd = if odd_columns == even_columns {
+                                even
+                            } else {
+                                odd_columns.map(s_of)
+                            };
+                            let rows = pixels.rows.map(t_of);
+                            fill_block_lanes([&even, &odd], &rows, &mut s_lanes, &mut t_lanes);
                         } else {
-                            odd_columns.map(s_of)
-                        };
-                        let rows = pixels.rows.map(t_of);
-                        fill_block_lanes([&even, &odd], &rows, &mut s_lanes, &mut t_lanes);
-                    } else {
-                        for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
-                            let (sx, sy) = (bx + dx, by + dy);
-                            if map.skips(sx, sy) {
-                                return None;
+                            for (lane, (dx, dy)) in PACKET_ORDER.iter().enumerate() {
+                                let (sx, sy) = (bx + dx, by + dy);
+                                if map.skips(sx, sy) {
+                                    return None;
+                                }
+                                let (x, y) = map.pixel(sx, sy);
+                                s_lanes[lane] = s_of(x);
+                                t_lanes[lane] = t_of(y);
                             }
-                            let (x, y) = map.pixel(sx, sy);
-                            s_lanes[lane] = s_of(x);
-                            t_lanes[lane] = t_of(y);
                         }
-                    }
-                    if !eye_rays.block_rays(&s_lanes, &t_lanes, &mut block) {
-                        return None;
-                    }
-                    Some(eye_rays)
-                });
+                        if !eye_rays.block_rays(&s_lanes, &t_lanes, made_into) {
+                            return None;
+                        }
+                        Some(eye_rays)
+                    });
+                let block_rays = if replayed {
+                    block_maker.map(|(_, eye_rays)| eye_rays)
+                } else {
+                    made
+                };
+                if let Grouping::Collect(groups) = &mut grouping {
+                    groups.commit(block_rays.is_some());
+                    continue;
+                }
                 let subpixels = matches!(pixel_rays, PixelRays::Subpixel(_));
                 let coherent = map.stride() < SINGLE_RAY_STRIDE && !subpixels;
                 let one_by_one = !coherent || work.plain_pixels;
                 // The fast renderer shades a whole block from its arrays, and a coherent one is
                 // traced from them; everything else reads the block's rays one by one.
                 let shaded_from_arrays = block_rays.is_some() && work.fast_surfaces && !clustered;
-                let reads_rays = one_by_one || !shaded_from_arrays || work.block_shadows;
+                // A replayed block is traced already.
+                let traced_here = one_by_one && !replayed;
+                let reads_rays = traced_here || !shaded_from_arrays || work.block_shadows;
+                // The block's rays: made here, or replayed.
+                let stored = match (&grouping, replayed_index) {
+                    (Grouping::Replay(groups), Some(index)) => Some(groups.stored(index)),
+                    _ => None,
+                };
+                let (stored_block, stored_hits) = stored.unzip();
+                let block = stored_block.unwrap_or(&block);
                 if block_rays.is_some() && reads_rays {
                     for (lane, ray) in rays.iter_mut().enumerate() {
-                        *ray = traced_lane(&block, lane);
+                        *ray = traced_lane(block, lane);
                     }
                 } else if block_rays.is_some() {
                     // Unfilled: a reader added later must not silently get the previous
@@ -513,7 +592,9 @@ pub(super) fn trace_blocks(
                         }
                     }
                 }
-                if one_by_one {
+                if replayed {
+                    // Traced already, grouped by eye.
+                } else if one_by_one {
                     // Sparse lattices make incoherent packets, and a light field's neighbouring
                     // subpixels look from eyes centimetres apart: ray by ray is cheaper there.
                     for (hit, ray) in hits.iter_mut().zip(&rays) {
@@ -537,13 +618,15 @@ pub(super) fn trace_blocks(
                         .bvh
                         .intersect_packet_with(&mut scratch.packets, &rays, &mut hits);
                 }
+                // The block's hits: traced here, or replayed.
+                let hits = stored_hits.unwrap_or(&hits);
                 let block_shadows = coherent && work.block_shadows;
                 if block_shadows {
                     scratch.shadows.trace(
                         &setup.scene,
                         &mut scratch.packets,
                         &rays,
-                        &hits,
+                        hits,
                         |lane| {
                             let (dx, dy) = PACKET_ORDER[lane];
                             let (x, y) = map.pixel(bx + dx, by + dy);
@@ -556,8 +639,8 @@ pub(super) fn trace_blocks(
                     let fast = FastBlock {
                         scene: &setup.scene,
                         settings: &setup.settings,
-                        hits: &hits,
-                        block: &block,
+                        hits,
+                        block,
                         eye: eye_rays,
                         first: ((by - ty) * tile_width + bx - tx) as usize,
                         row_stride: tile_width as usize,
