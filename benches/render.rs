@@ -9,7 +9,8 @@
 //!                                            matrix camera against one viewer, same view)
 //!     cargo bench --bench render -- stereo  (sideBySide, topBottom, interleaved and anaglyph
 //!                                            frames against mono, both renderers, both scenes)
-//!     cargo bench --bench render -- lightfield (lightField frames against a mono frame)
+//!     cargo bench --bench render -- lightfield (lightField frames against a mono frame;
+//!                                            CAVETRACE_BENCH_RENDERER=default for that renderer)
 //!     cargo bench --bench render -- depth (fast frames with colour + depth and with every
 //!                                            channel against colour alone, 968 and 1M triangles)
 //!     cargo bench --bench render -- depth default (the same with the default renderer,
@@ -708,8 +709,10 @@ fn stereo_section(dev: ANARIDevice, scenes: &[(&str, ANARIGeometry)], size: u32,
 /// (`cargo bench --bench render -- lightfield`): the height field through the benchmark's
 /// screen, seen by one offAxis eye 1 m in front, and by the lightField camera (sample
 /// calibration, views 1 m in front) with 45 snapped views and with continuous ones, and its
-/// quilt of 45 views with as many rays. Cases alternate frame by frame.
+/// quilt of 45 views with as many rays. Cases alternate frame by frame. The `fast` renderer, or
+/// the one `CAVETRACE_BENCH_RENDERER` names.
 fn light_field_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: u32) {
+    let renderer = std::env::var("CAVETRACE_BENCH_RENDERER").unwrap_or_else(|_| "fast".into());
     let screen = bench_screen();
     let eye = head_at(0).to_array();
     // The quilt has as many rays as a light-field frame: 9 × 5 views on a frame three times as
@@ -723,7 +726,7 @@ fn light_field_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, fra
     let setups: Vec<Setup> = cases
         .iter()
         .map(|(_, subtype, views)| {
-            let s = setup(dev, geometry, "fast", size);
+            let s = setup(dev, geometry, &renderer, size);
             let quilt = *subtype == "quilt";
             let subtype = if quilt { "lightField" } else { subtype };
             let camera = anariNewCamera(dev, c(subtype).as_ptr());
@@ -752,7 +755,9 @@ fn light_field_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, fra
         })
         .collect();
     let medians = alternating_medians(&setups, frames, |_, _| {});
-    println!("light field, height field, fast renderer, {size}x{size}, {frames} frames each:");
+    println!(
+        "light field, height field, {renderer} renderer, {size}x{size}, {frames} frames each:"
+    );
     for (k, (label, _, _)) in cases.iter().enumerate() {
         let (wall, cpu) = medians[k];
         println!(
