@@ -50,8 +50,9 @@ impl Placement {
 
 /// [`SceneBvh::intersect8`]: a subtree that at most this many of the eight rays reach is walked
 /// by each of them alone (the single-ray walk; fewer box tests than the walk of eights there).
-/// 3 and 4 measured best on light-field subpixels grouped by eye (docs/light-field.md).
-const SINGLE_UP_TO: u32 = 3;
+/// 3, 4 and 5 measured alike on light-field frames grouped by eye, 2 and 6 slower
+/// (docs/light-field.md).
+const SINGLE_UP_TO: u32 = 4;
 
 /// A BVH over instance placements; cheap to rebuild, never rebuilds geometry BVHs.
 pub struct SceneBvh {

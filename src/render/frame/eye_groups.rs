@@ -158,3 +158,4 @@ impl EyeGroups {
         )
     }
 }
+
