@@ -158,3 +158,49 @@ impl EyeGroups {
         )
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rays_are_sorted_by_eye_stably() {
+        // Three blocks whose lanes look from five eyes on a slanted line, interleaved as a
+        // panel's subpixels are; one block is not made together.
+        let eye = |lane: usize, block: usize| (lane * 7 + block * 3) % 5;
+        let mut groups = EyeGroups::default();
+        groups.clear();
+        for block in 0..4 {
+            let made = block != 2;
+            let target = groups.next_block();
+            for lane in 0..BLOCK_RAYS {
+                let e = eye(lane, block) as f32;
+                target.origin[0][lane] = 0.03 * e - 0.06;
+                target.origin[1][lane] = 1.5 - 0.01 * e;
+                target.origin[2][lane] = 1.0;
+                target.direction[2][lane] = -1.0;
+            }
+            groups.commit(made);
+        }
+        groups.sort_by_eye();
+        let stored_blocks = [0, 1, 3];
+        let eye_of = |index: u32| {
+            let index = index as usize;
+            eye(index % BLOCK_RAYS, stored_blocks[index / BLOCK_RAYS])
+        };
+        let mut seen = groups.order.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..3 * BLOCK_RAYS as u32).collect::<Vec<_>>());
+        for pair in groups.order.windows(2) {
+            let (a, b) = (eye_of(pair[0]), eye_of(pair[1]));
+            assert!(
+                a < b || (a == b && pair[0] < pair[1]),
+                "{pair:?}: eyes {a}, {b}"
+            );
+        }
+        assert_eq!(groups.replay(), Some(0), "the first block comes back first");
+        assert_eq!(groups.replay(), Some(1));
+        assert_eq!(groups.replay(), None, "the block not made together");
+        assert_eq!(groups.replay(), Some(2));
+    }
+}
