@@ -1995,7 +1995,7 @@ fn scene_frustum_packets_match_single_rays() {
 
 #[test]
 fn camera_tiles_form_frustum_packets() {
-    use crate::accel::packet::FrustumPacket;
+    use crate::accel::frustum::FrustumPacket;
     let mut rng = Rng::new(53);
     let rays = camera_tiles(&mut rng, vec3(-25.0, -18.0, 12.0), Vec3::ZERO, 48);
     let mut formed = 0;
@@ -2127,7 +2127,8 @@ fn sphere_pretest_never_rejects_a_line_that_touches() {
 
 #[test]
 fn vectorized_packet_preparation_matches_single_rays() {
-    use crate::accel::packet::{FrustumPacket, RayPacket};
+    use crate::accel::frustum::FrustumPacket;
+    use crate::accel::packet::RayPacket;
     let mut rng = Rng::new(91);
     let mut checked = 0;
     for round in 0..3000 {
@@ -2305,7 +2306,7 @@ mod packet_and_structure {
                     rays.truncate(keep);
                 }
                 let mut hits = vec![None; rays.len()];
-                let mut probe = crate::accel::packet::FrustumPacket::empty();
+                let mut probe = crate::accel::frustum::FrustumPacket::empty();
                 frustums += usize::from(probe.fill_from_rays(&rays));
                 tiles += 1;
                 bvh.intersect_packet(&rays, &mut hits);
@@ -3203,7 +3204,7 @@ fn build_layout_is_unchanged() {
 
 #[test]
 fn frustum_packets_filled_from_lane_arrays_match_those_filled_from_rays() {
-    use crate::accel::packet::FrustumPacket;
+    use crate::accel::frustum::FrustumPacket;
     let mut rng = Rng::new(95);
     let triangles = TestGeometry::from(random_triangles(&mut rng, 3000, 10.0, 1.5)).build();
     let scene = SceneBvh::build(vec![identity_instance(vec![Arc::new(triangles)])]);
