@@ -6,7 +6,7 @@
  *   ln -sf libcavetrace.so target/release/libcavetrace.so.0
  *   cc -std=c99 examples-c/tutorial.c -Iinclude -Ltarget/release -lcavetrace \
  *      -Wl,-rpath,"$PWD/target/release" -o tutorial
- *   ./tutorial out/tutorial.png
+ *   mkdir -p out && ./tutorial out/tutorial.png
  */
 #include <stdio.h>
 

@@ -1,8 +1,7 @@
 //! Bottom-level BVH: one wide BVH over the primitives of one geometry.
 
-use crate::accel::packet::{
-    FRUSTUM_RAYS, FrustumPacket, LANES, RayPacket, group_packet, traverse_frustum, traverse_packet,
-};
+use crate::accel::frustum::{FRUSTUM_RAYS, FrustumPacket, traverse_frustum};
+use crate::accel::packet::{LANES, RayPacket, group_packet, traverse_packet};
 use crate::accel::primitives::{
     GROUP_LANES, PackedSphere, PackedTriangle, TriangleGroup, group_closest, is_usable_box,
     sphere_surface, sphere_t, triangle_t_uv,

@@ -48,6 +48,7 @@ mod lanes8;
 pub use crate::isa;
 mod binned_sah;
 mod collapse;
+mod frustum;
 mod packet;
 mod primitives;
 mod procedural;
@@ -60,10 +61,10 @@ mod wide_bvh;
 #[cfg(test)]
 mod tests;
 
-pub use geometry::{GeometryBvh, geometry_build_count};
 #[cfg(test)]
-pub(crate) use packet::QUADRANT_GROUPS;
-pub use packet::{FRUSTUM_RAYS, PacketScratch, RayArrays};
+pub(crate) use frustum::QUADRANT_GROUPS;
+pub use frustum::{FRUSTUM_RAYS, PacketScratch, RayArrays};
+pub use geometry::{GeometryBvh, geometry_build_count};
 pub use procedural::{ProceduralHit, ProceduralPrimitives};
 pub use scene::SceneBvh;
 pub use tube::{TubeKind, TubeSegment};

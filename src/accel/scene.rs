@@ -5,11 +5,11 @@
 //! Rays enter object space as `inverse(transform) * origin` and `inverse(linear) * direction`
 //! without renormalizing, which keeps the ray parameter `t` identical in both spaces.
 
-use crate::accel::geometry::{GeometryBvh, prepare};
-use crate::accel::packet::{
-    FRUSTUM_RAYS, FrustumPacket, LANES, PacketScratch, RayArrays, RayPacket, traverse_frustum,
-    traverse_packet,
+use crate::accel::frustum::{
+    FRUSTUM_RAYS, FrustumPacket, PacketScratch, RayArrays, traverse_frustum,
 };
+use crate::accel::geometry::{GeometryBvh, prepare};
+use crate::accel::packet::{LANES, RayPacket, traverse_packet};
 #[cfg(target_arch = "x86_64")]
 use crate::accel::primitives::TriangleGroup;
 use crate::accel::walk::{TraversalRay, traverse};
