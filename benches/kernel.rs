@@ -26,7 +26,15 @@
 //! `CAVETRACE_TREE_STATISTICS=1` each tree's shape and surface-area costs.
 //! `CAVETRACE_BENCH_LATTICE=rows|columns|checker`: trace one eye of an interleaved stereo frame
 //! instead (half the rays, each 64-ray packet spanning 8×16 or 16×8 pixels; the Embree probe
-//! still traces the whole frame, so its ratios do not apply).
+//! still traces the whole frame, so its ratios do not apply). `stride-N`: the points a budgeted
+//! render's refinement level of stride N traces (N = 64, 32, 16, 8, 4, 2; in 8×8 blocks of
+//! lattice points, skipped points as rays that hit nothing). `CAVETRACE_BENCH_REPEAT=n`: the
+//! rays n times over (for the small sparse levels).
+//! `CAVETRACE_BENCH_PARTS=...,eights` (only when named): the same 64-ray chunks also as eight
+//! eights through `SceneBvh::intersect8_with`, grouped 4×2 points (two quads side by side) or,
+//! for `columns` and `checker`, 2×4 (`CAVETRACE_BENCH_EIGHTS=4x2|2x4` to choose; `packed`: a
+//! chunk's rays that can hit, in lane order, eight at a time), subtrees
+//! that at most `CAVETRACE_BENCH_SINGLE_UP_TO` (default 1) lanes reach walked ray by ray.
 
 #[path = "../tests/common/mod.rs"]
 mod common;
@@ -82,14 +90,104 @@ fn place_camera(dev: ANARIDevice, camera: ANARICamera, frame: u32) {
     commit(dev, camera);
 }
 
-/// Traces `rays` in 64-ray packets (or ray by ray) on `threads` threads, 16 packets at a time;
+/// How `trace` hands each chunk of 64 rays to the kernel.
+#[derive(Clone, Copy)]
+enum Walk {
+    /// One frustum packet (`intersect_packet_with`).
+    Packet,
+    /// Ray by ray (`intersect_into`).
+    OneByOne,
+    /// Eight eights (`intersect8_with`, lanes of `EIGHTS[grouping]`), subtrees that at most
+    /// `single_up_to` lanes reach walked ray by ray.
+    Eights { grouping: usize, single_up_to: u32 },
+}
+
+/// The lanes of a 64-ray chunk (sixteen 2×2 quads, four quads a row) grouped as eight eights:
+/// `[0]` 4×2 points (two quads side by side), `[1]` 2×4 points (two quads one above the
+/// other).
+const EIGHTS: [[[usize; 8]; 8]; 2] = {
+    let mut groups = [[[0; 8]; 8]; 2];
+    let mut eight = 0;
+    while eight < 8 {
+        // 4×2: quads 2e, 2e + 1 are lanes 8e..8e + 8.
+        let mut i = 0;
+        while i < 8 {
+            groups[0][eight][i] = 8 * eight + i;
+            i += 1;
+        }
+        // 2×4: quads q and q + 4, q = 0, 1, 2, 3, 8, 9, 10, 11.
+        let quad = eight % 4 + 8 * (eight / 4);
+        let mut i = 0;
+        while i < 4 {
+            groups[1][eight][i] = 4 * quad + i;
+            groups[1][eight][4 + i] = 4 * (quad + 4) + i;
+            i += 1;
+        }
+        eight += 1;
+    }
+    groups
+};
+
+/// `Walk::Eights` grouping: the chunk's rays that can hit (nonzero direction), in lane order,
+/// eight at a time.
+const PACKED: usize = 2;
+
+/// A ray that hits nothing (zero direction): the render's filler for points a lattice skips.
+const NO_RAY: Ray = Ray {
+    origin: glam::Vec3::ZERO,
+    direction: glam::Vec3::ZERO,
+    t_min: 0.0,
+    t_max: 0.0,
+};
+
+/// The hits of a chunk of up to 64 rays as eights (`Walk::Eights`): 4×2 eights of a full chunk
+/// walked in place, other groupings through copies of the rays and hits (5–13 % dearer for
+/// mono 4×2 eights at 968 and 1M triangles).
+fn trace_eights(
+    scene: &SceneBvh,
+    chunk: &[Ray],
+    hits: &mut [Option<cavetrace::accel::SceneHit>; 64],
+    grouping: usize,
+    single_up_to: u32,
+) {
+    if grouping == 0 && chunk.len() == 64 {
+        for (eight, found) in chunk.chunks_exact(8).zip(hits.chunks_exact_mut(8)) {
+            let (eight, found) = (eight.try_into().unwrap(), found.try_into().unwrap());
+            scene.intersect8_with(eight, found, single_up_to);
+        }
+        return;
+    }
+    if grouping == PACKED {
+        hits.fill(None);
+    }
+    let mut walk_eight = |lanes: &[usize]| {
+        let eight = std::array::from_fn(|i| lanes.get(i).and_then(|&l| chunk.get(l)).copied());
+        let eight = eight.map(|ray| ray.unwrap_or(NO_RAY));
+        let mut found = [None; 8];
+        scene.intersect8_with(&eight, &mut found, single_up_to);
+        for (lane, hit) in lanes.iter().zip(found) {
+            hits[*lane] = hit;
+        }
+    };
+    if grouping == PACKED {
+        // The chunk's rays that can hit, eight at a time.
+        let packed: Vec<usize> = (0..chunk.len())
+            .filter(|&lane| chunk[lane].direction != glam::Vec3::ZERO)
+            .collect();
+        packed.chunks(8).for_each(walk_eight);
+    } else {
+        EIGHTS[grouping].iter().for_each(|lanes| walk_eight(lanes));
+    }
+}
+
+/// Traces `rays` in 64-ray chunks as `walk` says on `threads` threads, 16 chunks at a time;
 /// (wall ms, CPU ms, hit checksum); with `--features kernel-counters` the walks' counts are
 /// added to `counts`.
 fn trace(
     scene: &SceneBvh,
     rays: &[Ray],
     threads: usize,
-    one_by_one: bool,
+    walk: Walk,
     counts: &mut TraversalCounts,
 ) -> (f64, f64, u64) {
     let next = AtomicUsize::new(0);
@@ -110,12 +208,19 @@ fn trace(
                         }
                         for packet in first..(first + 16).min(packets) {
                             let chunk = &rays[packet * 64..((packet + 1) * 64).min(rays.len())];
-                            if one_by_one {
-                                for (hit, ray) in hits.iter_mut().zip(chunk) {
-                                    scene.intersect_into(ray, hit);
+                            match walk {
+                                Walk::OneByOne => {
+                                    for (hit, ray) in hits.iter_mut().zip(chunk) {
+                                        scene.intersect_into(ray, hit);
+                                    }
                                 }
-                            } else {
-                                scene.intersect_packet_with(&mut scratch, chunk, &mut hits);
+                                Walk::Packet => {
+                                    scene.intersect_packet_with(&mut scratch, chunk, &mut hits)
+                                }
+                                Walk::Eights {
+                                    grouping,
+                                    single_up_to,
+                                } => trace_eights(scene, chunk, &mut hits, grouping, single_up_to),
                             }
                             checksum += hits[..chunk.len()]
                                 .iter()
@@ -201,6 +306,12 @@ fn print_counts(triangles: u32, [packets, single]: &[TraversalCounts; 2]) {
 /// whole lattice after the other's; `rows-pairs`: both eyes, the other eye's block right after
 /// each block of the same pixels. `mono` (default): all `rays` (already in blocks) unchanged.
 fn lattice_rays(rays: Vec<((u32, u32), Ray)>, size: u32, lattice: &str) -> Vec<Ray> {
+    if let Some(stride) = lattice.strip_prefix("stride-") {
+        let stride = stride
+            .parse()
+            .expect("CAVETRACE_BENCH_LATTICE=stride-N: a number");
+        return level_rays(rays, size, stride);
+    }
     type Pixel = fn(u32, u32, u32) -> (u32, u32);
     let rows: Pixel = |x, y, eye| (x, 2 * y + eye);
     let (pixel, eyes, pairs): (Pixel, u32, bool) = match lattice {
@@ -249,6 +360,35 @@ fn lattice_rays(rays: Vec<((u32, u32), Ray)>, size: u32, lattice: &str) -> Vec<R
         }
     }
     lattice_rays
+}
+
+/// The rays of a budgeted render's refinement level of `stride` (`CAVETRACE_BENCH_LATTICE=
+/// stride-N`): pixels (stride·s, stride·t) in 8×8 blocks of lattice points, as the renderer
+/// packs them, the points of the coarser level (s and t even; none at the coarsest stride 64)
+/// and those beyond the frame as rays that hit nothing.
+fn level_rays(rays: Vec<((u32, u32), Ray)>, size: u32, stride: u32) -> Vec<Ray> {
+    let mut by_pixel = vec![NO_RAY; (size * size) as usize];
+    for ((x, y), ray) in rays {
+        by_pixel[(y * size + x) as usize] = ray;
+    }
+    let points = size.div_ceil(stride);
+    let mut level = Vec::new();
+    for by in (0..points).step_by(8) {
+        for bx in (0..points).step_by(8) {
+            for i in 0..64 {
+                let (quad, lane) = (i / 4, i % 4);
+                let s = bx + (quad % 4) * 2 + lane % 2;
+                let t = by + (quad / 4) * 2 + lane / 2;
+                let skipped = stride < 64 && s % 2 == 0 && t % 2 == 0;
+                level.push(if s >= points || t >= points || skipped {
+                    NO_RAY
+                } else {
+                    by_pixel[(stride * t * size + stride * s) as usize]
+                });
+            }
+        }
+    }
+    level
 }
 
 /// One run of the Embree probe: its median wall ms per mode and its hit checksum.
@@ -329,8 +469,28 @@ fn main() {
             .is_none_or(|list| list.split(',').any(|p| p.trim() == part))
     };
     let (run_packets, run_single, run_frame) = (runs("packets"), runs("single"), runs("frame"));
+    let run_eights = parts
+        .as_deref()
+        .is_some_and(|list| list.split(',').any(|p| p.trim() == "eights"));
     let lattice = std::env::var("CAVETRACE_BENCH_LATTICE").ok();
     let lattice = lattice.as_deref().unwrap_or("mono");
+    // Eights of the points closest together: 2×4 where a lattice's points lie two pixels apart
+    // across, 4×2 otherwise.
+    let grouping = match std::env::var("CAVETRACE_BENCH_EIGHTS").ok().as_deref() {
+        Some("4x2") => 0,
+        Some("2x4") => 1,
+        Some("packed") => PACKED,
+        Some(other) => panic!("CAVETRACE_BENCH_EIGHTS={other}: 4x2, 2x4 or packed"),
+        None => usize::from(matches!(lattice, "columns" | "checker")),
+    };
+    let single_up_to = std::env::var("CAVETRACE_BENCH_SINGLE_UP_TO")
+        .ok()
+        .map_or(1, |n| {
+            n.parse().expect("CAVETRACE_BENCH_SINGLE_UP_TO: a number")
+        });
+    let repeat = std::env::var("CAVETRACE_BENCH_REPEAT")
+        .ok()
+        .map_or(1, |n| n.parse().expect("CAVETRACE_BENCH_REPEAT: a number"));
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     let chosen_isas = std::env::var("CAVETRACE_BENCH_ISAS").ok();
@@ -372,25 +532,34 @@ fn main() {
         let embree_before = embree_probe.as_deref().map(|p| run_probe(p, &probe_args));
         // Per path: packets, single rays, whole frame (wall and CPU each); paths alternate
         // frame by frame.
-        let mut figures = vec![[(); 6].map(|_| Vec::new()); isas.len()];
-        let mut checksums = vec![[0; 2]; isas.len()];
+        let mut figures = vec![[(); 8].map(|_| Vec::new()); isas.len()];
+        let mut checksums = vec![[0; 3]; isas.len()];
         // Walk counts of the first path (every path walks the same nodes): packets, one by one.
         let mut counts = [TraversalCounts::default(); 2];
         for f in 0..=frames {
             place_camera(dev, camera, f);
-            let rays = lattice_rays(camera_rays_with_pixels(dev, camera, size), size, lattice);
+            let rays = lattice_rays(camera_rays_with_pixels(dev, camera, size), size, lattice)
+                .repeat(repeat);
             for (k, isa) in isas.iter().enumerate() {
                 set_string(dev, dev, "isa", isa.name());
                 commit(dev, dev);
                 assert_eq!(isa::selected(), *isa);
                 let skipped = (0.0, 0.0, 0);
-                let mut walks = [TraversalCounts::default(); 2];
+                let mut walks = [TraversalCounts::default(); 3];
                 let (packet_ms, packet_cpu, packet_sum) = match run_packets {
-                    true => trace(&scene, &rays, threads, false, &mut walks[0]),
+                    true => trace(&scene, &rays, threads, Walk::Packet, &mut walks[0]),
                     false => skipped,
                 };
                 let (single_ms, single_cpu, single_sum) = match run_single {
-                    true => trace(&scene, &rays, threads, true, &mut walks[1]),
+                    true => trace(&scene, &rays, threads, Walk::OneByOne, &mut walks[1]),
+                    false => skipped,
+                };
+                let eights = Walk::Eights {
+                    grouping,
+                    single_up_to,
+                };
+                let (eights_ms, eights_cpu, eights_sum) = match run_eights {
+                    true => trace(&scene, &rays, threads, eights, &mut walks[2]),
                     false => skipped,
                 };
                 if k == 0 {
@@ -405,7 +574,7 @@ fn main() {
                 let frame_ms = start.elapsed().as_secs_f64() * 1e3;
                 let frame_cpu = cpu_ms() - cpu_start;
                 if f == 1 {
-                    checksums[k] = [packet_sum, single_sum];
+                    checksums[k] = [packet_sum, single_sum, eights_sum];
                     if k == 0 {
                         write_hits(&scene, &rays, grid);
                     }
@@ -413,6 +582,7 @@ fn main() {
                 if f > 0 {
                     let values = [
                         packet_ms, packet_cpu, single_ms, single_cpu, frame_ms, frame_cpu,
+                        eights_ms, eights_cpu,
                     ];
                     for (list, value) in figures[k].iter_mut().zip(values) {
                         list.push(value);
@@ -440,17 +610,34 @@ fn main() {
             before.faster_of(&after)
         });
         for (k, isa) in isas.iter().enumerate() {
-            let [packets, packets_cpu, single, single_cpu, whole, whole_cpu] =
-                figures[k].clone().map(median);
+            let [
+                packets,
+                packets_cpu,
+                single,
+                single_cpu,
+                whole,
+                whole_cpu,
+                eights,
+                eights_cpu,
+            ] = figures[k].clone().map(median);
             println!(
-                "  {:>9} triangles, {:<8}: packets {packets:6.1} ms ({packets_cpu:4.0} ms CPU), \
-                 one by one {single:6.1} ms ({single_cpu:4.0} ms CPU), whole fast frame with \
+                "  {:>9} triangles, {:<8}: packets {packets:6.1} ms ({packets_cpu:5.1} ms CPU), \
+                 one by one {single:6.1} ms ({single_cpu:5.1} ms CPU), whole fast frame with \
                  depth {whole:6.1} ms ({whole_cpu:4.0} ms CPU); checksums {} {}",
                 2 * grid * grid,
                 isa.name(),
                 checksums[k][0],
                 checksums[k][1]
             );
+            if run_eights {
+                println!(
+                    "  {:>9} eights ({}, single up to {single_up_to}): {eights:6.1} ms \
+                     ({eights_cpu:5.1} ms CPU); checksum {}",
+                    "",
+                    ["4x2", "2x4", "packed"][grouping],
+                    checksums[k][2]
+                );
+            }
             if let Some(embree) = &embree {
                 println!(
                     "  {:>9} × Embree ({:<8}): one by one {:.2}× rtcIntersect1, packets {:.2}× \
