@@ -8,8 +8,8 @@
 mod common;
 use common::*;
 
-/// A grid of triangles, spheres in front of it and a mirror sphere, lit by a directional light.
-fn world(dev: ANARIDevice) -> ANARIWorld {
+/// The corners of a 24×16 grid of squares at three depths, two triangles per square.
+fn grid_triangles() -> Vec<[f32; 3]> {
     let mut triangles = Vec::new();
     for i in 0..24 {
         for j in 0..16 {
@@ -19,7 +19,12 @@ fn world(dev: ANARIDevice) -> ANARIWorld {
             triangles.extend([[x, y, z], [x + 0.05, y + 0.05, z], [x, y + 0.05, z]]);
         }
     }
-    let grid = triangle_geometry(dev, &triangles);
+    triangles
+}
+
+/// A grid of triangles, spheres in front of it and a mirror sphere, lit by a directional light.
+fn world(dev: ANARIDevice) -> ANARIWorld {
+    let grid = triangle_geometry(dev, &grid_triangles());
     let spheres = sphere_geometry(dev, &[[0.1, 0.05, 0.2], [-0.2, -0.1, 0.1]], 0.08);
     let mirror_ball = sphere_geometry(dev, &[[0.3, -0.2, 0.15]], 0.1);
     let mirror = anariNewMaterial(dev, c("physicallyBased").as_ptr());
@@ -150,16 +155,7 @@ fn every_path_renders_the_baselines_frame_bit_for_bit() {
 /// a transform: a scene of one placement, whose light-field subpixel rays the AVX2 path traces
 /// eight at a time, grouped by eye.
 fn grid_world(dev: ANARIDevice, turned: bool) -> ANARIWorld {
-    let mut triangles = Vec::new();
-    for i in 0..24 {
-        for j in 0..16 {
-            let (x, y) = (-0.6 + 0.05 * i as f32, -0.4 + 0.05 * j as f32);
-            let z = -0.1 * ((i + j) % 3) as f32;
-            triangles.extend([[x, y, z], [x + 0.05, y, z], [x + 0.05, y + 0.05, z]]);
-            triangles.extend([[x, y, z], [x + 0.05, y + 0.05, z], [x, y + 0.05, z]]);
-        }
-    }
-    let grid = triangle_geometry(dev, &triangles);
+    let grid = triangle_geometry(dev, &grid_triangles());
     let surface = matte_surface(dev, grid, [0.9, 0.7, 0.3]);
     let world = if turned {
         let group = anariNewGroup(dev);
