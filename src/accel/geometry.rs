@@ -538,7 +538,7 @@ impl GeometryBvh {
     }
 
     /// The nodes and triangle groups of a triangle or quad BVH (for the walk of eight rays,
-    /// `lanes8`).
+    /// `eights.rs`).
     #[cfg(target_arch = "x86_64")]
     pub(crate) fn triangle_walk_data(&self) -> Option<(&[WideNode], &[TriangleGroup])> {
         match &self.primitives {

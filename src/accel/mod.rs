@@ -42,9 +42,9 @@
 //!   [`GeometryBvh`] only when its primitives change ([`geometry_build_count`] counts builds).
 
 pub mod counters;
-mod geometry;
 #[cfg(target_arch = "x86_64")]
-mod lanes8;
+mod eights;
+mod geometry;
 pub use crate::isa;
 mod binned_sah;
 mod collapse;

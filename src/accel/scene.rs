@@ -256,7 +256,7 @@ impl SceneBvh {
     /// lattices): `hits[i]` receives exactly what [`Self::intersect_into`] writes for `rays[i]`.
     /// Pays when the eight rays start close together (one eye, or neighbouring eyes): on a
     /// scene of one triangle (or quad) geometry, with or without a transform, rays sharing a
-    /// direction octant walk it together (`lanes8`, AVX2); everything else goes ray by ray.
+    /// direction octant walk it together (`eights.rs`, AVX2); everything else goes ray by ray.
     pub fn intersect8(&self, rays: &[Ray; 8], hits: &mut [Option<SceneHit>; 8]) {
         self.intersect8_with(rays, hits, SINGLE_UP_TO);
     }
@@ -274,7 +274,7 @@ impl SceneBvh {
             // SAFETY: `walk_of_eights` answers only where AVX2 is selected, which it is only on
             // CPUs that have it (`crate::isa`).
             unsafe {
-                self.intersect8_avx2::<{ crate::accel::lanes8::STACK }>(
+                self.intersect8_avx2::<{ crate::accel::eights::STACK }>(
                     placement,
                     nodes,
                     groups,
@@ -336,7 +336,7 @@ impl SceneBvh {
     }
 
     /// [`Self::intersect8_with`] through `placement`'s triangle walk `nodes`/`groups`: the
-    /// object rays of each direction octant walk together ([`crate::accel::lanes8`]); a lone
+    /// object rays of each direction octant walk together ([`crate::accel::eights`]); a lone
     /// ray of its octant, a ray with `t_min < 0` (the single-ray walk's generic path) and the
     /// rays of a walk whose stack would overflow go ray by ray. Hits are finished as
     /// `closest_hit` finishes them.
@@ -356,7 +356,7 @@ impl SceneBvh {
         hits: &mut [Option<SceneHit>; 8],
         single_up_to: u32,
     ) {
-        use crate::accel::lanes8::{Found, RAYS, closest8};
+        use crate::accel::eights::{Found, RAYS, closest8};
         let geometry = &placement.geometry;
         // Lanes without an object ray hold a filler and are never walked.
         let filler = TraversalRay::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0)

@@ -614,7 +614,7 @@ unsafe fn walk_ray<I: Lanes, const ANY_HIT: bool, const INLINE: usize>(
 
 /// The AVX2 closest-hit walk of one ray through the subtree at inner node `root`, from
 /// `ray.t_max` on: the hit it finds and its `t` (`ray.t_max` if none). The walk of eight rays
-/// (`lanes8`) walks a subtree that only a few of its rays reach with it, ray by ray.
+/// (`eights.rs`) walks a subtree that only a few of its rays reach with it, ray by ray.
 ///
 /// # Safety
 /// `codes_in_range(nodes, groups.len())`, `root` indexes `nodes`, `ray.t_min >= 0`; the caller
