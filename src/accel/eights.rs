@@ -23,7 +23,7 @@ use std::arch::x86_64::*;
 
 use crate::accel::primitives::{GroupRayValues, SplatOnUse, TriangleGroup, closest_lane};
 use crate::accel::single_ray::{self, Hit, rows};
-use crate::accel::walk::{ORDER as ORDERED, SLAB_ERROR, TraversalRay};
+use crate::accel::walk::{ORDER as ORDERED, TraversalRay};
 use crate::accel::wide_bvh::{LEAF_BIT, WIDTH, WideNode, group_leaf};
 
 /// Rays walked together.
@@ -36,7 +36,8 @@ pub(crate) const STACK: usize = 256;
 /// The box test's values of the eight rays, one per lane.
 struct BoxRays {
     origin: [__m256; 3],
-    /// `-inverse_direction * (1 - SLAB_ERROR)`, as the single-ray walk scales entries.
+    /// `-inverse_direction * (1 - SLAB_ERROR)`, as the single-ray walk scales entries
+    /// (`single_ray::slab_scales`).
     entry_scale: [__m256; 3],
     /// `-inverse_direction * (1 + SLAB_ERROR)`, as it scales exits.
     exit_scale: [__m256; 3],
@@ -69,11 +70,10 @@ pub(crate) unsafe fn closest8<const ENTRIES: usize>(
     let first = &rays[lanes.trailing_zeros() as usize];
     debug_assert!((0..RAYS).all(|lane| lanes & (1 << lane) == 0
         || (rays[lane].octant_inv == first.octant_inv && rays[lane].t_min >= 0.0)));
-    // The arithmetic of `single_ray::slab_scales`, lane by lane, transposed through arrays.
+    // The single-ray walk's scales, lane by lane, transposed through arrays.
     let mut values = [[0.0f32; RAYS]; 10];
     for (lane, ray) in rays.iter().enumerate() {
-        let entry = -ray.inv_direction * (1.0 - SLAB_ERROR);
-        let exit = -ray.inv_direction * (1.0 + SLAB_ERROR);
+        let [entry, exit] = single_ray::slab_scales(ray);
         for axis in 0..3 {
             values[axis][lane] = ray.origin[axis];
             values[3 + axis][lane] = entry[axis];

@@ -215,15 +215,8 @@ impl SceneBvh {
             };
             #[cfg(not(target_arch = "x86_64"))]
             let (primitive_slot, bary) = geometry.closest_slot(object)?;
-            let normal = geometry.triangle_normal(primitive_slot);
-            // Each branch finishes its own record: a merged one went through memory and was
-            // reloaded with a wider load than its stores (a stall on every ray).
-            return Some(
-                match geometry.triangle_hit_from_uv(primitive_slot, object.t_max, bary, normal) {
-                    Some(hit) => self.scene_hit(placement, hit),
-                    None => self.scene_hit(placement, geometry.hit_details(primitive_slot, object)),
-                },
-            );
+            let t = object.t_max;
+            return Some(self.single_placement_record(placement, primitive_slot, bary, t, object));
         }
         traverse::<false, _>(self.top_level_nodes(), &mut world, |code, world| {
             let (first, count) = leaf_range(code);
@@ -250,6 +243,31 @@ impl SceneBvh {
             .geometry
             .hit_with_barycentrics(primitive_slot, bary, &object);
         Some(self.scene_hit(placement, hit))
+    }
+
+    /// The record of the closest hit found on a scene's only placement: primitive
+    /// `primitive_slot` at `t` (triangles: barycentrics `bary`; other primitives recompute
+    /// their details from `object`, the ray in the placement's space, its `t_max` set to `t`).
+    #[inline(always)]
+    fn single_placement_record(
+        &self,
+        placement: &Placement,
+        primitive_slot: u32,
+        bary: Vec2,
+        t: f32,
+        object: &mut TraversalRay,
+    ) -> SceneHit {
+        let geometry = &placement.geometry;
+        let normal = geometry.triangle_normal(primitive_slot);
+        // Each branch finishes its own record: a merged one went through memory and was
+        // reloaded with a wider load than its stores (a stall on every ray).
+        match geometry.triangle_hit_from_uv(primitive_slot, t, bary, normal) {
+            Some(hit) => self.scene_hit(placement, hit),
+            None => {
+                object.t_max = t;
+                self.scene_hit(placement, geometry.hit_details(primitive_slot, object))
+            }
+        }
     }
 
     /// Closest hits of eight rays with any origins (light-field subpixels, interleaved stereo
@@ -357,7 +375,6 @@ impl SceneBvh {
         single_up_to: u32,
     ) {
         use crate::accel::eights::{Found, RAYS, closest8};
-        let geometry = &placement.geometry;
         // Lanes without an object ray hold a filler and are never walked.
         let filler = TraversalRay::new(Vec3A::ZERO, Vec3A::X, 0.0, 0.0)
             .expect("a unit direction makes a ray");
@@ -420,26 +437,14 @@ impl SceneBvh {
                     hits[lane] = None;
                     continue;
                 };
-                let t = found.t[lane];
-                // As `single_ray::closest_slot_on` and `Self::closest_hit` finish a hit.
-                let lane_of = |values: glam::Vec4| values.to_array()[hit.lane];
-                let inv = 1.0 / lane_of(hit.determinant);
-                let primitive_slot =
-                    (hit.group * crate::accel::primitives::GROUP_LANES + hit.lane) as u32;
-                let bary = (glam::Vec4::new(lane_of(hit.v), lane_of(hit.w), 0.0, 0.0) * inv)
-                    .truncate()
-                    .truncate();
-                let normal = geometry.triangle_normal(primitive_slot);
-                hits[lane] = Some(
-                    match geometry.triangle_hit_from_uv(primitive_slot, t, bary, normal) {
-                        Some(hit) => self.scene_hit(placement, hit),
-                        None => {
-                            let mut object = object_rays[lane];
-                            object.t_max = t;
-                            self.scene_hit(placement, geometry.hit_details(primitive_slot, &object))
-                        }
-                    },
-                );
+                let (primitive_slot, bary) = hit.slot_and_barycentrics();
+                hits[lane] = Some(self.single_placement_record(
+                    placement,
+                    primitive_slot,
+                    bary,
+                    found.t[lane],
+                    &mut object_rays[lane],
+                ));
             }
         }
     }

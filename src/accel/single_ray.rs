@@ -104,6 +104,23 @@ pub(crate) struct Hit {
     pub determinant: Vec4,
 }
 
+impl Hit {
+    /// The triangle's slot and its barycentrics `(b1, b2)`.
+    #[inline(always)]
+    pub(crate) fn slot_and_barycentrics(&self) -> (u32, Vec2) {
+        // Lanes read from arrays (an indexed load), not by `Vec4`'s index, which branches on
+        // the lane through a jump table (a mispredicted jump per hit).
+        let lane_of = |lanes: Vec4| lanes.to_array()[self.lane];
+        let inv = 1.0 / lane_of(self.determinant);
+        let slot = (self.group * GROUP_LANES + self.lane) as u32;
+        // Both products in one vector (each lane the scalar product), so that the pair is
+        // written with one store: the caller may read it back as one 8-byte load, which two
+        // 4-byte stores could not forward (a stall per hit).
+        let bary = (Vec4::new(lane_of(self.v), lane_of(self.w), 0.0, 0.0) * inv).xy();
+        (slot, bary)
+    }
+}
+
 /// An instruction set's box test and push.
 trait Lanes {
     /// What the box test needs of the ray.
@@ -161,7 +178,7 @@ struct FourWideRay {
 
 /// Per axis the scales of a ray's entry and exit distances (see the module's notes).
 #[inline(always)]
-fn slab_scales(ray: &TraversalRay) -> [[f32; 3]; 2] {
+pub(crate) fn slab_scales(ray: &TraversalRay) -> [[f32; 3]; 2] {
     let negated_inverse = -ray.inv_direction;
     [
         (negated_inverse * (1.0 - SLAB_ERROR)).to_array(),
@@ -695,24 +712,9 @@ unsafe fn closest_slot_on<const INLINE_AVX2: bool>(
     #[cfg(not(target_arch = "x86_64"))]
     // SAFETY: the caller's promise.
     let (hit, t) = unsafe { closest_baseline(nodes, groups, ray) };
-    let Hit {
-        group,
-        lane,
-        v,
-        w,
-        determinant,
-    } = hit?;
+    let hit = hit?;
     ray.t_max = t;
-    // Lanes read from arrays (an indexed load), not by `Vec4`'s index, which branches on the
-    // lane through a jump table (a mispredicted jump per hit).
-    let lane_of = |lanes: Vec4| lanes.to_array()[lane];
-    let inv = 1.0 / lane_of(determinant);
-    let slot = (group * GROUP_LANES + lane) as u32;
-    // Both products in one vector (each lane the scalar product), so that the pair is written
-    // with one store: the caller may read it back as one 8-byte load, which two 4-byte stores
-    // could not forward (a stall per hit).
-    let bary = (Vec4::new(lane_of(v), lane_of(w), 0.0, 0.0) * inv).xy();
-    Some((slot, bary))
+    Some(hit.slot_and_barycentrics())
 }
 
 /// Whether any of `groups` under `nodes` is hit.
