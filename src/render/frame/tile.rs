@@ -206,35 +206,10 @@ pub(super) fn render_tile(
             let mut passes = [[Vec4::ZERO; TILE_PIXELS]; 3];
             let mut groups = std::mem::take(&mut scratch.eye_groups);
             let grouped = setup.scene.bvh.walks_eights_together();
-            if grouped {
-                groups.clear();
-                for (k, pass) in passes.iter_mut().enumerate() {
-                    let rays = PixelRays::Subpixel(k as u32);
-                    let collect = Grouping::Collect(&mut groups);
-                    trace_blocks(
-                        job,
-                        eyes,
-                        map,
-                        scratch,
-                        pass,
-                        &mut covered,
-                        false,
-                        rays,
-                        k as u32,
-                        collect,
-                    );
-                }
-                groups.trace(&setup.scene.bvh);
-            }
-            for (k, pass) in passes.iter_mut().enumerate() {
-                let green = channels[k] == 1;
+            // Subpixel pass `k` of the tile (`green`: its hits give the other channels).
+            let mut pass_blocks = |k: usize, pass: &mut _, green: bool, grouping: Grouping| {
                 let rays = PixelRays::Subpixel(k as u32);
                 let variant = k as u32;
-                let grouping = if grouped {
-                    Grouping::Replay(&mut groups)
-                } else {
-                    Grouping::Off
-                };
                 trace_blocks(
                     job,
                     eyes,
@@ -247,6 +222,21 @@ pub(super) fn render_tile(
                     variant,
                     grouping,
                 );
+            };
+            if grouped {
+                groups.clear();
+                for (k, pass) in passes.iter_mut().enumerate() {
+                    pass_blocks(k, pass, false, Grouping::Collect(&mut groups));
+                }
+                groups.trace(&setup.scene.bvh);
+            }
+            for (k, pass) in passes.iter_mut().enumerate() {
+                let grouping = if grouped {
+                    Grouping::Replay(&mut groups)
+                } else {
+                    Grouping::Off
+                };
+                pass_blocks(k, pass, channels[k] == 1, grouping);
             }
             scratch.eye_groups = groups;
             let green = channels.iter().position(|c| *c == 1).unwrap_or(1);
