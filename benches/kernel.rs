@@ -299,6 +299,13 @@ fn print_counts(triangles: u32, [packets, single]: &[TraversalCounts; 2]) {
     );
 }
 
+/// Ray `i` of a 64-ray block's point within the block: sixteen 2×2 quads, four quads a row,
+/// as the renderer packs a block.
+fn block_point(i: u32) -> (u32, u32) {
+    let (quad, lane) = (i / 4, i % 4);
+    ((quad % 4) * 2 + lane % 2, (quad / 4) * 2 + lane / 2)
+}
+
 /// The rays of an interleaved stereo frame's eyes (`CAVETRACE_BENCH_LATTICE`), each eye's
 /// pixels as a lattice of 8×8 blocks of 2×2 quads, as the renderer packs them: `rows` (every
 /// other row), `columns` (every other column), `checker` (x + y even): one eye, half the rays,
@@ -350,12 +357,8 @@ fn lattice_rays(rays: Vec<((u32, u32), Ray)>, size: u32, lattice: &str) -> Vec<R
     let mut lattice_rays = Vec::with_capacity(order.len() * 64);
     for (eye, (bx, by)) in order {
         for i in 0..64 {
-            let (quad, lane) = (i / 4, i % 4);
-            let (x, y) = pixel(
-                bx + (quad % 4) * 2 + lane % 2,
-                by + (quad / 4) * 2 + lane / 2,
-                eye,
-            );
+            let (dx, dy) = block_point(i);
+            let (x, y) = pixel(bx + dx, by + dy, eye);
             lattice_rays.push(by_pixel[(y * size + x) as usize].expect("a pixel's ray"));
         }
     }
@@ -376,9 +379,8 @@ fn level_rays(rays: Vec<((u32, u32), Ray)>, size: u32, stride: u32) -> Vec<Ray> 
     for by in (0..points).step_by(8) {
         for bx in (0..points).step_by(8) {
             for i in 0..64 {
-                let (quad, lane) = (i / 4, i % 4);
-                let s = bx + (quad % 4) * 2 + lane % 2;
-                let t = by + (quad / 4) * 2 + lane / 2;
+                let (ds, dt) = block_point(i);
+                let (s, t) = (bx + ds, by + dt);
                 let skipped = stride < 64 && s % 2 == 0 && t % 2 == 0;
                 level.push(if s >= points || t >= points || skipped {
                     NO_RAY

@@ -158,40 +158,13 @@ fn grid_world(dev: ANARIDevice, turned: bool) -> ANARIWorld {
     let grid = triangle_geometry(dev, &grid_triangles());
     let surface = matte_surface(dev, grid, [0.9, 0.7, 0.3]);
     let world = if turned {
-        let group = anariNewGroup(dev);
-        let surfaces = object_array(dev, ANARI_SURFACE, &[surface]);
-        set_object(dev, group, "surface", ANARI_ARRAY1D, surfaces);
-        commit(dev, group);
-        let instance = anariNewInstance(dev, c("transform").as_ptr());
-        set_object(dev, instance, "group", ANARI_GROUP, group);
         // Scaled by 0.9, turned by 0.2 rad about z, moved 5 cm right and back.
-        let (sin, cos) = 0.2f32.sin_cos();
-        let transform: [f32; 16] = [
-            0.9 * cos,
-            0.9 * sin,
-            0.0,
-            0.0,
-            -0.9 * sin,
-            0.9 * cos,
-            0.0,
-            0.0,
-            0.0,
-            0.0,
-            0.9,
-            0.0,
-            0.05,
-            0.0,
-            -0.05,
-            1.0,
-        ];
-        set(dev, instance, "transform", ANARI_FLOAT32_MAT4, &transform);
-        commit(dev, instance);
-        let world = anariNewWorld(dev);
-        let instances = object_array(dev, ANARI_INSTANCE, &[instance]);
-        set_object(dev, world, "instance", ANARI_ARRAY1D, instances);
-        commit(dev, world);
-        release_all(dev, &[surfaces, group, instance, instances]);
-        world
+        let transform = glam::Mat4::from_scale_rotation_translation(
+            glam::Vec3::splat(0.9),
+            glam::Quat::from_rotation_z(0.2),
+            glam::Vec3::new(0.05, 0.0, -0.05),
+        );
+        instanced_world_of(dev, &[surface], transform.to_cols_array())
     } else {
         world_of(dev, &[surface])
     };

@@ -144,6 +144,30 @@ pub fn world_of(dev: ANARIDevice, surfaces: &[ANARISurface]) -> ANARIWorld {
     world
 }
 
+/// A world whose only instance holds `surfaces` in a group, placed by `transform` (column-major).
+pub fn instanced_world_of(
+    dev: ANARIDevice,
+    surfaces: &[ANARISurface],
+    transform: [f32; 16],
+) -> ANARIWorld {
+    let group = anariNewGroup(dev);
+    let group_surfaces = object_array(dev, ANARI_SURFACE, surfaces);
+    set_object(dev, group, "surface", ANARI_ARRAY1D, group_surfaces);
+    commit(dev, group);
+    let instance = anariNewInstance(dev, c("transform").as_ptr());
+    set_object(dev, instance, "group", ANARI_GROUP, group);
+    set(dev, instance, "transform", ANARI_FLOAT32_MAT4, &transform);
+    commit(dev, instance);
+    let world = anariNewWorld(dev);
+    let instances = object_array(dev, ANARI_INSTANCE, &[instance]);
+    set_object(dev, world, "instance", ANARI_ARRAY1D, instances);
+    commit(dev, world);
+    for object in [group_surfaces, group, instance, instances] {
+        anariRelease(dev, object);
+    }
+    world
+}
+
 pub fn frame_for(
     dev: ANARIDevice,
     world: ANARIWorld,
