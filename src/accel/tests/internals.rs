@@ -9,22 +9,7 @@ fn memory_stays_within_budget_for_a_grid() {
     let positions = (0..=cells)
         .flat_map(|y| (0..=cells).map(move |x| vec3(x as f32, y as f32, ((x + y) as f32).sin())))
         .collect();
-    let corner = |x: u32, y: u32| y * (cells + 1) + x;
-    let mut indices = Vec::new();
-    for y in 0..cells {
-        for x in 0..cells {
-            indices.push(UVec3::new(
-                corner(x, y),
-                corner(x + 1, y),
-                corner(x + 1, y + 1),
-            ));
-            indices.push(UVec3::new(
-                corner(x, y),
-                corner(x + 1, y + 1),
-                corner(x, y + 1),
-            ));
-        }
-    }
+    let indices = grid_indices(cells);
     let bvh = GeometryBvh::build(GeometryPrims::Triangles { positions, indices });
     let per_triangle = bvh.memory_bytes() as f64 / bvh.primitive_count() as f64;
     assert!(

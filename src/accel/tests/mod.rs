@@ -352,14 +352,9 @@ fn one_sphere(center: Vec3, radius: f32) -> GeometryBvh {
     })
 }
 
-fn bumpy_grid(cells: u32) -> (Vec<Vec3>, GeometryPrims) {
-    let height = |x: u32, y: u32| ((x * 7 + y * 3) % 5) as f32 * 0.125;
-    let mut positions = Vec::new();
-    for y in 0..=cells {
-        for x in 0..=cells {
-            positions.push(vec3(x as f32, y as f32, height(x, y)));
-        }
-    }
+/// The triangles of a grid of `cells`×`cells` squares over `(cells + 1)²` vertices in rows,
+/// two per square.
+fn grid_indices(cells: u32) -> Vec<UVec3> {
     let corner = |x: u32, y: u32| y * (cells + 1) + x;
     let mut indices = Vec::new();
     for y in 0..cells {
@@ -376,6 +371,18 @@ fn bumpy_grid(cells: u32) -> (Vec<Vec3>, GeometryPrims) {
             ));
         }
     }
+    indices
+}
+
+fn bumpy_grid(cells: u32) -> (Vec<Vec3>, GeometryPrims) {
+    let height = |x: u32, y: u32| ((x * 7 + y * 3) % 5) as f32 * 0.125;
+    let mut positions = Vec::new();
+    for y in 0..=cells {
+        for x in 0..=cells {
+            positions.push(vec3(x as f32, y as f32, height(x, y)));
+        }
+    }
+    let indices = grid_indices(cells);
     let prims = GeometryPrims::Triangles {
         positions: positions.clone(),
         indices,
