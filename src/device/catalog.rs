@@ -32,8 +32,9 @@ pub const DEVICE_PARAMS: &[ParamSpec] = &[
         "isa",
         &[ANARI_STRING],
         "instruction set of the ray kernels, for the whole process: auto (the best this CPU \
-         has), baseline (SSE2) or avx2 (AVX2 and FMA); default: the environment variable \
-         CAVETRACE_ISA, else auto",
+         has), baseline (SSE2), avx2 (AVX2 and FMA) or avx512 (AVX-512F/VL/BW/DQ as well); a \
+         path this CPU lacks falls back to the widest it has; default: the environment \
+         variable CAVETRACE_ISA, else auto",
     )
     .default(SpecValue::Str("auto"))
     .values(&crate::isa::Isa::VALUES),
