@@ -612,7 +612,9 @@ impl GeometryBvh {
         active: &[u32; FRUSTUM_RAYS / LANES],
         closest: &mut [Option<u32>; FRUSTUM_RAYS],
     ) {
-        use crate::isa::{Isa, selected};
+        #[cfg(target_arch = "x86_64")]
+        use crate::isa::Isa;
+        use crate::isa::selected;
         match selected() {
             // SAFETY: a path is selected only on CPUs that have it (`crate::isa`).
             #[cfg(target_arch = "x86_64")]

@@ -156,7 +156,9 @@ impl SceneBvh {
     /// copies with wider loads than its stores (a stall per ray).
     #[inline(never)]
     pub fn intersect_into(&self, ray: &Ray, hit: &mut Option<SceneHit>) {
-        use crate::isa::{Isa, selected};
+        #[cfg(target_arch = "x86_64")]
+        use crate::isa::Isa;
+        use crate::isa::selected;
         match selected() {
             // SAFETY: a path is selected only on CPUs that have it (`crate::isa`).
             #[cfg(target_arch = "x86_64")]

@@ -702,7 +702,9 @@ unsafe fn closest_slot_on<const INLINE_AVX2: bool>(
     if !(ray.t_min >= 0.0) {
         return closest_by_generic_walk(nodes, groups, ray);
     }
-    use crate::isa::{Isa, selected};
+    #[cfg(target_arch = "x86_64")]
+    use crate::isa::Isa;
+    use crate::isa::selected;
     // SAFETY (each branch): the caller's promise; a path is selected only on CPUs that have it.
     let (hit, t) = if INLINE_AVX2 {
         #[cfg(target_arch = "x86_64")]
@@ -742,7 +744,9 @@ pub(crate) unsafe fn any_triangle_hit(
     if !(ray.t_min >= 0.0) {
         return any_by_generic_walk(nodes, groups, ray);
     }
-    use crate::isa::{Isa, selected};
+    #[cfg(target_arch = "x86_64")]
+    use crate::isa::Isa;
+    use crate::isa::selected;
     // SAFETY (each arm): the caller's promise; a path is selected only on CPUs that have it.
     match selected() {
         #[cfg(target_arch = "x86_64")]
@@ -856,6 +860,7 @@ mod avx2_walks {
 #[cfg(test)]
 pub(crate) mod test_paths {
     use super::*;
+    #[cfg(target_arch = "x86_64")]
     use crate::isa::Isa;
 
     /// The single-ray box test of each path for `ray` (its octant's code), as

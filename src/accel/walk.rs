@@ -198,7 +198,9 @@ static PLANE_ROWS: [[[usize; 3]; 2]; 8] = {
 /// widened entry distance (meaningful for the children hit).
 #[inline(always)]
 pub(crate) fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
-    use crate::accel::isa::{Isa, selected};
+    #[cfg(target_arch = "x86_64")]
+    use crate::accel::isa::Isa;
+    use crate::accel::isa::selected;
     match selected() {
         // SAFETY: a path is selected only on CPUs that have it.
         #[cfg(target_arch = "x86_64")]

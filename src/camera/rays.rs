@@ -469,19 +469,23 @@ impl EyeRays {
     /// made per instruction (four f64 lanes on the AVX2 and AVX-512 paths).
     #[inline]
     pub fn block_rays(&self, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
-        self.block_rays_on(crate::isa::selected(), s, t, block)
+        // SAFETY: a path is selected only on CPUs that have it (`crate::isa`).
+        unsafe { self.block_rays_on(crate::isa::selected(), s, t, block) }
     }
 
-    /// [`Self::block_rays`] on path `isa` where this CPU has it, else on the baseline one.
+    /// [`Self::block_rays`] on path `isa`.
+    ///
+    /// # Safety
+    /// This CPU has the path `isa`.
     #[inline(always)]
-    fn block_rays_on(&self, isa: Isa, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
+    unsafe fn block_rays_on(&self, isa: Isa, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
         match isa {
-            // SAFETY: this CPU has the path (checked in the guard; the checks are cached loads).
+            // SAFETY: the caller's promise.
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx512 if isa.supported() => unsafe { self.block_rays_avx512(isa, s, t, block) },
-            // SAFETY: as above.
+            Isa::Avx512 => unsafe { self.block_rays_avx512(isa, s, t, block) },
+            // SAFETY: the caller's promise.
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 if isa.supported() => unsafe { self.block_rays_avx2(isa, s, t, block) },
+            Isa::Avx2 => unsafe { self.block_rays_avx2(isa, s, t, block) },
             _ => self.block_rays_with(Isa::Baseline, s, t, block),
         }
     }
@@ -718,7 +722,8 @@ impl EyeRays {
             isa.supported(),
             "{isa:?} path asked for on a CPU without it"
         );
-        self.block_rays_on(isa, s, t, block)
+        // SAFETY: this CPU has the path (asserted just above).
+        unsafe { self.block_rays_on(isa, s, t, block) }
     }
 
     /// Whether a matrix camera's rays are traced by the pinhole shortcut.

@@ -138,7 +138,9 @@ pub(super) fn shade_cyclopean_avx2(
     normal: &mut Lanes3,
     color: &mut Lanes3,
 ) -> bool {
-    use crate::isa::{Isa, selected};
+    #[cfg(target_arch = "x86_64")]
+    use crate::isa::Isa;
+    use crate::isa::selected;
     let surface = (base.to_array(), emissive.to_array());
     match selected() {
         // SAFETY: a path is selected only on a CPU that has it.
