@@ -7,19 +7,19 @@
 //! primary rays (four f64 lanes per instruction), the blend of several viewers' camera
 //! positions for a block (eight f32 lanes) and a stereo block's cyclopean shading. Each of
 //! those AVX2 builds is compiled a second time with AVX-512F/VL/BW/DQ enabled as well (one
-//! source, [`avx2_and_avx512`]), chosen where the CPU has AVX-512; the walk of eight rays
-//! (`accel::eights`) has an AVX2 build only, which both paths take. The choice is the
-//! process's: made when a device is created (the environment variable `CAVETRACE_ISA`, else
-//! the best the CPU has) and whenever a device commits its `isa` parameter. Every path finds
-//! the same hits and makes the same rays.
+//! source, [`avx2_and_avx512`]), taken when asked for (`avx512`) on a CPU with AVX-512
+//! (`auto` keeps AVX2 there: [`Isa::best`]); the walk of eight rays (`accel::eights`) has an
+//! AVX2 build only, which both paths take. The choice is the process's: made when a device is
+//! created (the environment variable `CAVETRACE_ISA`, else `auto`) and whenever a device
+//! commits its `isa` parameter. Every path finds the same hits and makes the same rays.
 
 use std::sync::atomic::{AtomicU8, Ordering};
 
 /// The selected path, as [`Isa`]'s discriminant (never a path this CPU lacks).
 static SELECTED: AtomicU8 = AtomicU8::new(Isa::Baseline as u8);
 
-/// Selects the path the process's kernels take: `isa` if this CPU has it, else the baseline.
-/// Returns the path selected.
+/// Selects the path the process's kernels take: `isa` if this CPU has it, else the widest
+/// narrower one it has ([`Isa::usable`]). Returns the path selected.
 pub fn select(isa: Isa) -> Isa {
     let usable = Isa::usable(isa);
     SELECTED.store(usable as u8, Ordering::Relaxed);
@@ -59,13 +59,15 @@ impl Isa {
     /// Every path, narrowest first.
     pub const ALL: [Isa; 3] = [Isa::Baseline, Isa::Avx2, Isa::Avx512];
 
-    /// The widest path this CPU runs.
+    /// The path `auto` picks: the fastest this CPU has as measured, AVX2 where the CPU has it,
+    /// also where it has AVX-512 (on Zen 4 the AVX-512 build was never faster and its packets
+    /// about 1 % slower at 4M triangles: docs/kernel.md, "AVX-512 path"), else the baseline.
     pub fn best() -> Isa {
-        Isa::ALL
-            .into_iter()
-            .rev()
-            .find(|isa| isa.supported())
-            .unwrap_or(Isa::Baseline)
+        if Isa::Avx2.supported() {
+            Isa::Avx2
+        } else {
+            Isa::Baseline
+        }
     }
 
     /// Whether this CPU can run the path.
