@@ -179,6 +179,19 @@ impl<const N: usize> CameraLanes<N> {
     }
 }
 
+/// Viewers (one bit each) whose cone provably holds every point of a block (`inside`) or none
+/// of its points (`outside`): their cone test is skipped, its results known.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct ConeCover {
+    inside: u64,
+    outside: u64,
+}
+
+/// How far (in the cosine of the angle) a block must lie inside or outside a cone for
+/// [`ViewerSet::cone_cover`] to take its points' cone tests as known: far beyond the f32 test's
+/// rounding (a few units of 10⁻⁷), and small against the cones' reach in a CAVE.
+const COVER_MARGIN: f64 = 1e-3;
+
 /// Validated viewers, ready to give any screen point its camera.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ViewerSet {
@@ -371,7 +384,7 @@ impl ViewerSet {
     /// viewer has a say, and the camera is the mean of all heads.
     pub fn weights_at(&self, point: DVec3, weights: &mut [f32; MAX_VIEWERS]) -> bool {
         let mut lanes = [[0.0; 1]; MAX_VIEWERS];
-        let any = self.weights_of(&[point], &mut lanes);
+        let (any, _) = self.weights_of(&[point], &mut lanes, true);
         for (weight, lane) in weights.iter_mut().zip(&lanes) {
             *weight = lane[0];
         }
@@ -380,13 +393,22 @@ impl ViewerSet {
 
     /// The normalised weights at `N` screen points at once: `weights[i]` holds viewer `i`'s
     /// weight at each point (lane = point). Returns the mask of lanes where some viewer has a
-    /// say (the others' weights are 0). A point in one viewer's cone alone (and, but for the
-    /// gaussian fall-off, outside every other one) is that viewer's, whatever the fall-off:
-    /// its weight is exactly 1, so only points in several cones pay for angles. Every lane
-    /// gets the same result whatever the other lanes hold: only plain IEEE operations, lane by
-    /// lane (no fused multiply-adds, which the compiler never makes on its own).
+    /// say (the others' weights are 0) and the mask of viewers with a weight above 0 at some
+    /// point (the others' weights are 0 at every point). A point in one viewer's cone alone
+    /// (and, but for the gaussian fall-off, outside every other one) is that viewer's,
+    /// whatever the fall-off: its weight is exactly 1, so only points in several cones pay for
+    /// angles. Every lane gets the same result whatever the other lanes hold: only plain IEEE
+    /// operations, lane by lane (no fused multiply-adds, which the compiler never makes on its
+    /// own). With `prove`, a block's viewers whose cone provably holds all of its points, or
+    /// none, skip the cone test ([`Self::cone_cover`]; the same results), and viewers whose
+    /// cone holds none of the points skip the angles.
     #[inline(always)]
-    fn weights_of<const N: usize>(&self, points: &[DVec3; N], weights: &mut [[f32; N]]) -> u64 {
+    fn weights_of<const N: usize>(
+        &self,
+        points: &[DVec3; N],
+        weights: &mut [[f32; N]],
+        prove: bool,
+    ) -> (u64, u64) {
         // One bit per lane in the result.
         const { assert!(N <= 64) };
         let lane = |axis: usize| -> [f32; N] { std::array::from_fn(|l| points[l][axis] as f32) };
@@ -416,13 +438,37 @@ impl ViewerSet {
                     weight[l] /= total[l];
                 }
             }
-            return lanes_where(N, |_| true);
+            return (
+                lanes_where(N, |_| true),
+                lanes_where(weights.len(), |_| true),
+            );
         }
         // Cone membership without a square root: cos a > cos c, squared with its sign.
         let reach = self.cos_reach;
         let reach_squared = reach * reach;
+        let cover = if prove {
+            self.cone_cover(&p)
+        } else {
+            ConeCover::default()
+        };
         let mut members = [0.0f32; N];
-        for (weight, viewer) in weights.iter_mut().zip(&self.viewers_f32) {
+        // Viewers whose cone holds some point.
+        let mut present = 0u64;
+        for (index, (weight, viewer)) in weights.iter_mut().zip(&self.viewers_f32).enumerate() {
+            let bit = 1u64 << index;
+            if cover.inside & bit != 0 {
+                // What the test below gives every lane.
+                weight.fill(1.0);
+                for member in members.iter_mut() {
+                    *member += 1.0;
+                }
+                present |= bit;
+                continue;
+            }
+            if cover.outside & bit != 0 {
+                weight.fill(0.0);
+                continue;
+            }
             let (dot, length_squared) = to_point(viewer, &p);
             for l in 0..N {
                 let ahead = dot[l] > 0.0;
@@ -435,7 +481,20 @@ impl ViewerSet {
                 weight[l] = if inside { 1.0 } else { 0.0 };
                 members[l] += weight[l];
             }
+            if weight
+                .iter()
+                .fold(0u32, |found, w| found | u32::from(*w != 0.0))
+                != 0
+            {
+                present |= bit;
+            }
         }
+        // Without `prove` every viewer takes part in what follows (the plain computation).
+        let present = if prove {
+            present
+        } else {
+            lanes_where(weights.len(), |_| true)
+        };
         let any = lanes_where(N, |l| members[l] > 0.0);
         if self.mode == ViewerMode::Zones {
             for weight in weights.iter_mut() {
@@ -448,14 +507,19 @@ impl ViewerSet {
                     weight[l] *= share;
                 }
             }
-            return any;
+            return (any, present);
         }
         if !members.iter().any(|m| *m > 1.0) {
-            return any;
+            return (any, present);
         }
-        // Points in several cones: weights from the angles.
+        // Points in several cones: weights from the angles. A viewer whose cone holds no point
+        // keeps its weights of 0 (adding them to the total changes no bit: the total is +0 or
+        // more).
         let mut total = [0.0f32; N];
-        for (weight, viewer) in weights.iter_mut().zip(&self.viewers_f32) {
+        for (index, (weight, viewer)) in weights.iter_mut().zip(&self.viewers_f32).enumerate() {
+            if present & (1 << index) == 0 {
+                continue;
+            }
             let a = angles(viewer, &p);
             for l in 0..N {
                 let a = a[l] * self.inv_cutoff;
@@ -470,13 +534,84 @@ impl ViewerSet {
             }
         }
         let any = lanes_where(N, |l| total[l] > 0.0);
-        for weight in weights.iter_mut() {
+        for (index, weight) in weights.iter_mut().enumerate() {
+            if present & (1 << index) == 0 {
+                continue; // 0 divided stays 0
+            }
             for l in 0..N {
                 // Divided, not multiplied by a reciprocal, so that a viewer alone gets exactly 1.
                 weight[l] /= if total[l] > 0.0 { total[l] } else { 1.0 };
             }
         }
-        any
+        (any, present)
+    }
+
+    /// The viewers whose cone (`cos a ≥ cos_reach`, as the cone test computes it in f32)
+    /// provably holds every one of the points `p` (x, y, z lanes), and those whose cone holds
+    /// none of them, one bit per viewer: checked in f64 for a ball around the points' box,
+    /// with a margin of [`COVER_MARGIN`] in the cosine that no f32 rounding of the test comes
+    /// near. Only for cones up to a right angle (convex ones) and for whole blocks of points
+    /// (for a few points the test is cheaper than the proof); otherwise nothing is proven.
+    #[inline(always)]
+    fn cone_cover<const N: usize>(&self, p: &[[f32; N]; 3]) -> ConeCover {
+        let reach = f64::from(self.cos_reach);
+        let gaussian =
+            self.weighting == ViewerWeighting::Gaussian && self.mode != ViewerMode::Zones;
+        if N < 16 || N % 8 != 0 || reach < 2.0 * COVER_MARGIN || gaussian {
+            return ConeCover::default();
+        }
+        // The points' box, eight lanes at a time (so that it is SIMD); `x − x` is 0 for finite
+        // `x` and NaN otherwise, and NaN sticks in the sum.
+        let mut low = [[f32::INFINITY; 8]; 3];
+        let mut high = [[f32::NEG_INFINITY; 8]; 3];
+        let mut finite = [0.0f32; 8];
+        for axis in 0..3 {
+            for chunk in p[axis].chunks_exact(8) {
+                for k in 0..8 {
+                    low[axis][k] = min(low[axis][k], chunk[k]);
+                    high[axis][k] = max(high[axis][k], chunk[k]);
+                    finite[k] += chunk[k] - chunk[k];
+                }
+            }
+        }
+        if finite.iter().sum::<f32>() != 0.0 {
+            return ConeCover::default();
+        }
+        let low =
+            DVec3::from(low.map(|lanes| f64::from(lanes.into_iter().fold(f32::INFINITY, min))));
+        let high = DVec3::from(
+            high.map(|lanes| f64::from(lanes.into_iter().fold(f32::NEG_INFINITY, max))),
+        );
+        let centre = 0.5 * (low + high);
+        // The box's half diagonal, widened for the rounding of these f64 operations.
+        let radius =
+            0.5 * (high - low).length() * (1.0 + 1e-9) + 1e-9 * (1.0 + centre.abs().max_element());
+        let inside_cos = reach + COVER_MARGIN;
+        let inside_sin = (1.0 - inside_cos * inside_cos).max(0.0).sqrt();
+        let outside_cos = reach - COVER_MARGIN;
+        let outside_sin = (1.0 - outside_cos * outside_cos).max(0.0).sqrt();
+        let mut cover = ConeCover::default();
+        for (index, viewer) in self.viewers_f32.iter().enumerate() {
+            let head = DVec3::from(viewer.head.map(f64::from));
+            let gaze = DVec3::from(viewer.gaze.map(f64::from)).normalize();
+            let to_centre = centre - head;
+            let along = gaze.dot(to_centre);
+            let length_squared = to_centre.length_squared();
+            let across = (length_squared - along * along).max(0.0).sqrt();
+            let slack = radius + 1e-12 * (along.abs() + across);
+            // |c|·sin(α − θ) for the centre at angle θ from the gaze, |c| from the head: its
+            // distance from the surface of the cone of half-angle α (< π/2) around the gaze
+            // when inside, negative when outside; the ball is inside when it exceeds the
+            // radius, and outside when |c|·sin(θ − α) does (with the head outside the ball).
+            if inside_sin * along - inside_cos * across > slack {
+                cover.inside |= 1 << index;
+            } else if outside_cos * across - outside_sin * along > slack
+                && length_squared > slack * slack
+            {
+                cover.outside |= 1 << index;
+            }
+        }
+        cover
     }
 
     /// [`Self::cameras`] for one screen point.
@@ -523,12 +658,40 @@ impl ViewerSet {
         #[cfg(target_arch = "x86_64")]
         if avx2 && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-            unsafe { self.cameras_avx2(points, needs_right, cameras) };
+            unsafe { self.cameras_avx2(points, needs_right, true, cameras) };
             return;
         }
         #[cfg(not(target_arch = "x86_64"))]
         let _ = avx2;
-        self.cameras_at_points(points, needs_right, cameras)
+        self.cameras_at_points(points, needs_right, true, cameras)
+    }
+
+    /// [`Self::cameras_into`]'s perPixel and zones cameras without [`Self::cone_cover`]'s
+    /// proofs (every cone test and angle computed), on the AVX2 path where `avx2` asks for it;
+    /// and the proofs' masks for the points, for tests comparing the two.
+    #[cfg(test)]
+    fn cameras_unproven<const N: usize>(
+        &self,
+        points: &[DVec3; N],
+        needs_right: bool,
+        avx2: bool,
+        cameras: &mut CameraLanes<N>,
+    ) -> ConeCover {
+        #[cfg(target_arch = "x86_64")]
+        if avx2 && std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: this CPU has AVX2 (checked just above).
+            unsafe { self.cameras_avx2(points, needs_right, false, cameras) };
+        } else {
+            self.cameras_at_points(points, needs_right, false, cameras);
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = avx2;
+            self.cameras_at_points(points, needs_right, false, cameras);
+        }
+        let p: [[f32; N]; 3] =
+            [0, 1, 2].map(|axis| std::array::from_fn(|l| points[l][axis] as f32));
+        self.cone_cover(&p)
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -537,9 +700,10 @@ impl ViewerSet {
         &self,
         points: &[DVec3; N],
         needs_right: bool,
+        prove: bool,
         cameras: &mut CameraLanes<N>,
     ) {
-        self.cameras_at_points(points, needs_right, cameras)
+        self.cameras_at_points(points, needs_right, prove, cameras)
     }
 
     /// The camera of the tile holding screen coordinates `st`.
@@ -561,7 +725,7 @@ impl ViewerSet {
 
     fn camera_at_point(&self, point: DVec3, needs_right: bool) -> (DVec3, DVec3) {
         let mut lanes = CameraLanes::<4>::default();
-        self.cameras_at_points(&[point; 4], needs_right, &mut lanes);
+        self.cameras_at_points(&[point; 4], needs_right, true, &mut lanes);
         (lanes.head_at(0), lanes.right_at(0))
     }
 
@@ -572,13 +736,14 @@ impl ViewerSet {
         &self,
         points: &[DVec3; N],
         needs_right: bool,
+        prove: bool,
         cameras: &mut CameraLanes<N>,
     ) {
         // Working memory sized for the viewers there are (it is set up for every call).
         match self.heads.len() {
-            0..=4 => self.cameras_with::<4, N>(points, needs_right, cameras),
-            5..=16 => self.cameras_with::<16, N>(points, needs_right, cameras),
-            _ => self.cameras_with::<MAX_VIEWERS, N>(points, needs_right, cameras),
+            0..=4 => self.cameras_with::<4, N>(points, needs_right, prove, cameras),
+            5..=16 => self.cameras_with::<16, N>(points, needs_right, prove, cameras),
+            _ => self.cameras_with::<MAX_VIEWERS, N>(points, needs_right, prove, cameras),
         }
     }
 
@@ -590,13 +755,18 @@ impl ViewerSet {
         &self,
         points: &[DVec3; N],
         needs_right: bool,
+        prove: bool,
         cameras: &mut CameraLanes<N>,
     ) {
         let mut weights = [[0.0; N]; V];
-        let any = self.weights_of(points, &mut weights);
+        let (any, present) = self.weights_of(points, &mut weights, prove);
         let mut head = [[0.0f32; N]; 3];
         let mut right = [[0.0f32; N]; 3];
-        for (weight, viewer) in weights.iter().zip(&self.viewers_f32) {
+        // Viewers of weight 0 at every point add nothing (the sums are +0 or more).
+        for (index, (weight, viewer)) in weights.iter().zip(&self.viewers_f32).enumerate() {
+            if present & (1 << index) == 0 {
+                continue;
+            }
             for (sum, component) in head.iter_mut().zip(viewer.head) {
                 for l in 0..N {
                     sum[l] += weight[l] * component;
@@ -632,10 +802,11 @@ impl ViewerSet {
         }
         for (index, weight) in weights.iter().enumerate().take(self.heads.len()) {
             // Usually no point is one viewer's alone: one vector test spares the selects.
-            if weight
-                .iter()
-                .fold(0u32, |found, w| found | u32::from(*w == 1.0))
-                != 0
+            if present & (1 << index) != 0
+                && weight
+                    .iter()
+                    .fold(0u32, |found, w| found | u32::from(*w == 1.0))
+                    != 0
             {
                 cameras.set_where(|l| weight[l] == 1.0, self.heads[index], self.rights[index]);
             }
@@ -928,6 +1099,213 @@ mod tests {
             (camera - expected).length() < 1e-5,
             "{camera} vs {expected}"
         );
+    }
+
+    /// Blocks of 8×8 pixel centres (`width` × `height` pixels, optionally jittered inside
+    /// their pixels) on `screen`, lane by lane as the frame's blocks hold them.
+    fn pixel_blocks(
+        screen: &ScreenFrame,
+        width: u32,
+        height: u32,
+        jitter: u64,
+    ) -> Vec<[DVec3; 64]> {
+        let mut state = jitter;
+        let mut unit = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            if jitter == 0 {
+                0.5
+            } else {
+                (state >> 40) as f64 / (1u64 << 24) as f64
+            }
+        };
+        let mut blocks = Vec::new();
+        for by in (0..height).step_by(8) {
+            for bx in (0..width).step_by(8) {
+                blocks.push(std::array::from_fn(|l| {
+                    let (x, y) = (bx + l as u32 % 8, by + l as u32 / 8);
+                    let s = (f64::from(x) + unit()) / f64::from(width);
+                    let t = (f64::from(y) + unit()) / f64::from(height);
+                    screen.lower_left
+                        + s * (screen.lower_right - screen.lower_left)
+                        + t * (screen.upper_right - screen.lower_right)
+                }));
+            }
+        }
+        blocks
+    }
+
+    #[test]
+    fn blocks_whose_cone_tests_are_proven_get_the_cameras_of_every_test_made() {
+        // The render benchmark's screen (1 m from the tracked head, 0.9 rad wide) with its
+        // heads and gazes, and a CAVE wall with three people looking at different parts of it.
+        let eye = DVec3::new(0.0, 1.2, 1.6);
+        let forward = (-eye).normalize();
+        let x = forward.cross(DVec3::Y).normalize();
+        let y = x.cross(forward);
+        let half = 0.45f64.tan();
+        let corner = |a: f64, b: f64| eye + forward + x * (a * half) + y * (b * half);
+        let bench_screen =
+            ScreenFrame::new(corner(-1.0, -1.0), corner(1.0, -1.0), corner(1.0, 1.0)).unwrap();
+        let bench_viewers = |count: usize| {
+            let offsets = [(-1.0, -0.5), (1.0, -0.5), (-1.0, 0.5), (1.0, 0.5)];
+            let heads: Vec<Vec3> = offsets[..count]
+                .iter()
+                .map(|(a, b)| (eye + x * (0.25 * a) + y * (0.15 * b)).as_vec3())
+                .collect();
+            let gazes = offsets[..count]
+                .iter()
+                .zip(&heads)
+                .map(|((a, b), h)| {
+                    (eye + forward + x * (0.25 * a) + y * (0.2 * b) - h.as_dvec3()).as_vec3()
+                })
+                .collect();
+            ViewerDesc::new(heads, gazes)
+        };
+        let cave_viewers = ViewerDesc::new(
+            vec![
+                Vec3::new(-0.5, 1.7, 0.3),
+                Vec3::new(0.6, 1.6, -0.2),
+                Vec3::new(0.0, 1.2, 0.9),
+            ],
+            vec![
+                Vec3::new(-0.6, -0.3, -1.8),
+                Vec3::new(0.9, -0.3, -1.2),
+                Vec3::new(0.2, 0.4, -1.0),
+            ],
+        );
+        let with = |desc: ViewerDesc, mode, weighting, cutoff_angle| ViewerDesc {
+            mode,
+            weighting,
+            cutoff_angle,
+            ..desc
+        };
+        use ViewerMode::{PerPixel, Zones};
+        use ViewerWeighting::{Cosine, Gaussian, Linear};
+        let wide = std::f32::consts::FRAC_PI_4;
+        // (viewers, screen, whether every block has every cone around it, whether some block
+        // is proven outside a cone, whether nothing is proven at all)
+        let cases = [
+            (
+                with(bench_viewers(2), PerPixel, Linear, wide),
+                bench_screen,
+                true,
+                false,
+                false,
+            ),
+            (
+                with(bench_viewers(4), PerPixel, Linear, wide),
+                bench_screen,
+                true,
+                false,
+                false,
+            ),
+            (
+                with(bench_viewers(4), PerPixel, Linear, 0.3),
+                bench_screen,
+                false,
+                true,
+                false,
+            ),
+            (
+                with(bench_viewers(4), Zones, Linear, 0.3),
+                bench_screen,
+                false,
+                true,
+                false,
+            ),
+            (
+                with(cave_viewers.clone(), PerPixel, Linear, 0.6),
+                screen(),
+                false,
+                true,
+                false,
+            ),
+            (
+                with(cave_viewers.clone(), PerPixel, Cosine, 0.4),
+                screen(),
+                false,
+                true,
+                false,
+            ),
+            (
+                with(cave_viewers.clone(), Zones, Linear, 0.5),
+                screen(),
+                false,
+                true,
+                false,
+            ),
+            // Cones wider than a right angle (not convex) and the gaussian fall-off (no cone
+            // test): nothing proven, the cameras as before.
+            (
+                with(cave_viewers.clone(), PerPixel, Linear, 1.7),
+                screen(),
+                false,
+                false,
+                true,
+            ),
+            (
+                with(bench_viewers(4), PerPixel, Gaussian, 0.3),
+                bench_screen,
+                false,
+                false,
+                true,
+            ),
+        ];
+        for (index, (desc, screen, all_inside, some_outside, none)) in cases.into_iter().enumerate()
+        {
+            let set = ViewerSet::new(&desc, screen, 0.0).unwrap();
+            let count = desc.positions.len();
+            let every = (1u64 << count) - 1;
+            let (mut inside_blocks, mut outside_blocks, mut proofs, mut blocks) = (0, 0, 0, 0);
+            for jitter in [0, 3] {
+                for points in pixel_blocks(&screen, 320, 200, jitter) {
+                    for needs_right in [false, true] {
+                        for &avx2 in crate::isa::test_paths() {
+                            let mut proven = CameraLanes::<64>::default();
+                            let mut tested = CameraLanes::<64>::default();
+                            set.cameras_into(
+                                &points,
+                                &[DVec2::ZERO; 64],
+                                needs_right,
+                                avx2,
+                                &mut proven,
+                            );
+                            let cover =
+                                set.cameras_unproven(&points, needs_right, avx2, &mut tested);
+                            let bits = |lanes: &CameraLanes<64>| {
+                                [lanes.head, lanes.right]
+                                    .map(|axes| axes.map(|l| l.map(f64::to_bits)))
+                            };
+                            assert!(
+                                bits(&proven) == bits(&tested),
+                                "case {index}: {cover:?}, right {needs_right}, avx2 {avx2}"
+                            );
+                            if needs_right || avx2 {
+                                continue;
+                            }
+                            blocks += 1;
+                            inside_blocks += usize::from(cover.inside == every);
+                            outside_blocks += usize::from(cover.outside != 0);
+                            proofs += usize::from(cover != ConeCover::default());
+                        }
+                    }
+                }
+            }
+            assert_eq!(blocks, 2 * 40 * 25, "case {index}");
+            assert_eq!(
+                inside_blocks == blocks,
+                all_inside,
+                "case {index}: {inside_blocks}"
+            );
+            assert_eq!(
+                outside_blocks > 0,
+                some_outside,
+                "case {index}: {outside_blocks}"
+            );
+            assert_eq!(proofs == 0, none, "case {index}: {proofs} of {blocks}");
+        }
     }
 
     #[test]
