@@ -557,11 +557,11 @@ impl ViewerSet {
         let reach = f64::from(self.cos_reach);
         let gaussian =
             self.weighting == ViewerWeighting::Gaussian && self.mode != ViewerMode::Zones;
-        if N < 16 || N % 8 != 0 || reach < 2.0 * COVER_MARGIN || gaussian {
+        if N < 16 || !N.is_multiple_of(8) || reach < 2.0 * COVER_MARGIN || gaussian {
             return ConeCover::default();
         }
-        // The points' box, eight lanes at a time (so that it is SIMD); `x − x` is 0 for finite
-        // `x` and NaN otherwise, and NaN sticks in the sum.
+        // The points' box, eight lanes at a time (so that it is SIMD); `0·x` is ±0 for finite `x`
+        // and NaN otherwise, and NaN sticks in the sum.
         let mut low = [[f32::INFINITY; 8]; 3];
         let mut high = [[f32::NEG_INFINITY; 8]; 3];
         let mut finite = [0.0f32; 8];
@@ -570,7 +570,7 @@ impl ViewerSet {
                 for k in 0..8 {
                     low[axis][k] = min(low[axis][k], chunk[k]);
                     high[axis][k] = max(high[axis][k], chunk[k]);
-                    finite[k] += chunk[k] - chunk[k];
+                    finite[k] += chunk[k] * 0.0;
                 }
             }
         }
