@@ -179,19 +179,6 @@ impl<const N: usize> CameraLanes<N> {
     }
 }
 
-/// Viewers (one bit each) whose cone provably holds every point of a block (`inside`) or none
-/// of its points (`outside`): their cone test is skipped, its results known.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-struct ConeCover {
-    inside: u64,
-    outside: u64,
-}
-
-/// How far (in the cosine of the angle) a block must lie inside or outside a cone for
-/// [`ViewerSet::cone_cover`] to take its points' cone tests as known: far beyond the f32 test's
-/// rounding (a few units of 10⁻⁷), and small against the cones' reach in a CAVE.
-const COVER_MARGIN: f64 = 1e-3;
-
 /// Validated viewers, ready to give any screen point its camera.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ViewerSet {
@@ -324,7 +311,7 @@ impl ViewerSet {
             heads.push(head);
         }
         let single = |v: &DVec3| v.as_vec3().to_array();
-        let viewers_f32 = heads
+        let viewers_f32: Vec<ViewerF32> = heads
             .iter()
             .zip(&gazes)
             .zip(&rights)
@@ -349,6 +336,11 @@ impl ViewerSet {
             }
             _ => cutoff,
         };
+        let cos_reach = if reach >= std::f32::consts::PI {
+            -2.0
+        } else {
+            reach.cos()
+        };
         let mut set = ViewerSet {
             heads,
             rights,
@@ -358,11 +350,7 @@ impl ViewerSet {
             mode: desc.mode,
             weighting: desc.weighting,
             inv_cutoff: 1.0 / cutoff,
-            cos_reach: if reach >= std::f32::consts::PI {
-                -2.0
-            } else {
-                reach.cos()
-            },
+            cos_reach,
             gaussian_scale: 3.0 / (cutoff * std::f32::consts::SQRT_2),
             tiles: desc.tiles,
             tile_cameras: Vec::new(),
@@ -399,15 +387,14 @@ impl ViewerSet {
     /// whatever the fall-off: its weight is exactly 1, so only points in several cones pay for
     /// angles. Every lane gets the same result whatever the other lanes hold: only plain IEEE
     /// operations, lane by lane (no fused multiply-adds, which the compiler never makes on its
-    /// own). With `prove`, a block's viewers whose cone provably holds all of its points, or
-    /// none, skip the cone test ([`Self::cone_cover`]; the same results), and viewers whose
-    /// cone holds none of the points skip the angles.
+    /// own). With `skip_absent`, viewers whose cone holds none of the points skip the angles (and
+    /// the blend): their weights stay 0, which changes no other bit.
     #[inline(always)]
     fn weights_of<const N: usize>(
         &self,
         points: &[DVec3; N],
         weights: &mut [[f32; N]],
-        prove: bool,
+        skip_absent: bool,
     ) -> (u64, u64) {
         // One bit per lane in the result.
         const { assert!(N <= 64) };
@@ -446,29 +433,11 @@ impl ViewerSet {
         // Cone membership without a square root: cos a > cos c, squared with its sign.
         let reach = self.cos_reach;
         let reach_squared = reach * reach;
-        let cover = if prove {
-            self.cone_cover(&p)
-        } else {
-            ConeCover::default()
-        };
         let mut members = [0.0f32; N];
         // Viewers whose cone holds some point.
         let mut present = 0u64;
         for (index, (weight, viewer)) in weights.iter_mut().zip(&self.viewers_f32).enumerate() {
             let bit = 1u64 << index;
-            if cover.inside & bit != 0 {
-                // What the test below gives every lane.
-                weight.fill(1.0);
-                for member in members.iter_mut() {
-                    *member += 1.0;
-                }
-                present |= bit;
-                continue;
-            }
-            if cover.outside & bit != 0 {
-                weight.fill(0.0);
-                continue;
-            }
             let (dot, length_squared) = to_point(viewer, &p);
             for l in 0..N {
                 let ahead = dot[l] > 0.0;
@@ -489,8 +458,8 @@ impl ViewerSet {
                 present |= bit;
             }
         }
-        // Without `prove` every viewer takes part in what follows (the plain computation).
-        let present = if prove {
+        // Without `skip_absent` every viewer takes part in what follows (the plain computation).
+        let present = if skip_absent {
             present
         } else {
             lanes_where(weights.len(), |_| true)
@@ -546,74 +515,6 @@ impl ViewerSet {
         (any, present)
     }
 
-    /// The viewers whose cone (`cos a ≥ cos_reach`, as the cone test computes it in f32)
-    /// provably holds every one of the points `p` (x, y, z lanes), and those whose cone holds
-    /// none of them, one bit per viewer: checked in f64 for a ball around the points' box,
-    /// with a margin of [`COVER_MARGIN`] in the cosine that no f32 rounding of the test comes
-    /// near. Only for cones up to a right angle (convex ones) and for whole blocks of points
-    /// (for a few points the test is cheaper than the proof); otherwise nothing is proven.
-    #[inline(always)]
-    fn cone_cover<const N: usize>(&self, p: &[[f32; N]; 3]) -> ConeCover {
-        let reach = f64::from(self.cos_reach);
-        let gaussian =
-            self.weighting == ViewerWeighting::Gaussian && self.mode != ViewerMode::Zones;
-        if N < 16 || !N.is_multiple_of(8) || reach < 2.0 * COVER_MARGIN || gaussian {
-            return ConeCover::default();
-        }
-        // The points' box, eight lanes at a time (so that it is SIMD); `0·x` is ±0 for finite `x`
-        // and NaN otherwise, and NaN sticks in the sum.
-        let mut low = [[f32::INFINITY; 8]; 3];
-        let mut high = [[f32::NEG_INFINITY; 8]; 3];
-        let mut finite = [0.0f32; 8];
-        for axis in 0..3 {
-            for chunk in p[axis].chunks_exact(8) {
-                for k in 0..8 {
-                    low[axis][k] = min(low[axis][k], chunk[k]);
-                    high[axis][k] = max(high[axis][k], chunk[k]);
-                    finite[k] += chunk[k] * 0.0;
-                }
-            }
-        }
-        if finite.iter().sum::<f32>() != 0.0 {
-            return ConeCover::default();
-        }
-        let low =
-            DVec3::from(low.map(|lanes| f64::from(lanes.into_iter().fold(f32::INFINITY, min))));
-        let high = DVec3::from(
-            high.map(|lanes| f64::from(lanes.into_iter().fold(f32::NEG_INFINITY, max))),
-        );
-        let centre = 0.5 * (low + high);
-        // The box's half diagonal, widened for the rounding of these f64 operations.
-        let radius =
-            0.5 * (high - low).length() * (1.0 + 1e-9) + 1e-9 * (1.0 + centre.abs().max_element());
-        let inside_cos = reach + COVER_MARGIN;
-        let inside_sin = (1.0 - inside_cos * inside_cos).max(0.0).sqrt();
-        let outside_cos = reach - COVER_MARGIN;
-        let outside_sin = (1.0 - outside_cos * outside_cos).max(0.0).sqrt();
-        let mut cover = ConeCover::default();
-        for (index, viewer) in self.viewers_f32.iter().enumerate() {
-            let head = DVec3::from(viewer.head.map(f64::from));
-            let gaze = DVec3::from(viewer.gaze.map(f64::from)).normalize();
-            let to_centre = centre - head;
-            let along = gaze.dot(to_centre);
-            let length_squared = to_centre.length_squared();
-            let across = (length_squared - along * along).max(0.0).sqrt();
-            let slack = radius + 1e-12 * (along.abs() + across);
-            // |c|·sin(α − θ) for the centre at angle θ from the gaze, |c| from the head: its
-            // distance from the surface of the cone of half-angle α (< π/2) around the gaze
-            // when inside, negative when outside; the ball is inside when it exceeds the
-            // radius, and outside when |c|·sin(θ − α) does (with the head outside the ball).
-            if inside_sin * along - inside_cos * across > slack {
-                cover.inside |= 1 << index;
-            } else if outside_cos * across - outside_sin * along > slack
-                && length_squared > slack * slack
-            {
-                cover.outside |= 1 << index;
-            }
-        }
-        cover
-    }
-
     /// [`Self::cameras`] for one screen point.
     #[cfg(test)]
     pub(crate) fn camera_at(&self, point: DVec3, st: DVec2, needs_right: bool) -> (DVec3, DVec3) {
@@ -666,17 +567,17 @@ impl ViewerSet {
         self.cameras_at_points(points, needs_right, true, cameras)
     }
 
-    /// [`Self::cameras_into`]'s perPixel and zones cameras without [`Self::cone_cover`]'s
-    /// proofs (every cone test and angle computed), on the AVX2 path where `avx2` asks for it;
-    /// and the proofs' masks for the points, for tests comparing the two.
+    /// [`Self::cameras_into`]'s perPixel and zones cameras with every viewer's angles and
+    /// blend computed (none skipped), on the AVX2 path where `avx2` asks for it; and the mask
+    /// of viewers whose cone holds some of the points, for tests comparing the two.
     #[cfg(test)]
-    fn cameras_unproven<const N: usize>(
+    fn cameras_without_skips<const N: usize>(
         &self,
         points: &[DVec3; N],
         needs_right: bool,
         avx2: bool,
         cameras: &mut CameraLanes<N>,
-    ) -> ConeCover {
+    ) -> u64 {
         #[cfg(target_arch = "x86_64")]
         if avx2 && std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: this CPU has AVX2 (checked just above).
@@ -689,9 +590,8 @@ impl ViewerSet {
             let _ = avx2;
             self.cameras_at_points(points, needs_right, false, cameras);
         }
-        let p: [[f32; N]; 3] =
-            [0, 1, 2].map(|axis| std::array::from_fn(|l| points[l][axis] as f32));
-        self.cone_cover(&p)
+        let mut weights = [[0.0; N]; MAX_VIEWERS];
+        self.weights_of(points, &mut weights, true).1
     }
 
     #[cfg(target_arch = "x86_64")]
@@ -700,10 +600,10 @@ impl ViewerSet {
         &self,
         points: &[DVec3; N],
         needs_right: bool,
-        prove: bool,
+        skip_absent: bool,
         cameras: &mut CameraLanes<N>,
     ) {
-        self.cameras_at_points(points, needs_right, prove, cameras)
+        self.cameras_at_points(points, needs_right, skip_absent, cameras)
     }
 
     /// The camera of the tile holding screen coordinates `st`.
@@ -736,14 +636,14 @@ impl ViewerSet {
         &self,
         points: &[DVec3; N],
         needs_right: bool,
-        prove: bool,
+        skip_absent: bool,
         cameras: &mut CameraLanes<N>,
     ) {
         // Working memory sized for the viewers there are (it is set up for every call).
         match self.heads.len() {
-            0..=4 => self.cameras_with::<4, N>(points, needs_right, prove, cameras),
-            5..=16 => self.cameras_with::<16, N>(points, needs_right, prove, cameras),
-            _ => self.cameras_with::<MAX_VIEWERS, N>(points, needs_right, prove, cameras),
+            0..=4 => self.cameras_with::<4, N>(points, needs_right, skip_absent, cameras),
+            5..=16 => self.cameras_with::<16, N>(points, needs_right, skip_absent, cameras),
+            _ => self.cameras_with::<MAX_VIEWERS, N>(points, needs_right, skip_absent, cameras),
         }
     }
 
@@ -755,11 +655,11 @@ impl ViewerSet {
         &self,
         points: &[DVec3; N],
         needs_right: bool,
-        prove: bool,
+        skip_absent: bool,
         cameras: &mut CameraLanes<N>,
     ) {
         let mut weights = [[0.0; N]; V];
-        let (any, present) = self.weights_of(points, &mut weights, prove);
+        let (any, present) = self.weights_of(points, &mut weights, skip_absent);
         let mut head = [[0.0f32; N]; 3];
         let mut right = [[0.0f32; N]; 3];
         // Viewers of weight 0 at every point add nothing (the sums are +0 or more).
@@ -1137,7 +1037,7 @@ mod tests {
     }
 
     #[test]
-    fn blocks_whose_cone_tests_are_proven_get_the_cameras_of_every_test_made() {
+    fn blocks_skipping_viewers_outside_their_cones_get_the_cameras_of_every_viewer_computed() {
         // The render benchmark's screen (1 m from the tracked head, 0.9 rad wide) with its
         // heads and gazes, and a CAVE wall with three people looking at different parts of it.
         let eye = DVec3::new(0.0, 1.2, 1.6);
@@ -1184,127 +1084,96 @@ mod tests {
         use ViewerMode::{PerPixel, Zones};
         use ViewerWeighting::{Cosine, Gaussian, Linear};
         let wide = std::f32::consts::FRAC_PI_4;
-        // (viewers, screen, whether every block has every cone around it, whether some block
-        // is proven outside a cone, whether nothing is proven at all)
+        // (viewers, screen, whether some block has a viewer whose cone holds none of its
+        // points, so that its angles are skipped)
         let cases = [
             (
                 with(bench_viewers(2), PerPixel, Linear, wide),
                 bench_screen,
-                true,
-                false,
                 false,
             ),
             (
                 with(bench_viewers(4), PerPixel, Linear, wide),
                 bench_screen,
-                true,
-                false,
                 false,
             ),
             (
                 with(bench_viewers(4), PerPixel, Linear, 0.3),
                 bench_screen,
-                false,
                 true,
-                false,
             ),
             (
                 with(bench_viewers(4), Zones, Linear, 0.3),
                 bench_screen,
-                false,
                 true,
-                false,
             ),
             (
                 with(cave_viewers.clone(), PerPixel, Linear, 0.6),
                 screen(),
-                false,
                 true,
-                false,
             ),
             (
                 with(cave_viewers.clone(), PerPixel, Cosine, 0.4),
                 screen(),
-                false,
                 true,
-                false,
             ),
             (
                 with(cave_viewers.clone(), Zones, Linear, 0.5),
                 screen(),
-                false,
                 true,
-                false,
             ),
-            // Cones wider than a right angle (not convex) and the gaussian fall-off (no cone
-            // test): nothing proven, the cameras as before.
+            // Cones wider than a right angle (a few blocks lie outside one of them) and the
+            // gaussian fall-off (no cone test, every viewer has a share: nothing skipped).
             (
                 with(cave_viewers.clone(), PerPixel, Linear, 1.7),
                 screen(),
-                false,
-                false,
                 true,
             ),
             (
                 with(bench_viewers(4), PerPixel, Gaussian, 0.3),
                 bench_screen,
                 false,
-                false,
-                true,
             ),
         ];
-        for (index, (desc, screen, all_inside, some_outside, none)) in cases.into_iter().enumerate()
-        {
+        for (index, (desc, screen, skips)) in cases.into_iter().enumerate() {
             let set = ViewerSet::new(&desc, screen, 0.0).unwrap();
             let count = desc.positions.len();
             let every = (1u64 << count) - 1;
-            let (mut inside_blocks, mut outside_blocks, mut proofs, mut blocks) = (0, 0, 0, 0);
+            let (mut skipping, mut blocks) = (0, 0);
             for jitter in [0, 3] {
                 for points in pixel_blocks(&screen, 320, 200, jitter) {
                     for needs_right in [false, true] {
                         for &avx2 in crate::isa::test_paths() {
-                            let mut proven = CameraLanes::<64>::default();
+                            let mut skipped = CameraLanes::<64>::default();
                             let mut tested = CameraLanes::<64>::default();
                             set.cameras_into(
                                 &points,
                                 &[DVec2::ZERO; 64],
                                 needs_right,
                                 avx2,
-                                &mut proven,
+                                &mut skipped,
                             );
-                            let cover =
-                                set.cameras_unproven(&points, needs_right, avx2, &mut tested);
+                            let present =
+                                set.cameras_without_skips(&points, needs_right, avx2, &mut tested);
                             let bits = |lanes: &CameraLanes<64>| {
                                 [lanes.head, lanes.right]
                                     .map(|axes| axes.map(|l| l.map(f64::to_bits)))
                             };
                             assert!(
-                                bits(&proven) == bits(&tested),
-                                "case {index}: {cover:?}, right {needs_right}, avx2 {avx2}"
+                                bits(&skipped) == bits(&tested),
+                                "case {index}: viewers present {present:b}, right {needs_right}, avx2 {avx2}"
                             );
                             if needs_right || avx2 {
                                 continue;
                             }
                             blocks += 1;
-                            inside_blocks += usize::from(cover.inside == every);
-                            outside_blocks += usize::from(cover.outside != 0);
-                            proofs += usize::from(cover != ConeCover::default());
+                            skipping += usize::from(present != every);
                         }
                     }
                 }
             }
             assert_eq!(blocks, 2 * 40 * 25, "case {index}");
-            assert_eq!(
-                inside_blocks == blocks,
-                all_inside,
-                "case {index}: {inside_blocks}"
-            );
-            assert_eq!(
-                outside_blocks > 0,
-                some_outside,
-                "case {index}: {outside_blocks}"
-            );
-            assert_eq!(proofs == 0, none, "case {index}: {proofs} of {blocks}");
+            assert_eq!(skipping > 0, skips, "case {index}: {skipping} of {blocks}");
         }
     }
 
