@@ -311,7 +311,7 @@ impl ViewerSet {
             heads.push(head);
         }
         let single = |v: &DVec3| v.as_vec3().to_array();
-        let viewers_f32: Vec<ViewerF32> = heads
+        let viewers_f32 = heads
             .iter()
             .zip(&gazes)
             .zip(&rights)
@@ -336,11 +336,6 @@ impl ViewerSet {
             }
             _ => cutoff,
         };
-        let cos_reach = if reach >= std::f32::consts::PI {
-            -2.0
-        } else {
-            reach.cos()
-        };
         let mut set = ViewerSet {
             heads,
             rights,
@@ -350,7 +345,11 @@ impl ViewerSet {
             mode: desc.mode,
             weighting: desc.weighting,
             inv_cutoff: 1.0 / cutoff,
-            cos_reach,
+            cos_reach: if reach >= std::f32::consts::PI {
+                -2.0
+            } else {
+                reach.cos()
+            },
             gaussian_scale: 3.0 / (cutoff * std::f32::consts::SQRT_2),
             tiles: desc.tiles,
             tile_cameras: Vec::new(),
