@@ -372,7 +372,7 @@ impl ViewerSet {
     /// viewer has a say, and the camera is the mean of all heads.
     pub fn weights_at(&self, point: DVec3, weights: &mut [f32; MAX_VIEWERS]) -> bool {
         let mut lanes = [[0.0; 1]; MAX_VIEWERS];
-        let any = self.weights_of(&[point], &mut lanes);
+        let (any, _) = self.weights_of(&[point], &mut lanes, true);
         for (weight, lane) in weights.iter_mut().zip(&lanes) {
             *weight = lane[0];
         }
@@ -381,13 +381,21 @@ impl ViewerSet {
 
     /// The normalised weights at `N` screen points at once: `weights[i]` holds viewer `i`'s
     /// weight at each point (lane = point). Returns the mask of lanes where some viewer has a
-    /// say (the others' weights are 0). A point in one viewer's cone alone (and, but for the
-    /// gaussian fall-off, outside every other one) is that viewer's, whatever the fall-off:
-    /// its weight is exactly 1, so only points in several cones pay for angles. Every lane
-    /// gets the same result whatever the other lanes hold: only plain IEEE operations, lane by
-    /// lane (no fused multiply-adds, which the compiler never makes on its own).
+    /// say (the others' weights are 0) and the mask of viewers with a weight above 0 at some
+    /// point (the others' weights are 0 at every point). A point in one viewer's cone alone
+    /// (and, but for the gaussian fall-off, outside every other one) is that viewer's,
+    /// whatever the fall-off: its weight is exactly 1, so only points in several cones pay for
+    /// angles. Every lane gets the same result whatever the other lanes hold: only plain IEEE
+    /// operations, lane by lane (no fused multiply-adds, which the compiler never makes on its
+    /// own). With `skip_absent`, viewers whose cone holds none of the points skip the angles (and
+    /// the blend): their weights stay 0, which changes no other bit.
     #[inline(always)]
-    fn weights_of<const N: usize>(&self, points: &[DVec3; N], weights: &mut [[f32; N]]) -> u64 {
+    fn weights_of<const N: usize>(
+        &self,
+        points: &[DVec3; N],
+        weights: &mut [[f32; N]],
+        skip_absent: bool,
+    ) -> (u64, u64) {
         // One bit per lane in the result.
         const { assert!(N <= 64) };
         let lane = |axis: usize| -> [f32; N] { std::array::from_fn(|l| points[l][axis] as f32) };
@@ -417,13 +425,19 @@ impl ViewerSet {
                     weight[l] /= total[l];
                 }
             }
-            return lanes_where(N, |_| true);
+            return (
+                lanes_where(N, |_| true),
+                lanes_where(weights.len(), |_| true),
+            );
         }
         // Cone membership without a square root: cos a > cos c, squared with its sign.
         let reach = self.cos_reach;
         let reach_squared = reach * reach;
         let mut members = [0.0f32; N];
-        for (weight, viewer) in weights.iter_mut().zip(&self.viewers_f32) {
+        // Viewers whose cone holds some point.
+        let mut present = 0u64;
+        for (index, (weight, viewer)) in weights.iter_mut().zip(&self.viewers_f32).enumerate() {
+            let bit = 1u64 << index;
             let (dot, length_squared) = to_point(viewer, &p);
             for l in 0..N {
                 let ahead = dot[l] > 0.0;
@@ -436,7 +450,20 @@ impl ViewerSet {
                 weight[l] = if inside { 1.0 } else { 0.0 };
                 members[l] += weight[l];
             }
+            if weight
+                .iter()
+                .fold(0u32, |found, w| found | u32::from(*w != 0.0))
+                != 0
+            {
+                present |= bit;
+            }
         }
+        // Without `skip_absent` every viewer takes part in what follows (the plain computation).
+        let present = if skip_absent {
+            present
+        } else {
+            lanes_where(weights.len(), |_| true)
+        };
         let any = lanes_where(N, |l| members[l] > 0.0);
         if self.mode == ViewerMode::Zones {
             for weight in weights.iter_mut() {
@@ -449,14 +476,19 @@ impl ViewerSet {
                     weight[l] *= share;
                 }
             }
-            return any;
+            return (any, present);
         }
         if !members.iter().any(|m| *m > 1.0) {
-            return any;
+            return (any, present);
         }
-        // Points in several cones: weights from the angles.
+        // Points in several cones: weights from the angles. A viewer whose cone holds no point
+        // keeps its weights of 0 (adding them to the total changes no bit: the total is +0 or
+        // more).
         let mut total = [0.0f32; N];
-        for (weight, viewer) in weights.iter_mut().zip(&self.viewers_f32) {
+        for (index, (weight, viewer)) in weights.iter_mut().zip(&self.viewers_f32).enumerate() {
+            if present & (1 << index) == 0 {
+                continue;
+            }
             let a = angles(viewer, &p);
             for l in 0..N {
                 let a = a[l] * self.inv_cutoff;
@@ -471,13 +503,16 @@ impl ViewerSet {
             }
         }
         let any = lanes_where(N, |l| total[l] > 0.0);
-        for weight in weights.iter_mut() {
+        for (index, weight) in weights.iter_mut().enumerate() {
+            if present & (1 << index) == 0 {
+                continue; // 0 divided stays 0
+            }
             for l in 0..N {
                 // Divided, not multiplied by a reciprocal, so that a viewer alone gets exactly 1.
                 weight[l] /= if total[l] > 0.0 { total[l] } else { 1.0 };
             }
         }
-        any
+        (any, present)
     }
 
     /// [`Self::cameras`] for one screen point.
@@ -521,19 +556,50 @@ impl ViewerSet {
             }
             return;
         }
+        self.cameras_on(isa, points, needs_right, true, cameras)
+    }
+
+    /// [`Self::cameras_into`]'s perPixel and zones cameras on path `isa` where this CPU has it
+    /// (else the baseline); `skip_absent`: viewers whose cone holds none of the points skip
+    /// their angles and blend (the same bits either way).
+    #[inline]
+    fn cameras_on<const N: usize>(
+        &self,
+        isa: Isa,
+        points: &[DVec3; N],
+        needs_right: bool,
+        skip_absent: bool,
+        cameras: &mut CameraLanes<N>,
+    ) {
         match isa {
             // SAFETY: this CPU has the path (checked in the guard; the checks are cached loads).
             #[cfg(target_arch = "x86_64")]
             Isa::Avx512 if isa.supported() => unsafe {
-                self.cameras_avx512(points, needs_right, cameras)
+                self.cameras_avx512(points, needs_right, skip_absent, cameras)
             },
             // SAFETY: as above.
             #[cfg(target_arch = "x86_64")]
             Isa::Avx2 if isa.supported() => unsafe {
-                self.cameras_avx2(points, needs_right, cameras)
+                self.cameras_avx2(points, needs_right, skip_absent, cameras)
             },
-            _ => self.cameras_at_points(points, needs_right, cameras),
+            _ => self.cameras_at_points(points, needs_right, skip_absent, cameras),
         }
+    }
+
+    /// [`Self::cameras_into`]'s perPixel and zones cameras with every viewer's angles and
+    /// blend computed (none skipped), on path `isa`; and the mask of viewers whose cone holds
+    /// some of the points, for tests comparing the two.
+    #[cfg(test)]
+    fn cameras_without_skips<const N: usize>(
+        &self,
+        points: &[DVec3; N],
+        needs_right: bool,
+        isa: Isa,
+        cameras: &mut CameraLanes<N>,
+    ) -> u64 {
+        self.cameras_on(isa, points, needs_right, false, cameras);
+        let mut weights = [[0.0; N]; MAX_VIEWERS];
+        self.weights_of(points, &mut weights, true).1
     }
 
     crate::isa::avx2_and_avx512! {
@@ -541,9 +607,10 @@ impl ViewerSet {
             &self,
             points: &[DVec3; N],
             needs_right: bool,
+            skip_absent: bool,
             cameras: &mut CameraLanes<N>,
         ) {
-            self.cameras_at_points(points, needs_right, cameras)
+            self.cameras_at_points(points, needs_right, skip_absent, cameras)
         }
     }
 
@@ -566,7 +633,7 @@ impl ViewerSet {
 
     fn camera_at_point(&self, point: DVec3, needs_right: bool) -> (DVec3, DVec3) {
         let mut lanes = CameraLanes::<4>::default();
-        self.cameras_at_points(&[point; 4], needs_right, &mut lanes);
+        self.cameras_at_points(&[point; 4], needs_right, true, &mut lanes);
         (lanes.head_at(0), lanes.right_at(0))
     }
 
@@ -577,13 +644,14 @@ impl ViewerSet {
         &self,
         points: &[DVec3; N],
         needs_right: bool,
+        skip_absent: bool,
         cameras: &mut CameraLanes<N>,
     ) {
         // Working memory sized for the viewers there are (it is set up for every call).
         match self.heads.len() {
-            0..=4 => self.cameras_with::<4, N>(points, needs_right, cameras),
-            5..=16 => self.cameras_with::<16, N>(points, needs_right, cameras),
-            _ => self.cameras_with::<MAX_VIEWERS, N>(points, needs_right, cameras),
+            0..=4 => self.cameras_with::<4, N>(points, needs_right, skip_absent, cameras),
+            5..=16 => self.cameras_with::<16, N>(points, needs_right, skip_absent, cameras),
+            _ => self.cameras_with::<MAX_VIEWERS, N>(points, needs_right, skip_absent, cameras),
         }
     }
 
@@ -595,13 +663,18 @@ impl ViewerSet {
         &self,
         points: &[DVec3; N],
         needs_right: bool,
+        skip_absent: bool,
         cameras: &mut CameraLanes<N>,
     ) {
         let mut weights = [[0.0; N]; V];
-        let any = self.weights_of(points, &mut weights);
+        let (any, present) = self.weights_of(points, &mut weights, skip_absent);
         let mut head = [[0.0f32; N]; 3];
         let mut right = [[0.0f32; N]; 3];
-        for (weight, viewer) in weights.iter().zip(&self.viewers_f32) {
+        // Viewers of weight 0 at every point add nothing (the sums are +0 or more).
+        for (index, (weight, viewer)) in weights.iter().zip(&self.viewers_f32).enumerate() {
+            if present & (1 << index) == 0 {
+                continue;
+            }
             for (sum, component) in head.iter_mut().zip(viewer.head) {
                 for l in 0..N {
                     sum[l] += weight[l] * component;
@@ -637,10 +710,11 @@ impl ViewerSet {
         }
         for (index, weight) in weights.iter().enumerate().take(self.heads.len()) {
             // Usually no point is one viewer's alone: one vector test spares the selects.
-            if weight
-                .iter()
-                .fold(0u32, |found, w| found | u32::from(*w == 1.0))
-                != 0
+            if present & (1 << index) != 0
+                && weight
+                    .iter()
+                    .fold(0u32, |found, w| found | u32::from(*w == 1.0))
+                    != 0
             {
                 cameras.set_where(|l| weight[l] == 1.0, self.heads[index], self.rights[index]);
             }
@@ -933,6 +1007,182 @@ mod tests {
             (camera - expected).length() < 1e-5,
             "{camera} vs {expected}"
         );
+    }
+
+    /// Blocks of 8×8 pixel centres (`width` × `height` pixels, optionally jittered inside
+    /// their pixels) on `screen`, lane by lane as the frame's blocks hold them.
+    fn pixel_blocks(
+        screen: &ScreenFrame,
+        width: u32,
+        height: u32,
+        jitter: u64,
+    ) -> Vec<[DVec3; 64]> {
+        let mut state = jitter;
+        let mut unit = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            if jitter == 0 {
+                0.5
+            } else {
+                (state >> 40) as f64 / (1u64 << 24) as f64
+            }
+        };
+        let mut blocks = Vec::new();
+        for by in (0..height).step_by(8) {
+            for bx in (0..width).step_by(8) {
+                blocks.push(std::array::from_fn(|l| {
+                    let (x, y) = (bx + l as u32 % 8, by + l as u32 / 8);
+                    let s = (f64::from(x) + unit()) / f64::from(width);
+                    let t = (f64::from(y) + unit()) / f64::from(height);
+                    screen.lower_left
+                        + s * (screen.lower_right - screen.lower_left)
+                        + t * (screen.upper_right - screen.lower_right)
+                }));
+            }
+        }
+        blocks
+    }
+
+    #[test]
+    fn blocks_skipping_viewers_outside_their_cones_get_the_cameras_of_every_viewer_computed() {
+        // The render benchmark's screen (1 m from the tracked head, 0.9 rad wide) with its
+        // heads and gazes, and a CAVE wall with three people looking at different parts of it.
+        let eye = DVec3::new(0.0, 1.2, 1.6);
+        let forward = (-eye).normalize();
+        let x = forward.cross(DVec3::Y).normalize();
+        let y = x.cross(forward);
+        let half = 0.45f64.tan();
+        let corner = |a: f64, b: f64| eye + forward + x * (a * half) + y * (b * half);
+        let bench_screen =
+            ScreenFrame::new(corner(-1.0, -1.0), corner(1.0, -1.0), corner(1.0, 1.0)).unwrap();
+        let bench_viewers = |count: usize| {
+            let offsets = [(-1.0, -0.5), (1.0, -0.5), (-1.0, 0.5), (1.0, 0.5)];
+            let heads: Vec<Vec3> = offsets[..count]
+                .iter()
+                .map(|(a, b)| (eye + x * (0.25 * a) + y * (0.15 * b)).as_vec3())
+                .collect();
+            let gazes = offsets[..count]
+                .iter()
+                .zip(&heads)
+                .map(|((a, b), h)| {
+                    (eye + forward + x * (0.25 * a) + y * (0.2 * b) - h.as_dvec3()).as_vec3()
+                })
+                .collect();
+            ViewerDesc::new(heads, gazes)
+        };
+        let cave_viewers = ViewerDesc::new(
+            vec![
+                Vec3::new(-0.5, 1.7, 0.3),
+                Vec3::new(0.6, 1.6, -0.2),
+                Vec3::new(0.0, 1.2, 0.9),
+            ],
+            vec![
+                Vec3::new(-0.6, -0.3, -1.8),
+                Vec3::new(0.9, -0.3, -1.2),
+                Vec3::new(0.2, 0.4, -1.0),
+            ],
+        );
+        let with = |desc: ViewerDesc, mode, weighting, cutoff_angle| ViewerDesc {
+            mode,
+            weighting,
+            cutoff_angle,
+            ..desc
+        };
+        use ViewerMode::{PerPixel, Zones};
+        use ViewerWeighting::{Cosine, Gaussian, Linear};
+        let wide = std::f32::consts::FRAC_PI_4;
+        // (viewers, screen, whether some block has a viewer whose cone holds none of its
+        // points, so that its angles are skipped)
+        let cases = [
+            (
+                with(bench_viewers(2), PerPixel, Linear, wide),
+                bench_screen,
+                false,
+            ),
+            (
+                with(bench_viewers(4), PerPixel, Linear, wide),
+                bench_screen,
+                false,
+            ),
+            (
+                with(bench_viewers(4), PerPixel, Linear, 0.3),
+                bench_screen,
+                true,
+            ),
+            (
+                with(bench_viewers(4), Zones, Linear, 0.3),
+                bench_screen,
+                true,
+            ),
+            (
+                with(cave_viewers.clone(), PerPixel, Linear, 0.6),
+                screen(),
+                true,
+            ),
+            (
+                with(cave_viewers.clone(), PerPixel, Cosine, 0.4),
+                screen(),
+                true,
+            ),
+            (
+                with(cave_viewers.clone(), Zones, Linear, 0.5),
+                screen(),
+                true,
+            ),
+            // Cones wider than a right angle (a few blocks lie outside one of them) and the
+            // gaussian fall-off (no cone test, every viewer has a share: nothing skipped).
+            (
+                with(cave_viewers.clone(), PerPixel, Linear, 1.7),
+                screen(),
+                true,
+            ),
+            (
+                with(bench_viewers(4), PerPixel, Gaussian, 0.3),
+                bench_screen,
+                false,
+            ),
+        ];
+        for (index, (desc, screen, skips)) in cases.into_iter().enumerate() {
+            let set = ViewerSet::new(&desc, screen, 0.0).unwrap();
+            let count = desc.positions.len();
+            let every = (1u64 << count) - 1;
+            let (mut skipping, mut blocks) = (0, 0);
+            for jitter in [0, 3] {
+                for points in pixel_blocks(&screen, 320, 200, jitter) {
+                    for needs_right in [false, true] {
+                        for isa in crate::isa::test_paths() {
+                            let mut skipped = CameraLanes::<64>::default();
+                            let mut tested = CameraLanes::<64>::default();
+                            set.cameras_into(
+                                &points,
+                                &[DVec2::ZERO; 64],
+                                needs_right,
+                                isa,
+                                &mut skipped,
+                            );
+                            let present =
+                                set.cameras_without_skips(&points, needs_right, isa, &mut tested);
+                            let bits = |lanes: &CameraLanes<64>| {
+                                [lanes.head, lanes.right]
+                                    .map(|axes| axes.map(|l| l.map(f64::to_bits)))
+                            };
+                            assert!(
+                                bits(&skipped) == bits(&tested),
+                                "case {index}: viewers present {present:b}, right {needs_right}, isa {isa:?}"
+                            );
+                            if needs_right || isa.has_avx2() {
+                                continue;
+                            }
+                            blocks += 1;
+                            skipping += usize::from(present != every);
+                        }
+                    }
+                }
+            }
+            assert_eq!(blocks, 2 * 40 * 25, "case {index}");
+            assert_eq!(skipping > 0, skips, "case {index}: {skipping} of {blocks}");
+        }
     }
 
     #[test]
