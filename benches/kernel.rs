@@ -16,11 +16,11 @@
 //!
 //! Beside the packets of primary rays it times the same rays traced one by one (the path of
 //! light-field, shadow and secondary rays), and every instruction-set path this CPU has
-//! (baseline SSE2; AVX2), alternating frame by frame.
+//! (baseline SSE2; AVX2; AVX-512), alternating frame by frame.
 //! `CAVETRACE_BENCH_QUICK=1`: two sizes at 256×256, 3 frames. `CAVETRACE_BENCH_GRIDS=22,708`:
 //! only those sizes (for profiling one). `CAVETRACE_BENCH_PARTS=packets,frame`: only those of
-//! `packets`, `single`, `frame` (a part left out prints 0). `CAVETRACE_BENCH_ISAS=avx2`: only
-//! those instruction-set paths. `--features kernel-counters`: also prints, per size, the inner
+//! `packets`, `single`, `frame` (a part left out prints 0). `CAVETRACE_BENCH_ISAS=avx2,avx512`:
+//! only those instruction-set paths. `--features kernel-counters`: also prints, per size, the inner
 //! nodes, leaves and triangles per ray of both walks (`accel::counters`; the single-ray times
 //! are then those of the counting generic walk, not the real one), and with
 //! `CAVETRACE_TREE_STATISTICS=1` each tree's shape and surface-area costs.
@@ -496,7 +496,7 @@ fn main() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     let chosen_isas = std::env::var("CAVETRACE_BENCH_ISAS").ok();
-    let isas: Vec<Isa> = [Isa::Baseline, Isa::Avx2]
+    let isas: Vec<Isa> = Isa::ALL
         .into_iter()
         .filter(|isa| isa.supported())
         .filter(|isa| {

@@ -1,12 +1,31 @@
 //! The ray kernels' instruction-set paths (device parameter `isa`): a frame rendered on the
-//! AVX2 path equals the baseline's bit for bit — a light-field frame (one single ray per
+//! AVX2 or AVX-512 path equals the baseline's bit for bit — a light-field frame (one single ray per
 //! subpixel), a `default` frame with shadow rays and a mirror, and `fast` stereo frames (eyes
 //! shaded from their cyclopean point) — and bad values are reported. On a scene of one triangle
-//! mesh the AVX2 light-field frame traces its subpixel rays eight at a time grouped by eye: the
-//! same frame again.
+//! mesh, and on one of several placements, the AVX2 and AVX-512 light-field frames trace their
+//! subpixel rays eight at a time grouped by eye: the same frame again. A path the CPU lacks falls back to the widest it has
+//! (with a warning), so every value renders.
 
 mod common;
+use cavetrace::isa::Isa;
 use common::*;
+use std::sync::{Mutex, MutexGuard};
+
+/// The path is the process's and creating a device selects the environment's: the tests here
+/// take turns, so that each renders on the path it selected.
+fn one_at_a_time() -> MutexGuard<'static, ()> {
+    static TURN: Mutex<()> = Mutex::new(());
+    TURN.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Selects path `name` through the device parameter `isa` and checks that the kernels took it
+/// (the widest narrower one where this CPU lacks it).
+fn select_path(dev: ANARIDevice, name: &str) {
+    set_string(dev, dev, "isa", name);
+    commit(dev, dev);
+    let wanted = Isa::usable(Isa::parse(name).expect("a path's name"));
+    assert_eq!(cavetrace::isa::selected(), wanted, "isa {name}");
+}
 
 /// The corners of a 24×16 grid of squares at three depths, two triangles per square.
 fn grid_triangles() -> Vec<[f32; 3]> {
@@ -109,6 +128,7 @@ fn render_bits(dev: ANARIDevice, frame: ANARIFrame) -> Vec<u32> {
 
 #[test]
 fn every_path_renders_the_baselines_frame_bit_for_bit() {
+    let _turn = one_at_a_time();
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     let world = world(dev);
@@ -119,7 +139,8 @@ fn every_path_renders_the_baselines_frame_bit_for_bit() {
             perspective_camera(dev, [0.1, 0.2, 1.5], [-0.05, -0.1, -1.0], 0.6),
             "default",
         ),
-        // Stereo eyes shaded from their cyclopean point: eight lanes per vector with AVX2.
+        // Stereo eyes shaded from their cyclopean point: eight lanes per vector with AVX2 and
+        // AVX-512.
         (stereo_camera(dev, "sideBySide"), "fast"),
         (stereo_camera(dev, "checkerboard"), "fast"),
     ];
@@ -127,9 +148,8 @@ fn every_path_renders_the_baselines_frame_bit_for_bit() {
         let renderer = plain_renderer(dev, renderer_type);
         let frame = frame_for(dev, world, camera, renderer, [96, 64]);
         let mut images = Vec::new();
-        for isa in ["baseline", "avx2", "auto"] {
-            set_string(dev, dev, "isa", isa);
-            commit(dev, dev);
+        for isa in ["baseline", "avx2", "avx512", "auto"] {
+            select_path(dev, isa);
             images.push((isa, render_bits(dev, frame)));
         }
         for (isa, image) in &images[1..] {
@@ -180,8 +200,8 @@ fn turned_transform() -> [f32; 16] {
     .to_cols_array()
 }
 
-/// A world of [`LightFieldWorld`] whose light-field subpixel rays the AVX2 path traces eight at
-/// a time, grouped by eye.
+/// A world of [`LightFieldWorld`] whose light-field subpixel rays the AVX2 and AVX-512 paths
+/// trace eight at a time, grouped by eye.
 fn light_field_world(dev: ANARIDevice, kind: LightFieldWorld) -> ANARIWorld {
     let grid = triangle_geometry(dev, &grid_triangles());
     let surface = matte_surface(dev, grid, [0.9, 0.7, 0.3]);
@@ -241,6 +261,7 @@ fn several_placements_world(
 
 #[test]
 fn a_light_field_frame_traced_by_eye_is_the_baselines_frame() {
+    let _turn = one_at_a_time();
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     for kind in [
@@ -258,16 +279,17 @@ fn a_light_field_frame_traced_by_eye_is_the_baselines_frame() {
             // blocks at the right and top (traced ray by ray).
             let frame = frame_for(dev, world, camera, renderer, [84, 64]);
             let mut images = Vec::new();
-            for isa in ["baseline", "avx2"] {
-                set_string(dev, dev, "isa", isa);
-                commit(dev, dev);
+            for isa in ["baseline", "avx2", "avx512"] {
+                select_path(dev, isa);
                 images.push(render_bits(dev, frame));
             }
-            let differing = images[1]
-                .iter()
-                .zip(&images[0])
-                .filter(|(a, b)| a != b)
-                .count();
+            let differing = |k: usize| {
+                images[k]
+                    .iter()
+                    .zip(&images[0])
+                    .filter(|(a, b)| a != b)
+                    .count()
+            };
             let hits = images[0][images[0].len() - 84 * 64..]
                 .iter()
                 .filter(|id| **id != u32::MAX)
@@ -277,7 +299,8 @@ fn a_light_field_frame_traced_by_eye_is_the_baselines_frame() {
                 hits > 84 * 64 / 2,
                 "{what}: only {hits} pixels hit the grid"
             );
-            assert_eq!(differing, 0, "{what}: avx2 against baseline");
+            assert_eq!(differing(1), 0, "{what}: avx2 against baseline");
+            assert_eq!(differing(2), 0, "{what}: avx512 against baseline");
             release_all(dev, &[frame, renderer, camera]);
         }
         anariRelease(dev, world);

@@ -455,7 +455,7 @@ impl FrustumPacket {
 /// the widening, and the result like the single-ray test's, so every child any of the rays
 /// reaches on its own is kept. `SPREAD` false: every ray starts at `bounds.origin_centre`.
 /// `AVX2`: all eight children in one vector, the same operations per lane (only inside an
-/// AVX2 function).
+/// AVX2 or AVX-512 function).
 #[inline(always)]
 fn frustum_child_hits<const SPREAD: bool, const AVX2: bool>(
     node: &WideNode,
@@ -465,7 +465,8 @@ fn frustum_child_hits<const SPREAD: bool, const AVX2: bool>(
 ) -> u32 {
     #[cfg(target_arch = "x86_64")]
     if AVX2 {
-        // SAFETY: `AVX2` is set only by walks compiled for AVX2, entered only on CPUs with it.
+        // SAFETY: `AVX2` is set only by walks compiled for AVX2 or AVX-512, entered only on
+        // CPUs with them.
         return unsafe { avx2::frustum_child_hits::<SPREAD>(node, rows, bounds, t_max_high) };
     }
     let widening = if SPREAD { bounds.widening } else { Vec3A::ZERO };

@@ -518,11 +518,11 @@ impl GeometryBvh {
         }
     }
 
-    /// [`Self::closest_slot`] for callers compiled for AVX2 as a whole: the triangle walk is
-    /// inlined into them.
+    /// [`Self::closest_slot`] for callers compiled for AVX2 (or AVX-512) as a whole: the
+    /// triangle walk is inlined into them.
     ///
     /// # Safety
-    /// The caller is compiled for AVX2 (so the CPU has it).
+    /// The caller is compiled for AVX2 or AVX-512 (so the CPU has AVX2).
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     pub(crate) unsafe fn closest_slot_avx2(&self, ray: &mut TraversalRay) -> Option<(u32, Vec2)> {
@@ -613,16 +613,25 @@ impl GeometryBvh {
         closest: &mut [Option<u32>; FRUSTUM_RAYS],
     ) {
         #[cfg(target_arch = "x86_64")]
-        if crate::isa::avx2_selected() {
-            // SAFETY: the AVX2 path is selected only on CPUs that have AVX2 (`crate::isa`).
-            unsafe { avx2_walks::closest_slots_frustum(self, frustum, active, closest) };
-            return;
+        use crate::isa::Isa;
+        use crate::isa::selected;
+        match selected() {
+            // SAFETY: a path is selected only on CPUs that have it (`crate::isa`).
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => unsafe {
+                avx2_walks::closest_slots_frustum_avx512(self, frustum, active, closest)
+            },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe {
+                avx2_walks::closest_slots_frustum_avx2(self, frustum, active, closest)
+            },
+            _ => self.closest_slots_frustum_on::<false>(frustum, active, closest),
         }
-        self.closest_slots_frustum_on::<false>(frustum, active, closest);
     }
 
     /// [`Self::closest_slots_frustum`]; `AVX2`: a node's eight child boxes culled in one
-    /// vector (only inside an AVX2 function).
+    /// vector (only inside an AVX2 or AVX-512 function).
     #[inline(always)]
     fn closest_slots_frustum_on<const AVX2: bool>(
         &self,
@@ -1050,20 +1059,21 @@ fn any_triangle_hit(nodes: &[WideNode], groups: &[TriangleGroup], ray: &Traversa
     unsafe { single_ray::any_triangle_hit(nodes, groups, ray) }
 }
 
-/// The frustum walk compiled for AVX2: a node's eight child boxes culled per frustum in one
-/// vector (the same operations per lane as the four-wide test).
+/// The frustum walk compiled for AVX2, and for AVX-512 too: a node's eight child boxes culled
+/// per frustum in one vector (the same operations per lane as the four-wide test).
 #[cfg(target_arch = "x86_64")]
 mod avx2_walks {
     use super::*;
 
-    #[target_feature(enable = "avx2")]
-    pub(super) fn closest_slots_frustum(
-        bvh: &GeometryBvh,
-        frustum: &mut FrustumPacket,
-        active: &[u32; FRUSTUM_RAYS / LANES],
-        closest: &mut [Option<u32>; FRUSTUM_RAYS],
-    ) {
-        bvh.closest_slots_frustum_on::<true>(frustum, active, closest);
+    crate::isa::avx2_and_avx512! {
+        pub(super) fn [closest_slots_frustum_avx2, closest_slots_frustum_avx512](
+            bvh: &GeometryBvh,
+            frustum: &mut FrustumPacket,
+            active: &[u32; FRUSTUM_RAYS / LANES],
+            closest: &mut [Option<u32>; FRUSTUM_RAYS],
+        ) {
+            bvh.closest_slots_frustum_on::<true>(frustum, active, closest);
+        }
     }
 }
 

@@ -160,12 +160,17 @@ impl SceneBvh {
     #[inline(never)]
     pub fn intersect_into(&self, ray: &Ray, hit: &mut Option<SceneHit>) {
         #[cfg(target_arch = "x86_64")]
-        if crate::isa::avx2_selected() {
-            // SAFETY: AVX2 is selected only on CPUs that have it (`crate::isa`).
-            unsafe { self.intersect_into_avx2(ray, hit) };
-            return;
+        use crate::isa::Isa;
+        use crate::isa::selected;
+        match selected() {
+            // SAFETY: a path is selected only on CPUs that have it (`crate::isa`).
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => unsafe { self.intersect_into_avx512(ray, hit) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { self.intersect_into_avx2(ray, hit) },
+            _ => self.intersect_into_baseline(ray, hit),
         }
-        self.intersect_into_baseline(ray, hit);
     }
 
     /// [`Self::intersect_into`] on the baseline path, out of line like the AVX2 one (inlined
@@ -175,22 +180,26 @@ impl SceneBvh {
         *hit = self.closest_hit::<false>(ray);
     }
 
-    /// [`Self::intersect_into`] compiled for AVX2 as a whole: the single-ray walk (an AVX2
-    /// function) can then be inlined, so a ray pays for one call's set-up instead of two, and
-    /// passes its prepared ray and its hit within one frame. The same operations in the same
-    /// order (no fused multiply-adds), so the same hit record.
-    ///
-    /// # Safety
-    /// The CPU has AVX2.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    #[inline(never)]
-    unsafe fn intersect_into_avx2(&self, ray: &Ray, hit: &mut Option<SceneHit>) {
-        *hit = self.closest_hit::<true>(ray);
+    crate::isa::avx2_and_avx512! {
+        /// [`Self::intersect_into`] compiled for AVX2 (or AVX-512) as a whole: the single-ray
+        /// walk (an AVX2 function) can then be inlined, so a ray pays for one call's set-up
+        /// instead of two, and passes its prepared ray and its hit within one frame. The same
+        /// operations in the same order (no fused multiply-adds), so the same hit record.
+        ///
+        /// # Safety
+        /// The CPU has the path's features.
+        #[inline(never)]
+        unsafe fn [intersect_into_avx2, intersect_into_avx512](
+            &self,
+            ray: &Ray,
+            hit: &mut Option<SceneHit>,
+        ) {
+            *hit = self.closest_hit::<true>(ray);
+        }
     }
 
     /// The body of [`Self::intersect`] and [`Self::intersect_into`]; `INLINE_AVX2`: inside a
-    /// function compiled for AVX2, with the single-ray walk inlined.
+    /// function compiled for AVX2 or AVX-512, with the single-ray walk inlined.
     #[inline(always)]
     fn closest_hit<const INLINE_AVX2: bool>(&self, ray: &Ray) -> Option<SceneHit> {
         let mut world = prepare(ray)?;
@@ -211,7 +220,7 @@ impl SceneBvh {
             let geometry = &placement.geometry;
             #[cfg(target_arch = "x86_64")]
             let (primitive_slot, bary) = if INLINE_AVX2 {
-                // SAFETY: `INLINE_AVX2` is set only inside functions compiled for AVX2.
+                // SAFETY: `INLINE_AVX2` is set only inside functions compiled for AVX2 or AVX-512.
                 unsafe { geometry.closest_slot_avx2(object) }?
             } else {
                 geometry.closest_slot(object)?
@@ -316,8 +325,8 @@ impl SceneBvh {
     ) {
         #[cfg(target_arch = "x86_64")]
         if let Some((placement, nodes, groups)) = self.walk_of_eights() {
-            // SAFETY: `walk_of_eights` answers only where AVX2 is selected, which it is only on
-            // CPUs that have it (`crate::isa`).
+            // SAFETY: `walk_of_eights` answers only where AVX2 or AVX-512 is selected, which
+            // they are only on CPUs that have them (`crate::isa`).
             unsafe {
                 self.intersect8_avx2::<{ crate::accel::eights::STACK }>(
                     placement,
@@ -358,13 +367,14 @@ impl SceneBvh {
     }
 
     /// The placement, nodes and triangle groups that eight rays can walk together: the AVX2
-    /// path is selected, the scene is one triangle or quad placement, and traversal is not
-    /// being counted (a counting build walks rays one by one with the generic walk, whose
-    /// records the walk of eights does not follow step by step).
+    /// or AVX-512 path is selected (the walk of eights has an AVX2 build only, which both
+    /// take), the scene is one triangle or quad placement, and traversal is not being counted
+    /// (a counting build walks rays one by one with the generic walk, whose records the walk of
+    /// eights does not follow step by step).
     #[cfg(target_arch = "x86_64")]
     #[inline]
     fn walk_of_eights(&self) -> Option<(&Placement, &[WideNode], &[TriangleGroup])> {
-        if crate::accel::counters::ENABLED || !crate::isa::avx2_selected() {
+        if crate::accel::counters::ENABLED || !crate::isa::selected().has_avx2() {
             return None;
         }
         let [placement] = self.placements.as_slice() else {
@@ -390,7 +400,7 @@ impl SceneBvh {
         }
         let (placement, nodes, groups) = self
             .walk_of_eights()
-            .expect("a scene that eight rays walk together, AVX2 selected");
+            .expect("a scene that eight rays walk together, AVX2 or AVX-512 selected");
         // SAFETY: as in `intersect8_with`.
         unsafe {
             self.intersect8_avx2::<ENTRIES>(placement, nodes, groups, rays, hits, single_up_to)

@@ -17,7 +17,8 @@
 //! - the ray's values for the box test and for the triangle test are set up once per ray: on
 //!   the baseline path as splats, with AVX2 as scalars broadcast where they are used (a
 //!   broadcast load costs what a vector load does); the scene's ray query compiled for AVX2
-//!   inlines the whole walk (`closest_triangle_slot_avx2`).
+//!   inlines the whole walk (`closest_triangle_slot_avx2`). The AVX-512 path is the AVX2 walks
+//!   compiled with AVX-512 enabled as well (`crate::isa::avx2_and_avx512`).
 //!
 //! The box test computes each slab distance as `(origin - plane) * scale`, the plane being the
 //! instruction's memory operand, with the widening folded into the scale: entries are scaled by
@@ -260,7 +261,7 @@ impl Lanes for FourWide {
 }
 
 /// The AVX2 path: the box test eight children at a time and pushes by permutation. Only walks
-/// compiled for AVX2 (entered only when AVX2 is selected) use it.
+/// compiled for AVX2 or AVX-512 (entered only when that path is selected) use it.
 #[cfg(target_arch = "x86_64")]
 struct Avx2;
 
@@ -395,7 +396,8 @@ impl Lanes for Avx2 {
         ray: &avx2::Avx2Ray,
         t_max: f32,
     ) -> (u32, Self::Nears) {
-        // SAFETY: only walks entered when AVX2 is selected (so the CPU has it) use this path.
+        // SAFETY: only walks entered when AVX2 or AVX-512 is selected (so the CPU has AVX2) use
+        // this path.
         unsafe { avx2::child_hits::<ORDER>(node, ray, t_max) }
     }
 
@@ -663,11 +665,12 @@ pub(crate) unsafe fn closest_triangle_slot(
     unsafe { closest_slot_on::<false>(nodes, groups, ray) }
 }
 
-/// [`closest_triangle_slot`] with the AVX2 walk inlined, for callers compiled for AVX2 as a
-/// whole (one call's set-up per ray instead of two).
+/// [`closest_triangle_slot`] with the AVX2 walk inlined, for callers compiled for AVX2 (or
+/// AVX-512) as a whole (one call's set-up per ray instead of two).
 ///
 /// # Safety
-/// `codes_in_range(nodes, groups.len())`; the caller is compiled for AVX2 (so the CPU has it).
+/// `codes_in_range(nodes, groups.len())`; the caller is compiled for AVX2 or AVX-512 (so the
+/// CPU has AVX2).
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 pub(crate) unsafe fn closest_triangle_slot_avx2(
@@ -680,10 +683,11 @@ pub(crate) unsafe fn closest_triangle_slot_avx2(
 }
 
 /// [`closest_triangle_slot`]; `INLINE_AVX2`: the AVX2 walk inlined (only inside functions
-/// compiled for AVX2), else the instruction set chosen at run time.
+/// compiled for AVX2 or AVX-512), else the instruction set chosen at run time.
 ///
 /// # Safety
-/// `codes_in_range(nodes, groups.len())`; with `INLINE_AVX2` the caller is compiled for AVX2.
+/// `codes_in_range(nodes, groups.len())`; with `INLINE_AVX2` the caller is compiled for AVX2
+/// or AVX-512.
 #[inline(always)]
 unsafe fn closest_slot_on<const INLINE_AVX2: bool>(
     nodes: &[WideNode],
@@ -699,19 +703,25 @@ unsafe fn closest_slot_on<const INLINE_AVX2: bool>(
         return closest_by_generic_walk(nodes, groups, ray);
     }
     #[cfg(target_arch = "x86_64")]
+    use crate::isa::Isa;
+    use crate::isa::selected;
+    // SAFETY (each branch): the caller's promise; a path is selected only on CPUs that have it.
     let (hit, t) = if INLINE_AVX2 {
-        // SAFETY: the caller is compiled for AVX2; the caller's promise.
-        unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray, 0) }
-    } else if crate::isa::avx2_selected() {
-        // SAFETY: AVX2 is selected only on CPUs that have it; the caller's promise.
-        unsafe { avx2_walks::closest(nodes, groups, ray) }
+        #[cfg(target_arch = "x86_64")]
+        unsafe {
+            walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray, 0)
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        unreachable!("the AVX2 walk is inlined only on x86-64")
     } else {
-        // SAFETY: the caller's promise.
-        unsafe { closest_baseline(nodes, groups, ray) }
+        match selected() {
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => unsafe { avx2_walks::closest_avx512(nodes, groups, ray) },
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { avx2_walks::closest_avx2(nodes, groups, ray) },
+            _ => unsafe { closest_baseline(nodes, groups, ray) },
+        }
     };
-    #[cfg(not(target_arch = "x86_64"))]
-    // SAFETY: the caller's promise.
-    let (hit, t) = unsafe { closest_baseline(nodes, groups, ray) };
     let hit = hit?;
     ray.t_max = t;
     Some(hit.slot_and_barycentrics())
@@ -735,12 +745,16 @@ pub(crate) unsafe fn any_triangle_hit(
         return any_by_generic_walk(nodes, groups, ray);
     }
     #[cfg(target_arch = "x86_64")]
-    if crate::isa::avx2_selected() {
-        // SAFETY: AVX2 is selected only on CPUs that have it; the caller's promise.
-        return unsafe { avx2_walks::any(nodes, groups, ray) };
+    use crate::isa::Isa;
+    use crate::isa::selected;
+    // SAFETY (each arm): the caller's promise; a path is selected only on CPUs that have it.
+    match selected() {
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => unsafe { avx2_walks::any_avx512(nodes, groups, ray) },
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => unsafe { avx2_walks::any_avx2(nodes, groups, ray) },
+        _ => unsafe { any_baseline(nodes, groups, ray) },
     }
-    // SAFETY: the caller's promise.
-    unsafe { any_baseline(nodes, groups, ray) }
 }
 
 /// The baseline path's closest-hit walk, out of line like the AVX2 one, so that its callers
@@ -804,36 +818,40 @@ fn any_by_generic_walk(nodes: &[WideNode], groups: &[TriangleGroup], ray: &Trave
     })
 }
 
-/// The walks compiled for AVX2: the eight-wide box test and push inlined, the triangle test
-/// the same four-wide operations (VEX-encoded, no fused multiply-adds).
+/// The walks compiled for AVX2, and for AVX-512 too: the eight-wide box test and push
+/// inlined, the triangle test the same four-wide operations (VEX- or EVEX-encoded, no fused
+/// multiply-adds).
 #[cfg(target_arch = "x86_64")]
 mod avx2_walks {
     use super::*;
 
-    /// # Safety
-    /// The CPU has AVX2; `codes_in_range(nodes, groups.len())`; `nodes` not empty.
-    #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn closest(
-        nodes: &[WideNode],
-        groups: &[TriangleGroup],
-        ray: &TraversalRay,
-    ) -> (Option<Hit>, f32) {
-        // SAFETY: the caller's promise.
-        unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray, 0) }
+    crate::isa::avx2_and_avx512! {
+        /// # Safety
+        /// The CPU has the path's features; `codes_in_range(nodes, groups.len())`; `nodes` not
+        /// empty.
+        pub(super) unsafe fn [closest_avx2, closest_avx512](
+            nodes: &[WideNode],
+            groups: &[TriangleGroup],
+            ray: &TraversalRay,
+        ) -> (Option<Hit>, f32) {
+            // SAFETY: the caller's promise.
+            unsafe { walk_ray::<Avx2, false, INLINE_STACK>(nodes, groups, ray, 0) }
+        }
     }
 
-    /// # Safety
-    /// As [`closest`].
-    #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn any(
-        nodes: &[WideNode],
-        groups: &[TriangleGroup],
-        ray: &TraversalRay,
-    ) -> bool {
-        // SAFETY: the caller's promise.
-        unsafe { walk_ray::<Avx2, true, INLINE_STACK>(nodes, groups, ray, 0) }
-            .0
-            .is_some()
+    crate::isa::avx2_and_avx512! {
+        /// # Safety
+        /// As [`closest_avx2`].
+        pub(super) unsafe fn [any_avx2, any_avx512](
+            nodes: &[WideNode],
+            groups: &[TriangleGroup],
+            ray: &TraversalRay,
+        ) -> bool {
+            // SAFETY: the caller's promise.
+            unsafe { walk_ray::<Avx2, true, INLINE_STACK>(nodes, groups, ray, 0) }
+                .0
+                .is_some()
+        }
     }
 }
 
@@ -842,6 +860,8 @@ mod avx2_walks {
 #[cfg(test)]
 pub(crate) mod test_paths {
     use super::*;
+    #[cfg(target_arch = "x86_64")]
+    use crate::isa::Isa;
 
     /// The single-ray box test of each path for `ray` (its octant's code), as
     /// `(mask, entry distances)`.
@@ -867,14 +887,59 @@ pub(crate) mod test_paths {
             ray.t_max,
         )];
         #[cfg(target_arch = "x86_64")]
-        if crate::isa::Isa::Avx2.supported() {
+        for isa in crate::isa::test_paths() {
+            // SAFETY: the CPU has the path (`test_paths`).
+            paths.extend(unsafe {
+                match isa {
+                    Isa::Avx512 => Some(box_test_avx512::<ORDER>(node, ray)),
+                    Isa::Avx2 => Some(box_test_avx2::<ORDER>(node, ray)),
+                    Isa::Baseline => None,
+                }
+            });
+        }
+        paths
+    }
+
+    crate::isa::avx2_and_avx512! {
+        /// The AVX2 box test compiled for the path, as `(mask, entry distances)`.
+        fn [box_test_avx2, box_test_avx512]<const ORDER: usize>(
+            node: &WideNode,
+            ray: &TraversalRay,
+        ) -> (u32, [f32; WIDTH]) {
             let (mask, near) = Avx2::child_hits::<ORDER>(node, &Avx2::box_ray(ray), ray.t_max);
             let mut nears = [0.0f32; WIDTH];
             // SAFETY: `nears` holds eight floats.
             unsafe { std::arch::x86_64::_mm256_storeu_ps(nears.as_mut_ptr(), near) };
-            paths.push((mask, nears));
+            (mask, nears)
         }
-        paths
+    }
+
+    crate::isa::avx2_and_avx512! {
+        /// [`with_small_stack`] on the AVX2 walk compiled for the path.
+        ///
+        /// # Safety
+        /// The CPU has the path's features; `codes_in_range(nodes, groups.len())`; `nodes` not
+        /// empty.
+        unsafe fn [small_stack_avx2, small_stack_avx512](
+            nodes: &[WideNode],
+            groups: &[TriangleGroup],
+            ray: &TraversalRay,
+        ) -> (Option<(u32, f32)>, bool) {
+            // SAFETY: the caller's promise.
+            unsafe {
+                (
+                    slot(walk_ray::<Avx2, false, WIDTH>(nodes, groups, ray, 0)),
+                    walk_ray::<Avx2, true, WIDTH>(nodes, groups, ray, 0)
+                        .0
+                        .is_some(),
+                )
+            }
+        }
+    }
+
+    /// A walk's hit as (slot, t).
+    fn slot((hit, t): (Option<Hit>, f32)) -> Option<(u32, f32)> {
+        hit.map(|hit| ((hit.group * GROUP_LANES + hit.lane) as u32, t))
     }
 
     /// Closest hit and any-hit answer of the selected path's walk with an inline stack of
@@ -890,26 +955,21 @@ pub(crate) mod test_paths {
         if nodes.is_empty() {
             return (None, false);
         }
-        let slot = |(hit, t): (Option<Hit>, f32)| {
-            hit.map(|hit| ((hit.group * GROUP_LANES + hit.lane) as u32, t))
-        };
-        // SAFETY: the caller's promise (AVX2 only where the CPU has it).
-        unsafe {
+        // SAFETY (each arm): the caller's promise; a path is selected only on CPUs that have
+        // it.
+        match crate::isa::selected() {
             #[cfg(target_arch = "x86_64")]
-            if crate::isa::avx2_selected() {
-                return (
-                    slot(walk_ray::<Avx2, false, WIDTH>(nodes, groups, ray, 0)),
-                    walk_ray::<Avx2, true, WIDTH>(nodes, groups, ray, 0)
+            Isa::Avx512 => unsafe { small_stack_avx512(nodes, groups, ray) },
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { small_stack_avx2(nodes, groups, ray) },
+            _ => unsafe {
+                (
+                    slot(walk_ray::<FourWide, false, WIDTH>(nodes, groups, ray, 0)),
+                    walk_ray::<FourWide, true, WIDTH>(nodes, groups, ray, 0)
                         .0
                         .is_some(),
-                );
-            }
-            (
-                slot(walk_ray::<FourWide, false, WIDTH>(nodes, groups, ray, 0)),
-                walk_ray::<FourWide, true, WIDTH>(nodes, groups, ray, 0)
-                    .0
-                    .is_some(),
-            )
+                )
+            },
         }
     }
 

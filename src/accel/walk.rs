@@ -199,11 +199,17 @@ static PLANE_ROWS: [[[usize; 3]; 2]; 8] = {
 #[inline(always)]
 pub(crate) fn child_hits(node: &WideNode, ray: &BoxRay, t_min: f32, t_max: f32) -> (u32, [f32; 8]) {
     #[cfg(target_arch = "x86_64")]
-    if crate::accel::isa::avx2_selected() {
-        // SAFETY: AVX2 is selected only on CPUs that have it.
-        return unsafe { avx2::child_hits(node, ray, t_min, t_max) };
+    use crate::accel::isa::Isa;
+    use crate::accel::isa::selected;
+    match selected() {
+        // SAFETY: a path is selected only on CPUs that have it.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => unsafe { avx2::child_hits_avx512(node, ray, t_min, t_max) },
+        // SAFETY: as above.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => unsafe { avx2::child_hits_avx2(node, ray, t_min, t_max) },
+        _ => child_hits_four_wide(node, ray, t_min, t_max),
     }
-    child_hits_four_wide(node, ray, t_min, t_max)
 }
 
 /// The box test four children at a time (SSE2 on x86_64 through glam).
@@ -271,46 +277,47 @@ pub(crate) fn child_hits_scalar(
     (mask, nears)
 }
 
-/// The box test with AVX2, chosen at run time (`crate::isa`): a node's eight children in one
-/// vector, in the same operations as the four-wide test (no fused multiply-adds), so it
-/// reaches the same children.
+/// The box test with AVX2 (compiled for AVX-512 too), chosen at run time (`crate::isa`): a
+/// node's eight children in one vector, in the same operations as the four-wide test (no fused
+/// multiply-adds), so it reaches the same children.
 #[cfg(target_arch = "x86_64")]
 pub(crate) mod avx2 {
     use super::{BoxRay, SLAB_ERROR, WideNode};
     use std::arch::x86_64::*;
 
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    pub(crate) fn child_hits(
-        node: &WideNode,
-        ray: &BoxRay,
-        t_min: f32,
-        t_max: f32,
-    ) -> (u32, [f32; 8]) {
-        let mut near = _mm256_set1_ps(t_min);
-        let mut far = _mm256_set1_ps(t_max);
-        for axis in 0..3 {
-            let origin = _mm256_set1_ps(ray.origin[axis]);
-            let inv = _mm256_set1_ps(ray.inv[axis]);
-            // SAFETY: every plane row is eight floats, 32-byte aligned (`WideNode` is).
-            let (entry, exit) = unsafe {
-                (
-                    _mm256_load_ps(node.planes[ray.entry[axis]].as_ptr()),
-                    _mm256_load_ps(node.planes[ray.exit[axis]].as_ptr()),
-                )
-            };
-            near = _mm256_max_ps(near, _mm256_mul_ps(_mm256_sub_ps(entry, origin), inv));
-            far = _mm256_min_ps(far, _mm256_mul_ps(_mm256_sub_ps(exit, origin), inv));
+    crate::isa::avx2_and_avx512! {
+        #[inline]
+        pub(crate) fn [child_hits_avx2, child_hits_avx512](
+            node: &WideNode,
+            ray: &BoxRay,
+            t_min: f32,
+            t_max: f32,
+        ) -> (u32, [f32; 8]) {
+            let mut near = _mm256_set1_ps(t_min);
+            let mut far = _mm256_set1_ps(t_max);
+            for axis in 0..3 {
+                let origin = _mm256_set1_ps(ray.origin[axis]);
+                let inv = _mm256_set1_ps(ray.inv[axis]);
+                // SAFETY: every plane row is eight floats, 32-byte aligned (`WideNode` is).
+                let (entry, exit) = unsafe {
+                    (
+                        _mm256_load_ps(node.planes[ray.entry[axis]].as_ptr()),
+                        _mm256_load_ps(node.planes[ray.exit[axis]].as_ptr()),
+                    )
+                };
+                near = _mm256_max_ps(near, _mm256_mul_ps(_mm256_sub_ps(entry, origin), inv));
+                far = _mm256_min_ps(far, _mm256_mul_ps(_mm256_sub_ps(exit, origin), inv));
+            }
+            let error = _mm256_set1_ps(SLAB_ERROR);
+            let sign = _mm256_set1_ps(-0.0);
+            let near = _mm256_sub_ps(near, _mm256_mul_ps(_mm256_andnot_ps(sign, near), error));
+            let far = _mm256_add_ps(far, _mm256_mul_ps(_mm256_andnot_ps(sign, far), error));
+            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+            let mut nears = [0.0f32; 8];
+            // SAFETY: `nears` holds eight floats.
+            unsafe { _mm256_storeu_ps(nears.as_mut_ptr(), near) };
+            (mask, nears)
         }
-        let error = _mm256_set1_ps(SLAB_ERROR);
-        let sign = _mm256_set1_ps(-0.0);
-        let near = _mm256_sub_ps(near, _mm256_mul_ps(_mm256_andnot_ps(sign, near), error));
-        let far = _mm256_add_ps(far, _mm256_mul_ps(_mm256_andnot_ps(sign, far), error));
-        let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
-        let mut nears = [0.0f32; 8];
-        // SAFETY: `nears` holds eight floats.
-        unsafe { _mm256_storeu_ps(nears.as_mut_ptr(), near) };
-        (mask, nears)
     }
 }
 

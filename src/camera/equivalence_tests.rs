@@ -395,14 +395,14 @@ fn block_rays_are_the_rays_made_one_by_one_on_every_path() {
                     for (i, (ps, pt)) in chunk.iter().enumerate() {
                         (s[i], t[i]) = (*ps, *pt);
                     }
-                    for &avx2 in paths {
-                        assert!(rays.block_rays_on_path(avx2, &s, &t, &mut block));
+                    for &isa in &paths {
+                        assert!(rays.block_rays_on_path(isa, &s, &t, &mut block));
                         for i in 0..BLOCK_RAYS {
                             let one = rays.ray(s[i], t[i], Vec2::ZERO);
                             assert_eq!(
                                 ray_bits(&block.ray(i)),
                                 ray_bits(&one),
-                                "{} eye {eye} avx2 {avx2}: ({}, {})",
+                                "{} eye {eye} {isa:?}: ({}, {})",
                                 screen.name,
                                 s[i],
                                 t[i]

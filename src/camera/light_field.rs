@@ -513,19 +513,14 @@ mod tests {
                     .collect();
                 for chunk in s.chunks(BLOCK_RAYS) {
                     let lanes: [f32; BLOCK_RAYS] = std::array::from_fn(|i| chunk[i]);
-                    for &avx2 in paths {
-                        assert!(rays.block_rays_on_path(
-                            avx2,
-                            &lanes,
-                            &[t; BLOCK_RAYS],
-                            &mut block
-                        ));
+                    for &isa in &paths {
+                        assert!(rays.block_rays_on_path(isa, &lanes, &[t; BLOCK_RAYS], &mut block));
                         for (i, &s) in lanes.iter().enumerate() {
                             let (origin, direction) =
                                 direct_ray(&cam, f64::from(w), f64::from(h), s, t);
                             let alone = rays.ray(s, t, Vec2::ZERO);
                             for ray in [alone, block.ray(i)] {
-                                let what = format!("{desc:?} ({s}, {t}) avx2 {avx2}");
+                                let what = format!("{desc:?} ({s}, {t}) {isa:?}");
                                 assert_eq!(
                                     ray.origin.to_array().map(f32::to_bits),
                                     origin.to_array().map(f32::to_bits),

@@ -16,6 +16,7 @@ pub mod orthographic;
 pub mod perspective;
 mod rays;
 pub mod screen;
+pub mod specs;
 mod validate;
 pub mod viewers;
 
@@ -26,7 +27,7 @@ mod test_support;
 #[cfg(test)]
 mod viewer_tests;
 
-pub use anari::{SPECS, camera_from_params};
+pub use anari::camera_from_params;
 pub use fisheye::FisheyeDesc;
 pub use matrix::MatrixDesc;
 pub use offaxis::{OffAxisError, PerspectiveFit};
@@ -38,6 +39,7 @@ pub use rays::{
     BlockRays, DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR, DEFAULT_WINDOW_DEPTH_NEAR, EyeRays,
 };
 pub use screen::OffAxisDesc;
+pub use specs::SPECS;
 pub use viewers::{ViewerDesc, ViewerMode, ViewerWeighting};
 
 use std::fmt;

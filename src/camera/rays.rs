@@ -11,6 +11,7 @@ use super::light_field::light_field_block;
 use super::offaxis::ScreenFrame;
 use super::omnidirectional::EquirectangularRays;
 use super::viewers::{CameraLanes, ViewerSet};
+use crate::isa::Isa;
 
 /// Near plane used by `EyeRays::window_depth` for perspective-like cameras whose `near` is
 /// unset or 0 (a zero near plane has no OpenGL depth mapping), in meters.
@@ -424,7 +425,9 @@ impl EyeRays {
         };
         let st: [DVec2; 4] = std::array::from_fn(|i| self.region.apply(s[i], t[i]));
         let targets = st.map(|st| b.window_origin + st.x * b.window_right + st.y * b.window_up);
-        let cameras = b.viewers.cameras(&targets, &st, b.eye_offset != 0.0, false);
+        let cameras = b
+            .viewers
+            .cameras(&targets, &st, b.eye_offset != 0.0, Isa::Baseline);
         std::array::from_fn(|i| {
             let (head, right) = cameras[i];
             if b.eye_offset == 0.0 {
@@ -463,37 +466,51 @@ impl EyeRays {
     /// Writes into `block` the rays of viewport points `(s[i], t[i])` (as for [`Self::ray`],
     /// lens ignored) for an eye that [`Self::makes_block_rays`] (else returns false): bit for
     /// bit the rays [`Self::ray`] makes, computed lane by lane over arrays so that several are
-    /// made per instruction (four f64 lanes on the AVX2 path).
+    /// made per instruction (four f64 lanes on the AVX2 and AVX-512 paths).
     #[inline]
     pub fn block_rays(&self, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
-        self.block_rays_on(crate::isa::avx2_selected(), s, t, block)
+        // SAFETY: a path is selected only on CPUs that have it (`crate::isa`).
+        unsafe { self.block_rays_on(crate::isa::selected(), s, t, block) }
     }
 
-    /// [`Self::block_rays`] on the AVX2 path (where this CPU has AVX2) or the baseline one.
+    /// [`Self::block_rays`] on path `isa`.
+    ///
+    /// # Safety
+    /// This CPU has the path `isa`.
     #[inline(always)]
-    fn block_rays_on(&self, avx2: bool, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
-        #[cfg(target_arch = "x86_64")]
-        if avx2 && std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-            return unsafe { self.block_rays_avx2(s, t, block) };
+    unsafe fn block_rays_on(&self, isa: Isa, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
+        match isa {
+            // SAFETY: the caller's promise.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => unsafe { self.block_rays_avx512(isa, s, t, block) },
+            // SAFETY: the caller's promise.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { self.block_rays_avx2(isa, s, t, block) },
+            _ => self.block_rays_with(Isa::Baseline, s, t, block),
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = avx2;
-        self.block_rays_with(false, s, t, block)
     }
 
-    /// [`Self::block_rays_with`] compiled for AVX2 (four f64 lanes per instruction).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn block_rays_avx2(&self, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
-        self.block_rays_with(true, s, t, block)
+    crate::isa::avx2_and_avx512! {
+        /// [`Self::block_rays_with`] compiled for the path `isa` (four f64 lanes per
+        /// instruction).
+        fn [block_rays_avx2, block_rays_avx512](
+            &self,
+            isa: Isa,
+            s: &Lanes,
+            t: &Lanes,
+            block: &mut BlockRays,
+        ) -> bool {
+            self.block_rays_with(isa, s, t, block)
+        }
     }
 
-    /// [`Self::block_rays`] by generator; `avx2` when compiled into [`Self::block_rays_avx2`].
+    /// [`Self::block_rays`] by generator; `isa` the path it is compiled for
+    /// ([`Self::block_rays_avx2`], [`Self::block_rays_avx512`], else the baseline), whose
+    /// build of the viewers' blend it takes.
     #[inline(always)]
-    fn block_rays_with(&self, avx2: bool, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
+    fn block_rays_with(&self, isa: Isa, s: &Lanes, t: &Lanes, block: &mut BlockRays) -> bool {
         match &self.generator {
-            Generator::Blended(b) => blended_block(&self.region, b, s, t, block, avx2),
+            Generator::Blended(b) => blended_block(&self.region, b, s, t, block, isa),
             Generator::LightField(l) => light_field_block(&self.region, l, s, t, block),
             _ => {
                 let Some((pinhole, cyclopean)) = self.lensless_pinhole() else {
@@ -655,7 +672,8 @@ impl EyeRays {
                             (target - b.window_origin).dot(b.window_up)
                                 / b.window_up.length_squared(),
                         );
-                        let (head, right) = b.viewers.cameras(&[target], &[st], true, false)[0];
+                        let (head, right) =
+                            b.viewers.cameras(&[target], &[st], true, Isa::Baseline)[0];
                         (head, right * stereo.baseline.length())
                     }
                 };
@@ -691,20 +709,21 @@ impl EyeRays {
         }
     }
 
-    /// [`EyeRays::block_rays`] on the instruction-set path chosen here (AVX2 only where the CPU
-    /// has it), not the process's.
+    /// [`EyeRays::block_rays`] on the instruction-set path chosen here (one the CPU has), not
+    /// the process's.
     pub(crate) fn block_rays_on_path(
         &self,
-        avx2: bool,
+        isa: Isa,
         s: &Lanes,
         t: &Lanes,
         block: &mut BlockRays,
     ) -> bool {
         assert!(
-            !avx2 || crate::isa::Isa::Avx2.supported(),
-            "AVX2 path asked for on a CPU without it"
+            isa.supported(),
+            "{isa:?} path asked for on a CPU without it"
         );
-        self.block_rays_on(avx2, s, t, block)
+        // SAFETY: this CPU has the path (asserted just above).
+        unsafe { self.block_rays_on(isa, s, t, block) }
     }
 
     /// Whether a matrix camera's rays are traced by the pinhole shortcut.
@@ -887,7 +906,8 @@ pub(super) use with_clip;
 
 /// [`clipped_ray`] from the pinhole's eye through the window points of `(s, t)`, lane by lane
 /// with the functions [`EyeRays::ray`] uses, so that every lane is bit for bit its ray (and no
-/// fused multiply-adds in the AVX2 build: the compiler never contracts them on its own).
+/// fused multiply-adds in the AVX2 and AVX-512 builds: the compiler never contracts them on its
+/// own).
 #[inline(always)]
 fn pinhole_block(
     region: &ImageRegion,
@@ -919,7 +939,7 @@ fn pinhole_lanes(
 /// [`EyeRays::rays4`]'s rays for a whole block: the camera positions for all its points at
 /// once (the same bits as four at a time), the rays from them lane by lane, each from its own
 /// eye (the blended head, in stereo moved along the blended right vector) through its window
-/// point (on the AVX2 path four f64 lanes per instruction, the same bits).
+/// point (on the AVX2 and AVX-512 paths four f64 lanes per instruction, the same bits).
 #[inline(always)]
 fn blended_block(
     region: &ImageRegion,
@@ -927,14 +947,14 @@ fn blended_block(
     s: &Lanes,
     t: &Lanes,
     block: &mut BlockRays,
-    avx2: bool,
+    isa: Isa,
 ) {
     let st: [DVec2; BLOCK_RAYS] = std::array::from_fn(|i| region.apply(s[i], t[i]));
     let targets = st.map(|st| b.window_origin + st.x * b.window_right + st.y * b.window_up);
     let stereo = b.eye_offset != 0.0;
     let mut cameras = CameraLanes::<BLOCK_RAYS>::default();
     b.viewers
-        .cameras_into(&targets, &st, stereo, avx2, &mut cameras);
+        .cameras_into(&targets, &st, stereo, isa, &mut cameras);
     if !stereo {
         with_clip!(b.clip, clip => head_lanes(&cameras, &targets, b.forward, clip, block));
         block.set_cyclopean(None);

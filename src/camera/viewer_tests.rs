@@ -509,8 +509,8 @@ fn rays_made_four_at_a_time_equal_rays_made_one_by_one() {
                 for _ in 0..10 {
                     let points: [(f32, f32); BLOCK_RAYS] = std::array::from_fn(|_| pick());
                     let (s, t) = (points.map(|p| p.0), points.map(|p| p.1));
-                    for &avx2 in crate::isa::test_paths() {
-                        assert!(rays.block_rays_on_path(avx2, &s, &t, &mut block));
+                    for isa in crate::isa::test_paths() {
+                        assert!(rays.block_rays_on_path(isa, &s, &t, &mut block));
                         for (i, (s, t)) in points.into_iter().enumerate() {
                             let one = ray_at(&rays, s, t);
                             let bits = |ray: &CameraRay| {
@@ -524,7 +524,7 @@ fn rays_made_four_at_a_time_equal_rays_made_one_by_one() {
                             assert_eq!(
                                 bits(&block.ray(i)),
                                 bits(&one),
-                                "{mode:?} {weighting:?} {eye:?} avx2 {avx2}"
+                                "{mode:?} {weighting:?} {eye:?} {isa:?}"
                             );
                             assert_eq!(
                                 (block.ray(i).t_min, block.ray(i).t_max),
@@ -647,15 +647,15 @@ fn block_rays_of_any_number_of_viewers_are_the_rays_made_one_by_one() {
                 let rays = rays(&camera, eye);
                 let s: [f32; BLOCK_RAYS] = std::array::from_fn(|_| unit());
                 let t: [f32; BLOCK_RAYS] = std::array::from_fn(|_| unit());
-                for &avx2 in crate::isa::test_paths() {
-                    assert!(rays.block_rays_on_path(avx2, &s, &t, &mut block));
+                for isa in crate::isa::test_paths() {
+                    assert!(rays.block_rays_on_path(isa, &s, &t, &mut block));
                     for i in 0..BLOCK_RAYS {
                         let one = ray_at(&rays, s[i], t[i]);
                         assert!(one.t_min > 0.0 && one.t_max.is_finite());
                         assert_eq!(
                             bits(&block.ray(i)),
                             bits(&one),
-                            "{count} viewers {weighting:?} {eye:?} avx2 {avx2}"
+                            "{count} viewers {weighting:?} {eye:?} {isa:?}"
                         );
                         checked += 1;
                     }

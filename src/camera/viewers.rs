@@ -29,6 +29,7 @@ use glam::{DVec2, DVec3, Vec3};
 
 use super::CameraError;
 use super::offaxis::ScreenFrame;
+use crate::isa::Isa;
 
 /// Most viewers one camera blends (per-pixel work grows with their number).
 pub const MAX_VIEWERS: usize = 64;
@@ -482,7 +483,7 @@ impl ViewerSet {
     /// [`Self::cameras`] for one screen point.
     #[cfg(test)]
     pub(crate) fn camera_at(&self, point: DVec3, st: DVec2, needs_right: bool) -> (DVec3, DVec3) {
-        self.cameras(&[point], &[st], needs_right, false)[0]
+        self.cameras(&[point], &[st], needs_right, Isa::Baseline)[0]
     }
 
     /// [`Self::cameras_into`], returned as (camera position, right vector) per point.
@@ -492,25 +493,25 @@ impl ViewerSet {
         points: &[DVec3; N],
         st: &[DVec2; N],
         needs_right: bool,
-        avx2: bool,
+        isa: Isa,
     ) -> [CameraAt; N] {
         let mut lanes = CameraLanes::default();
-        self.cameras_into(points, st, needs_right, avx2, &mut lanes);
+        self.cameras_into(points, st, needs_right, isa, &mut lanes);
         std::array::from_fn(|l| (lanes.head_at(l), lanes.right_at(l)))
     }
 
     /// The camera positions and right vectors (blended ones unused, and not computed, when
     /// `needs_right` is false) for `N` screen points at once (four for single rays, a frame's
     /// block) into `cameras`, lane by lane; the points' screen coordinates (after imageRegion)
-    /// are `st`. On the AVX2 path where `avx2` asks for it and this CPU has AVX2, else the
-    /// baseline one; the same bits on both.
+    /// are `st`. On path `isa` where this CPU has it, else the baseline one; the same bits on
+    /// every path.
     #[inline]
     pub(crate) fn cameras_into<const N: usize>(
         &self,
         points: &[DVec3; N],
         st: &[DVec2; N],
         needs_right: bool,
-        avx2: bool,
+        isa: Isa,
         cameras: &mut CameraLanes<N>,
     ) {
         if self.mode == ViewerMode::Tiles {
@@ -520,26 +521,30 @@ impl ViewerSet {
             }
             return;
         }
-        #[cfg(target_arch = "x86_64")]
-        if avx2 && std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: this CPU has AVX2 (checked just above; the check is a cached load).
-            unsafe { self.cameras_avx2(points, needs_right, cameras) };
-            return;
+        match isa {
+            // SAFETY: this CPU has the path (checked in the guard; the checks are cached loads).
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 if isa.supported() => unsafe {
+                self.cameras_avx512(points, needs_right, cameras)
+            },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 if isa.supported() => unsafe {
+                self.cameras_avx2(points, needs_right, cameras)
+            },
+            _ => self.cameras_at_points(points, needs_right, cameras),
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = avx2;
-        self.cameras_at_points(points, needs_right, cameras)
     }
 
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    fn cameras_avx2<const N: usize>(
-        &self,
-        points: &[DVec3; N],
-        needs_right: bool,
-        cameras: &mut CameraLanes<N>,
-    ) {
-        self.cameras_at_points(points, needs_right, cameras)
+    crate::isa::avx2_and_avx512! {
+        fn [cameras_avx2, cameras_avx512]<const N: usize>(
+            &self,
+            points: &[DVec3; N],
+            needs_right: bool,
+            cameras: &mut CameraLanes<N>,
+        ) {
+            self.cameras_at_points(points, needs_right, cameras)
+        }
     }
 
     /// The camera of the tile holding screen coordinates `st`.

@@ -31,9 +31,10 @@ pub const DEVICE_PARAMS: &[ParamSpec] = &[
     ParamSpec::new(
         "isa",
         &[ANARI_STRING],
-        "instruction set of the ray kernels, for the whole process: auto (the best this CPU \
-         has), baseline (SSE2) or avx2 (AVX2 and FMA); default: the environment variable \
-         CAVETRACE_ISA, else auto",
+        "instruction set of the ray kernels, for the whole process: auto (avx2 where this CPU \
+         has it, else baseline; avx512 measured no faster), baseline (SSE2), avx2 (AVX2 and \
+         FMA) or avx512 (AVX-512F/VL/BW/DQ as well); a path this CPU lacks falls back to the \
+         widest it has; default: the environment variable CAVETRACE_ISA, else auto",
     )
     .default(SpecValue::Str("auto"))
     .values(&crate::isa::Isa::VALUES),

@@ -22,13 +22,13 @@ use crate::accel::{Ray, SceneHit};
 type Closest = Option<(u32, u32, Vec2)>;
 
 impl SceneBvh {
-    /// Whether eight rays walk this scene's top level together: the AVX2 path is selected,
-    /// traversal is not being counted (see `walk_of_eights`), and some placement of several
-    /// holds triangles or quads (on other primitive kinds every lane is tested alone anyway, and
-    /// grouping rays for that gains nothing).
+    /// Whether eight rays walk this scene's top level together: the AVX2 or AVX-512 path is
+    /// selected, traversal is not being counted (see `walk_of_eights`), and some placement of
+    /// several holds triangles or quads (on other primitive kinds every lane is tested alone
+    /// anyway, and grouping rays for that gains nothing).
     pub(super) fn walks_placements_in_eights(&self) -> bool {
         !crate::accel::counters::ENABLED
-            && crate::isa::avx2_selected()
+            && crate::isa::selected().has_avx2()
             && self.placements.len() > 1
             && self
                 .placements

@@ -15,8 +15,10 @@ use crate::accel::isa;
 /// too small for the walks of eights, so that their rays fall back to the single-ray walk.
 #[test]
 fn rays_in_eights_get_the_records_of_single_rays() {
-    // The walk of eights is AVX2 only (else the rays go one by one).
-    if !isa::Isa::Avx2.supported() {
+    // The walk of eights is AVX2 only, taken on the AVX2 and AVX-512 paths (else the rays go
+    // one by one); both are checked, with the fallbacks' single rays on each.
+    let wide_paths = &isa::test_paths()[1..];
+    if wide_paths.is_empty() {
         return;
     }
     let mut rng = Rng::new(808);
@@ -138,10 +140,11 @@ fn rays_in_eights_get_the_records_of_single_rays() {
                 scene.intersect_into(ray, hit);
                 compared += usize::from(hit.is_some());
             }
-            for hybrid in [0, 1, 3, 8] {
+            for (k, hybrid) in [0, 1, 3, 8].into_iter().enumerate() {
+                let path = wide_paths[k % wide_paths.len()];
                 let mut hits = [None; 8];
                 // Selected at every call: other tests switch the path for a while.
-                isa::select(isa::Isa::Avx2);
+                isa::select(path);
                 scene.intersect8_with(rays, &mut hits, hybrid);
                 assert_eq!(
                     hits, expected,
@@ -152,7 +155,7 @@ fn rays_in_eights_get_the_records_of_single_rays() {
                     // Twelve entries overflow at the root's first inner child (unless every
                     // lane walks alone from the root, `hybrid` 8).
                     let mut hits = [None; 8];
-                    isa::select(isa::Isa::Avx2);
+                    isa::select(path);
                     scene.intersect8_with_stack::<12>(rays, &mut hits, hybrid);
                     assert_eq!(
                         hits, expected,

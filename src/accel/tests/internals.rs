@@ -55,10 +55,15 @@ fn every_box_test_path_matches_the_scalar_reference() {
                 child_hits(node, &box_ray, t_min, t_max),
             ];
             #[cfg(target_arch = "x86_64")]
-            if isa::Isa::Avx2.supported() {
-                // SAFETY: the CPU has AVX2.
-                paths.push(unsafe {
-                    crate::accel::walk::avx2::child_hits(node, &box_ray, t_min, t_max)
+            for path in isa::test_paths() {
+                use crate::accel::walk::avx2::{child_hits_avx2, child_hits_avx512};
+                // SAFETY: the CPU has the path (`test_paths`).
+                paths.extend(unsafe {
+                    match path {
+                        isa::Isa::Avx512 => Some(child_hits_avx512(node, &box_ray, t_min, t_max)),
+                        isa::Isa::Avx2 => Some(child_hits_avx2(node, &box_ray, t_min, t_max)),
+                        isa::Isa::Baseline => None,
+                    }
                 });
             }
             mismatches += paths.into_iter().filter(|path| !same(*path)).count();

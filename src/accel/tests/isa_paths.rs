@@ -1,14 +1,20 @@
-//! Every instruction-set path (baseline, AVX2) finds the same hits, bit for bit.
+//! Every instruction-set path this CPU has (baseline, AVX2, AVX-512) finds the same hits, bit
+//! for bit.
 
 use super::*;
 
-#[test]
-fn the_avx2_box_test_finds_the_hits_of_the_baseline() {
-    use crate::accel::isa::{self, Isa};
-    if !Isa::Avx2.supported() {
+/// The paths to compare with the baseline: each wider one this CPU has.
+fn wider_paths() -> Vec<crate::accel::isa::Isa> {
+    let paths = crate::accel::isa::test_paths();
+    if paths.len() == 1 {
         eprintln!("this CPU has no AVX2 and FMA: only the baseline path exists here");
-        return;
     }
+    paths[1..].to_vec()
+}
+
+#[test]
+fn the_wide_box_tests_find_the_hits_of_the_baseline() {
+    use crate::accel::isa::{self, Isa};
     // Triangles, quads, spheres and tubes, one of them placed by a rotating, scaling instance;
     // rays from outside and inside, with and without windows, and grazing ones along the
     // grid's plane.
@@ -44,7 +50,7 @@ fn the_avx2_box_test_finds_the_hits_of_the_baseline() {
         )
     }));
     // Single placements too: there `intersect_into` inlines the AVX2 walk into a function
-    // compiled for AVX2 as a whole (triangles, quads, and under a transform).
+    // compiled for the path as a whole (triangles, quads, and under a transform).
     let transform = Affine3A::from_scale_rotation_translation(
         vec3(1.2, 0.9, 1.0),
         Quat::from_rotation_x(0.4),
@@ -61,30 +67,32 @@ fn the_avx2_box_test_finds_the_hits_of_the_baseline() {
     ];
     // Per ray: `intersect`, `intersect_into` and `occluded`.
     let trace = |scene: &SceneBvh, isa: Isa| -> Vec<(Option<SceneHit>, Option<SceneHit>, bool)> {
-        assert_eq!(isa::select(isa), isa);
-        rays.iter()
-            .map(|ray| {
-                let mut written = None;
-                scene.intersect_into(ray, &mut written);
-                (scene.intersect(ray), written, scene.occluded(ray))
-            })
-            .collect()
+        isa::on_path(isa, || {
+            rays.iter()
+                .map(|ray| {
+                    let mut written = None;
+                    scene.intersect_into(ray, &mut written);
+                    (scene.intersect(ray), written, scene.occluded(ray))
+                })
+                .collect()
+        })
     };
     for (k, scene) in scenes.iter().enumerate() {
         let baseline = trace(scene, Isa::Baseline);
-        let avx2 = trace(scene, Isa::Avx2);
-        isa::select(Isa::from_environment());
         let hits = baseline.iter().filter(|(hit, ..)| hit.is_some()).count();
         assert!(hits > rays.len() / 10, "scene {k}: only {hits} hits");
-        for (i, (a, b)) in baseline.iter().zip(&avx2).enumerate() {
-            // Bit for bit: t, ids, barycentrics and normals, by both queries.
-            assert_eq!(a.0, a.1, "scene {k}, ray {i}: {:?}", rays[i]);
-            assert_eq!(
-                format!("{a:?}"),
-                format!("{b:?}"),
-                "scene {k}, ray {i}: {:?}",
-                rays[i]
-            );
+        for isa in wider_paths() {
+            let wide = trace(scene, isa);
+            for (i, (a, b)) in baseline.iter().zip(&wide).enumerate() {
+                // Bit for bit: t, ids, barycentrics and normals, by both queries.
+                assert_eq!(a.0, a.1, "scene {k}, ray {i}: {:?}", rays[i]);
+                assert_eq!(
+                    format!("{a:?}"),
+                    format!("{b:?}"),
+                    "{isa:?}, scene {k}, ray {i}: {:?}",
+                    rays[i]
+                );
+            }
         }
     }
 }
@@ -92,10 +100,6 @@ fn the_avx2_box_test_finds_the_hits_of_the_baseline() {
 #[test]
 fn frustum_packets_find_the_same_hits_on_every_path() {
     use crate::accel::isa::{self, Isa};
-    if !Isa::Avx2.supported() {
-        eprintln!("this CPU has no AVX2 and FMA: only the baseline path exists here");
-        return;
-    }
     // A height field (leaves of one or two quads, split into spare slots) and random
     // triangles, seen by pinhole tiles from several sides.
     let mut rng = Rng::new(23);
@@ -120,25 +124,30 @@ fn frustum_packets_find_the_same_hits_on_every_path() {
         for &(eye, target) in views {
             let rays = camera_tiles(&mut rng, eye, target, 64);
             let trace = |isa: Isa| {
-                assert_eq!(isa::select(isa), isa);
-                let mut hits = vec![None; rays.len()];
-                bvh.intersect_packet(&rays, &mut hits);
-                hits
+                isa::on_path(isa, || {
+                    let mut hits = vec![None; rays.len()];
+                    bvh.intersect_packet(&rays, &mut hits);
+                    hits
+                })
             };
             let baseline = trace(Isa::Baseline);
-            let avx2 = trace(Isa::Avx2);
-            isa::select(Isa::from_environment());
             let hit_count = baseline.iter().flatten().count();
             assert!(hit_count > rays.len() / 4, "{hit_count} hits from {eye}");
-            for (i, (a, b)) in baseline.iter().zip(&avx2).enumerate() {
-                // Bit for bit: t, ids, barycentrics and normals.
-                assert_eq!(format!("{a:?}"), format!("{b:?}"), "ray {i}: {:?}", rays[i]);
+            for (i, a) in baseline.iter().enumerate() {
                 assert_eq!(
                     a.map(|hit| hit.t),
                     bvh.intersect(&rays[i]).map(|hit| hit.t),
                     "ray {i}: {:?}",
                     rays[i]
                 );
+            }
+            for isa in wider_paths() {
+                let wide = trace(isa);
+                for (i, (a, b)) in baseline.iter().zip(&wide).enumerate() {
+                    // Bit for bit: t, ids, barycentrics and normals.
+                    let what = format!("{isa:?}, ray {i}: {:?}", rays[i]);
+                    assert_eq!(format!("{a:?}"), format!("{b:?}"), "{what}");
+                }
             }
         }
     }
@@ -152,9 +161,6 @@ fn frustum_packets_find_the_same_hits_on_every_path() {
 #[test]
 fn rays_in_a_box_face_plane_find_the_same_hits_on_every_path() {
     use crate::accel::isa::{self, Isa};
-    if !Isa::Avx2.supported() {
-        return;
-    }
     let square = |x: f32, y: f32, z: f32, side: f32| {
         let h = side / 2.0;
         Arc::new(GeometryBvh::build(GeometryPrims::Triangles {
@@ -187,23 +193,25 @@ fn rays_in_a_box_face_plane_find_the_same_hits_on_every_path() {
     let on_the_edge = rays.iter().filter(|ray| ray.direction.x == 0.0).count();
     assert_eq!(on_the_edge, 47);
     let trace = |isa: Isa| -> Vec<Option<SceneHit>> {
-        assert_eq!(isa::select(isa), isa);
-        rays.iter().map(|ray| scene.intersect(ray)).collect()
+        isa::on_path(isa, || {
+            rays.iter().map(|ray| scene.intersect(ray)).collect()
+        })
     };
     let baseline = trace(Isa::Baseline);
-    let avx2 = trace(Isa::Avx2);
-    isa::select(Isa::from_environment());
     let hits = baseline.iter().filter(|hit| hit.is_some()).count();
     assert!(hits > 500, "only {hits} hits");
-    let differing: Vec<usize> = (0..rays.len())
-        .filter(|&i| format!("{:?}", baseline[i]) != format!("{:?}", avx2[i]))
-        .collect();
-    assert!(
-        differing.is_empty(),
-        "{} rays differ between the ISAs, e.g. {:?}",
-        differing.len(),
-        differing.first().map(|&i| (rays[i], baseline[i], avx2[i]))
-    );
+    for isa in wider_paths() {
+        let wide = trace(isa);
+        let differing: Vec<usize> = (0..rays.len())
+            .filter(|&i| format!("{:?}", baseline[i]) != format!("{:?}", wide[i]))
+            .collect();
+        assert!(
+            differing.is_empty(),
+            "{} rays differ between baseline and {isa:?}, e.g. {:?}",
+            differing.len(),
+            differing.first().map(|&i| (rays[i], baseline[i], wide[i]))
+        );
+    }
     // Packets of 8x8 rays from the same origin find what single rays find.
     let mut scratch = PacketScratch::new();
     let mut packet_hits = [None; 64];

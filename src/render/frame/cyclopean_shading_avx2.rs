@@ -1,6 +1,6 @@
 //! The shading of a stereo block whose hits all lie on one uniform surface, lit along each
-//! lane's view from its eye's cyclopean point (cyclopean lighting), with AVX2 (chosen at run
-//! time, `crate::isa`): the views (as [`super::cyclopean_views`] computes them four lanes per
+//! lane's view from its eye's cyclopean point (cyclopean lighting), with AVX2 (also compiled
+//! for AVX-512; chosen at run time, `crate::isa`): the views (as [`super::cyclopean_views`] computes them four lanes per
 //! vector), shading normals and colours eight lanes per vector, the views kept in registers.
 //! The scalar operations in the same order and no fused multiply-adds, so every lane is bit for
 //! bit the lane-by-lane shading.
@@ -75,41 +75,42 @@ mod avx2 {
         })
     }
 
-    /// [`super::shade_cyclopean_avx2`].
-    #[target_feature(enable = "avx2")]
-    pub(super) fn shade_into(
-        lanes: &super::CyclopeanLanes,
-        (base, emissive): ([f32; 3], [f32; 3]),
-        normal_out: &mut Lanes3,
-        color_out: &mut Lanes3,
-    ) {
-        let sign = _mm256_set1_ps(-0.0);
-        for first in (0..BLOCK_RAYS).step_by(8) {
-            let along = [0, 1, 2].map(|axis| load(&lanes.direction[axis], first));
-            let view = views(
-                lanes.origin,
-                &along,
-                load(lanes.t, first),
-                lanes.viewer,
-                first,
-            );
-            // The normal facing the ray: negated where it points along the ray.
-            let normal = [0, 1, 2].map(|axis| load(&lanes.normal[axis], first));
-            let back_face = _mm256_cmp_ps::<_CMP_GT_OQ>(dot(&normal, &along), _mm256_setzero_ps());
-            let flip = _mm256_and_ps(back_face, sign);
-            let normal = normal.map(|n| _mm256_xor_ps(n, flip));
-            // Lit from the eye: base · (0.2 + 0.8 · max(−view · normal, 0)) + emission.
-            let toward = view.map(|v| _mm256_xor_ps(v, sign));
-            let facing = _mm256_max_ps(dot(&toward, &normal), _mm256_setzero_ps());
-            let light = _mm256_add_ps(
-                _mm256_set1_ps(0.2),
-                _mm256_mul_ps(_mm256_set1_ps(0.8), facing),
-            );
-            for axis in 0..3 {
-                let lit = _mm256_mul_ps(_mm256_set1_ps(base[axis]), light);
-                let rgb = _mm256_add_ps(lit, _mm256_set1_ps(emissive[axis]));
-                store(&mut normal_out[axis], first, normal[axis]);
-                store(&mut color_out[axis], first, rgb);
+    crate::isa::avx2_and_avx512! {
+        /// [`super::shade_cyclopean_avx2`], compiled for the path.
+        pub(super) fn [shade_into_avx2, shade_into_avx512](
+            lanes: &super::CyclopeanLanes,
+            (base, emissive): ([f32; 3], [f32; 3]),
+            normal_out: &mut Lanes3,
+            color_out: &mut Lanes3,
+        ) {
+            let sign = _mm256_set1_ps(-0.0);
+            for first in (0..BLOCK_RAYS).step_by(8) {
+                let along = [0, 1, 2].map(|axis| load(&lanes.direction[axis], first));
+                let view = views(
+                    lanes.origin,
+                    &along,
+                    load(lanes.t, first),
+                    lanes.viewer,
+                    first,
+                );
+                // The normal facing the ray: negated where it points along the ray.
+                let normal = [0, 1, 2].map(|axis| load(&lanes.normal[axis], first));
+                let back_face = _mm256_cmp_ps::<_CMP_GT_OQ>(dot(&normal, &along), _mm256_setzero_ps());
+                let flip = _mm256_and_ps(back_face, sign);
+                let normal = normal.map(|n| _mm256_xor_ps(n, flip));
+                // Lit from the eye: base · (0.2 + 0.8 · max(−view · normal, 0)) + emission.
+                let toward = view.map(|v| _mm256_xor_ps(v, sign));
+                let facing = _mm256_max_ps(dot(&toward, &normal), _mm256_setzero_ps());
+                let light = _mm256_add_ps(
+                    _mm256_set1_ps(0.2),
+                    _mm256_mul_ps(_mm256_set1_ps(0.8), facing),
+                );
+                for axis in 0..3 {
+                    let lit = _mm256_mul_ps(_mm256_set1_ps(base[axis]), light);
+                    let rgb = _mm256_add_ps(lit, _mm256_set1_ps(emissive[axis]));
+                    store(&mut normal_out[axis], first, normal[axis]);
+                    store(&mut color_out[axis], first, rgb);
+                }
             }
         }
     }
@@ -125,11 +126,11 @@ pub(super) struct CyclopeanLanes<'a> {
     pub normal: &'a Lanes3,
 }
 
-/// With AVX2 (`crate::isa`), per lane the shading normal (`UniformSurface::normal`) and the
+/// With AVX2 or AVX-512 (`crate::isa`), per lane the shading normal (`UniformSurface::normal`) and the
 /// colour (`UniformSurface::color` of base colour `base` and emission `emissive`) of a stereo
 /// block's hit lit along its view from the cyclopean point, eight lanes per vector without
 /// writing the views out: the same operations in the same order as lane by lane, bit for bit.
-/// `false` (nothing written) without AVX2.
+/// `false` (nothing written) on the baseline path.
 #[inline(always)]
 pub(super) fn shade_cyclopean_avx2(
     lanes: &CyclopeanLanes,
@@ -138,20 +139,29 @@ pub(super) fn shade_cyclopean_avx2(
     color: &mut Lanes3,
 ) -> bool {
     #[cfg(target_arch = "x86_64")]
-    if crate::isa::avx2_selected() {
-        let surface = (base.to_array(), emissive.to_array());
-        // SAFETY: the AVX2 path is selected only on a CPU that has AVX2.
-        unsafe { avx2::shade_into(lanes, surface, normal, color) };
-        return true;
+    use crate::isa::Isa;
+    use crate::isa::selected;
+    let surface = (base.to_array(), emissive.to_array());
+    match selected() {
+        // SAFETY: a path is selected only on a CPU that has it.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 => unsafe { avx2::shade_into_avx512(lanes, surface, normal, color) },
+        // SAFETY: as above.
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx2 => unsafe { avx2::shade_into_avx2(lanes, surface, normal, color) },
+        _ => {
+            let _ = (lanes, surface, normal, color);
+            return false;
+        }
     }
-    let _ = (lanes, base, emissive, normal, color);
-    false
+    true
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::camera::lane_vec3;
+    use crate::isa::Isa;
     use crate::render::eye_light::{UniformSurface, eye_light_of};
     use glam::Vec3;
 
@@ -159,11 +169,18 @@ mod tests {
 
     #[cfg(target_arch = "x86_64")]
     #[test]
-    fn avx2_cyclopean_shading_matches_the_per_lane_shading_bit_for_bit() {
-        if !crate::isa::Isa::Avx2.supported() {
+    fn wide_cyclopean_shading_matches_the_per_lane_shading_bit_for_bit() {
+        let paths = crate::isa::test_paths();
+        if paths.len() == 1 {
             eprintln!("no AVX2 on this CPU: the AVX2 shading is not run");
-            return;
         }
+        for isa in &paths[1..] {
+            shade_and_compare(*isa);
+        }
+    }
+
+    /// The shading of path `isa` (AVX2 or AVX-512, one this CPU has) against lane by lane.
+    fn shade_and_compare(isa: Isa) {
         let (origin, direction, t, viewer, _) = lanes();
         // Geometric normals facing the ray or away from it, by lane; one lane perpendicular.
         let mut normal_in = [[0.0; BLOCK_RAYS]; 3];
@@ -193,8 +210,13 @@ mod tests {
         };
         let (mut normal, mut color) = ([[0.0; BLOCK_RAYS]; 3], [[0.0; BLOCK_RAYS]; 3]);
         let lit = (base.to_array(), emissive.to_array());
-        // SAFETY: this CPU has AVX2.
-        unsafe { avx2::shade_into(&inputs, lit, &mut normal, &mut color) };
+        // SAFETY: this CPU has the path (`test_paths`).
+        unsafe {
+            match isa {
+                Isa::Avx512 => avx2::shade_into_avx512(&inputs, lit, &mut normal, &mut color),
+                _ => avx2::shade_into_avx2(&inputs, lit, &mut normal, &mut color),
+            }
+        };
         let mut back_faces = 0;
         for (lane, &t) in t.iter().enumerate() {
             let ray = ray(&origin, &direction, lane);
@@ -207,12 +229,12 @@ mod tests {
             assert_eq!(
                 bits(got_normal),
                 bits(shading),
-                "lane {lane}: normal {got_normal}"
+                "{isa:?} lane {lane}: normal {got_normal}"
             );
             assert_eq!(
                 bits(got_color),
                 bits(rgb),
-                "lane {lane}: colour {got_color} vs {rgb}"
+                "{isa:?} lane {lane}: colour {got_color} vs {rgb}"
             );
             back_faces += usize::from(shading != lane_vec3(&normal_in, lane));
         }
