@@ -10,7 +10,9 @@
 //!     cargo bench --bench render -- stereo  (sideBySide, topBottom, interleaved and anaglyph
 //!                                            frames against mono, both renderers, both scenes)
 //!     cargo bench --bench render -- lightfield (lightField frames against a mono frame;
-//!                                            CAVETRACE_BENCH_RENDERER=default for that renderer)
+//!                                            CAVETRACE_BENCH_RENDERER=default for that renderer;
+//!                                            CAVETRACE_BENCH_PLACEMENTS=quarters|instances|spheres
+//!                                            for a world of several placements)
 //!     cargo bench --bench render -- depth (fast frames with colour + depth and with every
 //!                                            channel against colour alone, 968 and 1M triangles)
 //!     cargo bench --bench render -- depth default (the same with the default renderer,
@@ -98,6 +100,11 @@ fn setup(dev: ANARIDevice, geometry: ANARIGeometry, renderer_type: &str, size: u
     let surface = matte_surface(dev, geometry, [0.7, 0.7, 0.7]);
     let world = world_of(dev, &[surface]);
     anariRelease(dev, surface);
+    setup_in(dev, world, renderer_type, size)
+}
+
+/// [`setup`] for a world already made (the setup keeps its reference).
+fn setup_in(dev: ANARIDevice, world: ANARIWorld, renderer_type: &str, size: u32) -> Setup {
     if renderer_type == "default" {
         let light = anariNewLight(dev, c("directional").as_ptr());
         set(
@@ -710,9 +717,20 @@ fn stereo_section(dev: ANARIDevice, scenes: &[(&str, ANARIGeometry)], size: u32,
 /// screen, seen by one offAxis eye 1 m in front, and by the lightField camera (sample
 /// calibration, views 1 m in front) with 45 snapped views and with continuous ones, and its
 /// quilt of 45 views with as many rays. Cases alternate frame by frame. The `fast` renderer, or
-/// the one `CAVETRACE_BENCH_RENDERER` names.
-fn light_field_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames: u32) {
+/// the one `CAVETRACE_BENCH_RENDERER` names; the world `CAVETRACE_BENCH_PLACEMENTS` names
+/// ([`placements_world`]; `cells`: the height field's cells per side).
+fn light_field_section(
+    dev: ANARIDevice,
+    geometry: ANARIGeometry,
+    cells: u32,
+    size: u32,
+    frames: u32,
+) {
     let renderer = std::env::var("CAVETRACE_BENCH_RENDERER").unwrap_or_else(|_| "fast".into());
+    let placements = std::env::var("CAVETRACE_BENCH_PLACEMENTS")
+        .ok()
+        .filter(|name| !name.is_empty());
+    let world = placements_world(dev, geometry, cells, placements.as_deref());
     let screen = bench_screen();
     let eye = head_at(0).to_array();
     // The quilt has as many rays as a light-field frame: 9 × 5 views on a frame three times as
@@ -726,7 +744,8 @@ fn light_field_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, fra
     let setups: Vec<Setup> = cases
         .iter()
         .map(|(_, subtype, views)| {
-            let s = setup(dev, geometry, &renderer, size);
+            anariRetain(dev, world);
+            let s = setup_in(dev, world, &renderer, size);
             let quilt = *subtype == "quilt";
             let subtype = if quilt { "lightField" } else { subtype };
             let camera = anariNewCamera(dev, c(subtype).as_ptr());
@@ -754,9 +773,11 @@ fn light_field_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, fra
             s
         })
         .collect();
+    anariRelease(dev, world);
     let medians = alternating_medians(&setups, frames, |_, _| {});
+    let scene = placements.as_deref().unwrap_or("one surface");
     println!(
-        "light field, height field, {renderer} renderer, {size}x{size}, {frames} frames each:"
+        "light field, height field ({scene}), {renderer} renderer, {size}x{size}, {frames} frames each:"
     );
     for (k, (label, _, _)) in cases.iter().enumerate() {
         let (wall, cpu) = medians[k];
@@ -767,6 +788,95 @@ fn light_field_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, fra
         );
     }
     setups.into_iter().for_each(release);
+}
+
+/// The light-field section's world: the height field of `cells` cells per side as one surface
+/// (`None`), as four surfaces of a quarter each (`quarters`), as one quarter's mesh placed four
+/// times by translated instances (`instances`), or beside a cloud of 10k spheres (`spheres`: a
+/// triangle and a sphere placement).
+fn placements_world(
+    dev: ANARIDevice,
+    geometry: ANARIGeometry,
+    cells: u32,
+    placements: Option<&str>,
+) -> ANARIWorld {
+    let half = cells / 2;
+    // Quarter (qi, qj) of the height field, in its place.
+    let quarter = |qi: u32, qj: u32| {
+        let quarter = grid_geometry(dev, half, |i, j| {
+            let x = (qi * half + i) as f32 / cells as f32 * 2.0 - 1.0;
+            let z = (qj * half + j) as f32 / cells as f32 * 2.0 - 1.0;
+            let y = 0.05 * (x * 9.0).sin() * (z * 7.0).cos();
+            [x, y, z]
+        })
+        .0;
+        commit(dev, quarter);
+        quarter
+    };
+    let surfaces_world = |geometries: &[ANARIGeometry]| {
+        let surfaces: Vec<ANARISurface> = geometries
+            .iter()
+            .map(|&g| matte_surface(dev, g, [0.7, 0.7, 0.7]))
+            .collect();
+        let world = world_of(dev, &surfaces);
+        surfaces.into_iter().for_each(|s| anariRelease(dev, s));
+        world
+    };
+    match placements {
+        None => surfaces_world(&[geometry]),
+        Some("quarters") => {
+            let quarters = [quarter(0, 0), quarter(1, 0), quarter(0, 1), quarter(1, 1)];
+            let world = surfaces_world(&quarters);
+            quarters.into_iter().for_each(|g| anariRelease(dev, g));
+            world
+        }
+        Some("instances") => {
+            let mesh = quarter(0, 0);
+            let surface = matte_surface(dev, mesh, [0.7, 0.7, 0.7]);
+            let group = anariNewGroup(dev);
+            let group_surfaces = object_array(dev, ANARI_SURFACE, &[surface]);
+            set_object(dev, group, "surface", ANARI_ARRAY1D, group_surfaces);
+            commit(dev, group);
+            let step = 2.0 * half as f32 / cells as f32;
+            let instances: Vec<ANARIInstance> =
+                [(0.0, 0.0), (step, 0.0), (0.0, step), (step, step)]
+                    .iter()
+                    .map(|&(dx, dz)| {
+                        let instance = anariNewInstance(dev, c("transform").as_ptr());
+                        set_object(dev, instance, "group", ANARI_GROUP, group);
+                        #[rustfmt::skip]
+                    let transform: [f32; 16] = [
+                        1.0, 0.0, 0.0, 0.0,
+                        0.0, 1.0, 0.0, 0.0,
+                        0.0, 0.0, 1.0, 0.0,
+                        dx, 0.0, dz, 1.0,
+                    ];
+                        set(dev, instance, "transform", ANARI_FLOAT32_MAT4, &transform);
+                        commit(dev, instance);
+                        instance
+                    })
+                    .collect();
+            let world = anariNewWorld(dev);
+            let array = object_array(dev, ANARI_INSTANCE, &instances);
+            set_object(dev, world, "instance", ANARI_ARRAY1D, array);
+            commit(dev, world);
+            for object in [array, group_surfaces, group, surface, mesh]
+                .into_iter()
+                .chain(instances)
+            {
+                anariRelease(dev, object);
+            }
+            world
+        }
+        Some("spheres") => {
+            let cloud = sphere_cloud(dev, 10_000);
+            commit(dev, cloud);
+            let world = surfaces_world(&[geometry, cloud]);
+            anariRelease(dev, cloud);
+            world
+        }
+        Some(other) => panic!("CAVETRACE_BENCH_PLACEMENTS={other}: quarters, instances or spheres"),
+    }
 }
 
 /// Channels beside colour (`cargo bench --bench render -- depth`): the `fast` renderer's frame
@@ -872,18 +982,23 @@ fn main() {
             small
         })
     };
-    let on_scene = |run: &dyn Fn(ANARIGeometry)| {
+    let on_scene = |run: &dyn Fn(ANARIGeometry, u32)| {
         let small = small_field();
-        run(small.unwrap_or(geometry));
+        run(
+            small.unwrap_or(geometry),
+            if small.is_some() { 22 } else { cells },
+        );
         if let Some(small) = small {
             anariRelease(dev, small);
         }
     };
     let section_run = if section("viewers") {
-        on_scene(&|scene| viewers_section(dev, scene, size, if quick { 4 } else { 15 }));
+        on_scene(&|scene, _| viewers_section(dev, scene, size, if quick { 4 } else { 15 }));
         true
     } else if section("lightfield") {
-        on_scene(&|scene| light_field_section(dev, scene, size, if quick { 3 } else { 7 }));
+        on_scene(&|scene, cells| {
+            light_field_section(dev, scene, cells, size, if quick { 3 } else { 7 })
+        });
         true
     } else if section("depth") {
         // `-- depth default`: the same frames with the default renderer.

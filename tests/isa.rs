@@ -2,8 +2,8 @@
 //! AVX2 or AVX-512 path equals the baseline's bit for bit — a light-field frame (one single ray per
 //! subpixel), a `default` frame with shadow rays and a mirror, and `fast` stereo frames (eyes
 //! shaded from their cyclopean point) — and bad values are reported. On a scene of one triangle
-//! mesh the AVX2 and AVX-512 light-field frames trace their subpixel rays eight at a time
-//! grouped by eye: the same frame again. A path the CPU lacks falls back to the widest it has
+//! mesh, and on one of several placements, the AVX2 and AVX-512 light-field frames trace their
+//! subpixel rays eight at a time grouped by eye: the same frame again. A path the CPU lacks falls back to the widest it has
 //! (with a warning), so every value renders.
 
 mod common;
@@ -110,12 +110,18 @@ fn stereo_camera(dev: ANARIDevice, mode: &str) -> ANARICamera {
 }
 
 /// Every channel of a render, as bits.
+/// Every channel of a frame rendered, as bits: colour, depth, object and instance ids, then
+/// primitive ids (last).
 fn render_bits(dev: ANARIDevice, frame: ANARIFrame) -> Vec<u32> {
     let (colors, _, _) = render_channel::<[f32; 4]>(dev, frame, "channel.color");
     let (depths, _, _) = read_channel::<f32>(dev, frame, "channel.depth");
+    let (objects, _, _) = read_channel::<u32>(dev, frame, "channel.objectId");
+    let (instances, _, _) = read_channel::<u32>(dev, frame, "channel.instanceId");
     let (ids, _, _) = read_channel::<u32>(dev, frame, "channel.primitiveId");
     let mut bits: Vec<u32> = colors.iter().flatten().map(|v| v.to_bits()).collect();
     bits.extend(depths.iter().map(|v| v.to_bits()));
+    bits.extend(objects);
+    bits.extend(instances);
     bits.extend(ids);
     bits
 }
@@ -171,25 +177,85 @@ fn every_path_renders_the_baselines_frame_bit_for_bit() {
     release_device(lib, dev);
 }
 
-/// The triangle grid of [`world`] alone, lit, as one surface of the world or in an instance with
-/// a transform: a scene of one placement, whose light-field subpixel rays the AVX2 and AVX-512
-/// paths trace eight at a time, grouped by eye.
-fn grid_world(dev: ANARIDevice, turned: bool) -> ANARIWorld {
+/// The worlds of the light-field frames traced by eye.
+#[derive(Clone, Copy, Debug)]
+enum LightFieldWorld {
+    /// The triangle grid of [`world`] alone, lit, as one surface of the world.
+    Grid,
+    /// The same in an instance with a transform.
+    TurnedGrid,
+    /// Several placements: the grid twice in one place in two colours (every hit a tie
+    /// between surfaces, which the colour, object id and depth show), spheres before it, and
+    /// the grid again in a turned instance.
+    Several,
+}
+
+/// The grid scaled by 0.9, turned by 0.2 rad about z, moved 5 cm right and back.
+fn turned_transform() -> [f32; 16] {
+    glam::Mat4::from_scale_rotation_translation(
+        glam::Vec3::splat(0.9),
+        glam::Quat::from_rotation_z(0.2),
+        glam::Vec3::new(0.05, 0.0, -0.05),
+    )
+    .to_cols_array()
+}
+
+/// A world of [`LightFieldWorld`] whose light-field subpixel rays the AVX2 and AVX-512 paths
+/// trace eight at a time, grouped by eye.
+fn light_field_world(dev: ANARIDevice, kind: LightFieldWorld) -> ANARIWorld {
     let grid = triangle_geometry(dev, &grid_triangles());
     let surface = matte_surface(dev, grid, [0.9, 0.7, 0.3]);
-    let world = if turned {
-        // Scaled by 0.9, turned by 0.2 rad about z, moved 5 cm right and back.
-        let transform = glam::Mat4::from_scale_rotation_translation(
-            glam::Vec3::splat(0.9),
-            glam::Quat::from_rotation_z(0.2),
-            glam::Vec3::new(0.05, 0.0, -0.05),
-        );
-        instanced_world_of(dev, &[surface], transform.to_cols_array())
-    } else {
-        world_of(dev, &[surface])
+    let world = match kind {
+        LightFieldWorld::Grid => world_of(dev, &[surface]),
+        LightFieldWorld::TurnedGrid => instanced_world_of(dev, &[surface], turned_transform()),
+        LightFieldWorld::Several => several_placements_world(dev, grid, surface),
     };
     light_world(dev, world, [-0.3f32, -0.4, -1.0]);
     release_all(dev, &[grid, surface]);
+    world
+}
+
+/// [`LightFieldWorld::Several`] from the grid and its surface.
+fn several_placements_world(
+    dev: ANARIDevice,
+    grid: ANARIGeometry,
+    surface: ANARISurface,
+) -> ANARIWorld {
+    let twin = matte_surface(dev, grid, [0.3, 0.8, 0.4]);
+    let spheres = sphere_geometry(dev, &[[0.1, 0.05, 0.2], [-0.2, -0.1, 0.1]], 0.08);
+    let balls = matte_surface(dev, spheres, [0.2, 0.6, 0.9]);
+    let turned = matte_surface(dev, grid, [0.8, 0.3, 0.6]);
+    for (id, object) in [surface, twin, balls, turned].into_iter().enumerate() {
+        set(dev, object, "id", ANARI_UINT32, &(id as u32 + 1));
+        commit(dev, object);
+    }
+    let instance = |surfaces: &[ANARISurface], transform: [f32; 16], id: u32| {
+        let group = anariNewGroup(dev);
+        let group_surfaces = object_array(dev, ANARI_SURFACE, surfaces);
+        set_object(dev, group, "surface", ANARI_ARRAY1D, group_surfaces);
+        commit(dev, group);
+        let instance = anariNewInstance(dev, c("transform").as_ptr());
+        set_object(dev, instance, "group", ANARI_GROUP, group);
+        set(dev, instance, "transform", ANARI_FLOAT32_MAT4, &transform);
+        set(dev, instance, "id", ANARI_UINT32, &id);
+        commit(dev, instance);
+        release_all(dev, &[group_surfaces, group]);
+        instance
+    };
+    let instances = [
+        instance(
+            &[surface, twin, balls],
+            glam::Mat4::IDENTITY.to_cols_array(),
+            7,
+        ),
+        instance(&[turned], turned_transform(), 8),
+    ];
+    let world = anariNewWorld(dev);
+    let array = object_array(dev, ANARI_INSTANCE, &instances);
+    set_object(dev, world, "instance", ANARI_ARRAY1D, array);
+    commit(dev, world);
+    release_all(dev, &[array, twin, spheres, balls, turned]);
+    release_all(dev, &instances);
     world
 }
 
@@ -198,8 +264,12 @@ fn a_light_field_frame_traced_by_eye_is_the_baselines_frame() {
     let _turn = one_at_a_time();
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
-    for turned in [false, true] {
-        let world = grid_world(dev, turned);
+    for kind in [
+        LightFieldWorld::Grid,
+        LightFieldWorld::TurnedGrid,
+        LightFieldWorld::Several,
+    ] {
+        let world = light_field_world(dev, kind);
         for (views, renderer_type) in [(0u32, "fast"), (45, "fast"), (0, "default")] {
             let camera = light_field_camera(dev);
             set(dev, camera, "views", ANARI_UINT32, &views);
@@ -224,7 +294,7 @@ fn a_light_field_frame_traced_by_eye_is_the_baselines_frame() {
                 .iter()
                 .filter(|id| **id != u32::MAX)
                 .count();
-            let what = format!("{renderer_type}, {views} views, turned: {turned}");
+            let what = format!("{renderer_type}, {views} views, {kind:?}");
             assert!(
                 hits > 84 * 64 / 2,
                 "{what}: only {hits} pixels hit the grid"

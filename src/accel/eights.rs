@@ -16,8 +16,9 @@
 //!
 //! Pays only for rays that start close together (one eye, neighbouring eyes): eight rays of
 //! eyes centimetres apart cost what they cost one by one (docs/light-field.md). The caller
-//! (`SceneBvh::intersect8_with`) takes the rays this walk does not: other instruction sets,
-//! several placements, lone rays of an octant, `t_min < 0`, a full stack.
+//! (`SceneBvh::intersect8_with`, on several placements per placement after a top-level walk of
+//! eights, `top_eights.rs`) takes the rays this walk does not: other instruction sets, lone
+//! rays of an octant, `t_min < 0`, a full stack.
 
 use std::arch::x86_64::*;
 

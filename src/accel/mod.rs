@@ -54,6 +54,8 @@ mod primitives;
 mod procedural;
 mod scene;
 mod single_ray;
+#[cfg(target_arch = "x86_64")]
+mod top_eights;
 mod tube;
 mod walk;
 mod wide_bvh;

@@ -21,6 +21,9 @@ use glam::{Affine3A, Mat3A, Vec2, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
 use std::sync::Arc;
 
+#[cfg(target_arch = "x86_64")]
+mod placements8;
+
 /// One geometry of one instance.
 struct Placement {
     geometry: Arc<GeometryBvh>,
@@ -228,26 +231,48 @@ impl SceneBvh {
             return Some(self.single_placement_record(placement, primitive_slot, bary, t, object));
         }
         traverse::<false, _>(self.top_level_nodes(), &mut world, |code, world| {
-            let (first, count) = leaf_range(code);
-            let mut found = false;
-            for slot in first..first + count {
-                let placement = &self.placements[slot as usize];
-                let Some(mut object) = placement.object_ray(world) else {
-                    continue;
-                };
-                let Some((primitive_slot, bary)) = placement.geometry.closest_slot(&mut object)
-                else {
-                    continue;
-                };
-                world.t_max = object.t_max;
-                closest = Some((slot, primitive_slot, bary));
-                found = true;
-            }
-            found
+            self.closest_in_leaf(code, world, &mut closest)
         });
+        self.record_of_closest(closest, &world)
+    }
+
+    /// The single-ray walk's test of top-level leaf `code`: its placements in slot order, each
+    /// with the world ray's current `t_max`; a hit lowers it and becomes `closest` (placement
+    /// slot, primitive slot, barycentrics). Whether any placement was hit.
+    #[inline(always)]
+    fn closest_in_leaf(
+        &self,
+        code: u32,
+        world: &mut TraversalRay,
+        closest: &mut Option<(u32, u32, Vec2)>,
+    ) -> bool {
+        let (first, count) = leaf_range(code);
+        let mut found = false;
+        for slot in first..first + count {
+            let placement = &self.placements[slot as usize];
+            let Some(mut object) = placement.object_ray(world) else {
+                continue;
+            };
+            let Some((primitive_slot, bary)) = placement.geometry.closest_slot(&mut object) else {
+                continue;
+            };
+            world.t_max = object.t_max;
+            *closest = Some((slot, primitive_slot, bary));
+            found = true;
+        }
+        found
+    }
+
+    /// The record of the closest hit a walk of the top level found (`world.t_max` is its `t`).
+    #[inline(always)]
+    fn record_of_closest(
+        &self,
+        closest: Option<(u32, u32, Vec2)>,
+        world: &TraversalRay,
+    ) -> Option<SceneHit> {
         let (slot, primitive_slot, bary) = closest?;
         let placement = &self.placements[slot as usize];
-        let object = placement.object_ray(&world)?;
+        let object = placement.object_ray(world)?;
         let hit = placement
             .geometry
             .hit_with_barycentrics(primitive_slot, bary, &object);
@@ -281,9 +306,11 @@ impl SceneBvh {
 
     /// Closest hits of eight rays with any origins (light-field subpixels, interleaved stereo
     /// lattices): `hits[i]` receives exactly what [`Self::intersect_into`] writes for `rays[i]`.
-    /// Pays when the eight rays start close together (one eye, or neighbouring eyes): on a
-    /// scene of one triangle (or quad) geometry, with or without a transform, rays sharing a
-    /// direction octant walk it together (`eights.rs`, AVX2); everything else goes ray by ray.
+    /// Pays when the eight rays start close together (one eye, or neighbouring eyes): rays
+    /// sharing a direction octant walk a scene of one triangle (or quad) geometry together
+    /// (`eights.rs`, AVX2), with or without a transform; on a scene of several placements they
+    /// walk the top level together (`top_eights.rs`) and each placement of triangles or quads
+    /// as on one (`scene/placements8.rs`). Everything else goes ray by ray.
     pub fn intersect8(&self, rays: &[Ray; 8], hits: &mut [Option<SceneHit>; 8]) {
         self.intersect8_with(rays, hits, SINGLE_UP_TO);
     }
@@ -312,6 +339,18 @@ impl SceneBvh {
             };
             return;
         }
+        #[cfg(target_arch = "x86_64")]
+        if self.walks_placements_in_eights() {
+            // SAFETY: as above (`walks_placements_in_eights`).
+            unsafe {
+                self.intersect8_placements_avx2::<{ crate::accel::eights::STACK }>(
+                    rays,
+                    hits,
+                    single_up_to,
+                )
+            };
+            return;
+        }
         let _ = single_up_to;
         for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
             self.intersect_into(ray, hit);
@@ -322,7 +361,7 @@ impl SceneBvh {
     /// one, and grouping rays for it gains nothing).
     pub fn walks_eights_together(&self) -> bool {
         #[cfg(target_arch = "x86_64")]
-        return self.walk_of_eights().is_some();
+        return self.walk_of_eights().is_some() || self.walks_placements_in_eights();
         #[cfg(not(target_arch = "x86_64"))]
         false
     }
@@ -354,6 +393,11 @@ impl SceneBvh {
         hits: &mut [Option<SceneHit>; 8],
         single_up_to: u32,
     ) {
+        if self.walks_placements_in_eights() {
+            // SAFETY: as in `intersect8_with`.
+            unsafe { self.intersect8_placements_avx2::<ENTRIES>(rays, hits, single_up_to) };
+            return;
+        }
         let (placement, nodes, groups) = self
             .walk_of_eights()
             .expect("a scene that eight rays walk together, AVX2 or AVX-512 selected");

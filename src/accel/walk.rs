@@ -412,6 +412,17 @@ where
     traverse_with::<RuntimeBoxTest, ANY_HIT, F>(nodes, ray, &mut test_leaf)
 }
 
+/// The closest-hit [`traverse`] of the subtree at inner node `root` (the walk of eights over a
+/// scene's top level hands a subtree that few of its rays reach to each of them alone).
+#[inline(always)]
+pub(crate) fn traverse_from<F>(nodes: &[WideNode], ray: &mut TraversalRay, root: u32, test_leaf: F)
+where
+    F: FnMut(u32, &mut TraversalRay) -> bool,
+{
+    let mut test_leaf = test_leaf;
+    walk_from::<RuntimeBoxTest, false, F>(nodes, ray, root, &mut test_leaf);
+}
+
 /// What [`traverse_with`] calls for a leaf: `test(leaf_code, ray)` as `traverse`'s callback.
 pub(crate) trait LeafTest {
     fn test(&mut self, code: u32, ray: &mut TraversalRay) -> bool;
@@ -434,11 +445,22 @@ pub(crate) fn traverse_with<B: BoxTest, const ANY_HIT: bool, L: LeafTest>(
     if nodes.is_empty() {
         return false;
     }
+    walk_from::<B, ANY_HIT, L>(nodes, ray, 0, test_leaf)
+}
+
+/// [`traverse_with`] from the node `root` of a non-empty `nodes`.
+#[inline(always)]
+fn walk_from<B: BoxTest, const ANY_HIT: bool, L: LeafTest>(
+    nodes: &[WideNode],
+    ray: &mut TraversalRay,
+    root: u32,
+    test_leaf: &mut L,
+) -> bool {
     let box_ray = BoxRay::new(ray);
     let order = box_ray.order;
     let mut stack: TraversalStack<(u32, f32)> = TraversalStack::new();
     let mut found = false;
-    let mut code = 0u32;
+    let mut code = root;
     loop {
         if code & LEAF_BIT == 0 {
             let node = &nodes[code as usize];
