@@ -229,26 +229,14 @@ fn several_placements_world(
         set(dev, object, "id", ANARI_UINT32, &(id as u32 + 1));
         commit(dev, object);
     }
-    let instance = |surfaces: &[ANARISurface], transform: [f32; 16], id: u32| {
-        let group = anariNewGroup(dev);
-        let group_surfaces = object_array(dev, ANARI_SURFACE, surfaces);
-        set_object(dev, group, "surface", ANARI_ARRAY1D, group_surfaces);
-        commit(dev, group);
-        let instance = anariNewInstance(dev, c("transform").as_ptr());
-        set_object(dev, instance, "group", ANARI_GROUP, group);
-        set(dev, instance, "transform", ANARI_FLOAT32_MAT4, &transform);
-        set(dev, instance, "id", ANARI_UINT32, &id);
-        commit(dev, instance);
-        release_all(dev, &[group_surfaces, group]);
-        instance
-    };
     let instances = [
-        instance(
+        instance_of(
+            dev,
             &[surface, twin, balls],
             glam::Mat4::IDENTITY.to_cols_array(),
-            7,
+            Some(7),
         ),
-        instance(&[turned], turned_transform(), 8),
+        instance_of(dev, &[turned], turned_transform(), Some(8)),
     ];
     let world = anariNewWorld(dev);
     let array = object_array(dev, ANARI_INSTANCE, &instances);

@@ -150,6 +150,25 @@ pub fn instanced_world_of(
     surfaces: &[ANARISurface],
     transform: [f32; 16],
 ) -> ANARIWorld {
+    let instance = instance_of(dev, surfaces, transform, None);
+    let world = anariNewWorld(dev);
+    let instances = object_array(dev, ANARI_INSTANCE, &[instance]);
+    set_object(dev, world, "instance", ANARI_ARRAY1D, instances);
+    commit(dev, world);
+    for object in [instance, instances] {
+        anariRelease(dev, object);
+    }
+    world
+}
+
+/// A committed instance of one group holding `surfaces`, placed by `transform`, with `id` if
+/// given (the caller releases it).
+pub fn instance_of(
+    dev: ANARIDevice,
+    surfaces: &[ANARISurface],
+    transform: [f32; 16],
+    id: Option<u32>,
+) -> ANARIInstance {
     let group = anariNewGroup(dev);
     let group_surfaces = object_array(dev, ANARI_SURFACE, surfaces);
     set_object(dev, group, "surface", ANARI_ARRAY1D, group_surfaces);
@@ -157,15 +176,14 @@ pub fn instanced_world_of(
     let instance = anariNewInstance(dev, c("transform").as_ptr());
     set_object(dev, instance, "group", ANARI_GROUP, group);
     set(dev, instance, "transform", ANARI_FLOAT32_MAT4, &transform);
+    if let Some(id) = id {
+        set(dev, instance, "id", ANARI_UINT32, &id);
+    }
     commit(dev, instance);
-    let world = anariNewWorld(dev);
-    let instances = object_array(dev, ANARI_INSTANCE, &[instance]);
-    set_object(dev, world, "instance", ANARI_ARRAY1D, instances);
-    commit(dev, world);
-    for object in [group_surfaces, group, instance, instances] {
+    for object in [group_surfaces, group] {
         anariRelease(dev, object);
     }
-    world
+    instance
 }
 
 pub fn frame_for(
