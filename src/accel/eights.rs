@@ -103,6 +103,19 @@ pub(crate) unsafe fn closest8<const ENTRIES: usize>(
     octants!(0 1 2 3 4 5 6 7)
 }
 
+/// The lanes of `pending` (bit per lane) whose rays share the direction octant of its first
+/// lane: the rays [`closest8`] can walk together next.
+pub(crate) fn lanes_of_first_octant(rays: &[TraversalRay; RAYS], pending: u32) -> u32 {
+    let octant = rays[pending.trailing_zeros() as usize].octant_inv;
+    let mut lanes = 0u32;
+    for (lane, ray) in rays.iter().enumerate() {
+        if pending & (1 << lane) != 0 && ray.octant_inv == octant {
+            lanes |= 1 << lane;
+        }
+    }
+    lanes
+}
+
 /// `LANE[lane]`: all bits set in lane `lane` only (a blend mask).
 static LANE: [[u32; RAYS]; RAYS] = {
     let mut table = [[0; RAYS]; RAYS];

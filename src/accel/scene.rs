@@ -459,13 +459,7 @@ impl SceneBvh {
             t: [0.0; RAYS],
         };
         while pending != 0 {
-            let octant = object_rays[pending.trailing_zeros() as usize].octant_inv;
-            let mut lanes = 0u32;
-            for (lane, ray) in object_rays.iter().enumerate() {
-                if pending & (1 << lane) != 0 && ray.octant_inv == octant {
-                    lanes |= 1 << lane;
-                }
-            }
+            let lanes = crate::accel::eights::lanes_of_first_octant(&object_rays, pending);
             pending &= !lanes;
             // SAFETY: AVX2 is enabled here; triangle and quad BVHs are checked with
             // `codes_in_range` when built; `nodes` is not empty (the caller's promise).

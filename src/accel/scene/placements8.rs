@@ -191,13 +191,7 @@ impl<const ENTRIES: usize> PlacementVisits<'_, ENTRIES> {
         let mut rest = usable;
         while rest != 0 {
             // A transform may part the lanes' octants: each octant walks on its own.
-            let octant = objects[rest.trailing_zeros() as usize].octant_inv;
-            let mut together = 0u32;
-            for (lane, object) in objects.iter().enumerate() {
-                if rest & (1 << lane) != 0 && object.octant_inv == octant {
-                    together |= 1 << lane;
-                }
-            }
+            let together = crate::accel::eights::lanes_of_first_octant(&objects, rest);
             rest &= !together;
             // SAFETY: AVX2 is enabled here; triangle and quad BVHs are checked with
             // `codes_in_range` when built; `nodes` is not empty; object rays keep the world
