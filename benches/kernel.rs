@@ -496,7 +496,7 @@ fn main() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     let chosen_isas = std::env::var("CAVETRACE_BENCH_ISAS").ok();
-    let isas: Vec<Isa> = Isa::ALL
+    let isas: Vec<Isa> = Isa::all()
         .into_iter()
         .filter(|isa| isa.supported())
         .filter(|isa| {

@@ -56,8 +56,11 @@ impl Isa {
     /// Values of the device parameter `isa` and of `CAVETRACE_ISA`.
     pub const VALUES: [&'static str; 4] = ["auto", "baseline", "avx2", "avx512"];
 
-    /// Every path, narrowest first.
-    pub const ALL: [Isa; 3] = [Isa::Baseline, Isa::Avx2, Isa::Avx512];
+    /// Every path, narrowest first (a function, not an associated constant, so that cbindgen
+    /// leaves it out of the C header).
+    pub const fn all() -> [Isa; 3] {
+        [Isa::Baseline, Isa::Avx2, Isa::Avx512]
+    }
 
     /// The path `auto` picks: the fastest this CPU has as measured, AVX2 where the CPU has it,
     /// also where it has AVX-512 (on Zen 4 the AVX-512 build was never faster and its packets
@@ -97,7 +100,7 @@ impl Isa {
     pub fn parse(name: &str) -> Option<Isa> {
         match name {
             "auto" => Some(Isa::best()),
-            _ => Isa::ALL.into_iter().find(|isa| isa.name() == name),
+            _ => Isa::all().into_iter().find(|isa| isa.name() == name),
         }
     }
 
@@ -118,7 +121,7 @@ impl Isa {
     /// The path to use when `requested`: itself if this CPU has it, else the widest narrower
     /// path this CPU has.
     pub fn usable(requested: Isa) -> Isa {
-        Isa::ALL[..=requested as usize]
+        Isa::all()[..=requested as usize]
             .iter()
             .rev()
             .copied()
@@ -171,7 +174,10 @@ pub(crate) use avx2_and_avx512;
 /// The paths a test runs a kernel on: the baseline, and each wider one this CPU has.
 #[cfg(test)]
 pub(crate) fn test_paths() -> Vec<Isa> {
-    Isa::ALL.into_iter().filter(|isa| isa.supported()).collect()
+    Isa::all()
+        .into_iter()
+        .filter(|isa| isa.supported())
+        .collect()
 }
 
 /// `run`'s answer with the process's kernels on path `isa` (one this CPU has), for tests that
@@ -200,7 +206,7 @@ mod tests {
 
     #[test]
     fn names_round_trip_and_auto_is_the_best_path() {
-        for isa in Isa::ALL {
+        for isa in Isa::all() {
             assert_eq!(Isa::parse(isa.name()), Some(isa));
             assert_eq!(Isa::VALUES[1 + isa as usize], isa.name());
         }
@@ -210,7 +216,7 @@ mod tests {
         assert_eq!(Isa::usable(Isa::Baseline), Isa::Baseline);
         // A wider path needs the narrower ones' features too.
         assert!(!Isa::Avx512.supported() || Isa::Avx2.supported());
-        for isa in Isa::ALL {
+        for isa in Isa::all() {
             let usable = Isa::usable(isa);
             assert!(usable.supported() && usable as u8 <= isa as u8);
             assert_eq!(usable == isa, isa.supported());
