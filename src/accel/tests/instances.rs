@@ -107,15 +107,7 @@ fn multiple_instances_match_brute_force() {
         shapes.iter().map(|prims| Arc::new(prims.build())).collect();
     let mut instances = Vec::new();
     for i in 0..40 {
-        let transform = Affine3A::from_scale_rotation_translation(
-            vec3(
-                rng.range(0.3, 2.0),
-                rng.range(0.3, 2.0),
-                rng.range(0.3, 2.0),
-            ),
-            Quat::from_axis_angle(rng.direction(), rng.range(0.0, 6.0)),
-            rng.point(-12.0, 12.0),
-        );
+        let transform = random_transform(&mut rng, 12.0);
         let first = i % 4;
         let chosen = vec![
             geometries[first].clone(),

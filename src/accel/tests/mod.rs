@@ -88,6 +88,20 @@ fn unit_triangle() -> GeometryBvh {
     })
 }
 
+/// A random placement: a scale of 0.3–2 per axis, a turn about a random axis and a shift
+/// within `spread` of the origin per axis (the random numbers drawn in that order).
+fn random_transform(rng: &mut Rng, spread: f32) -> Affine3A {
+    Affine3A::from_scale_rotation_translation(
+        vec3(
+            rng.range(0.3, 2.0),
+            rng.range(0.3, 2.0),
+            rng.range(0.3, 2.0),
+        ),
+        Quat::from_axis_angle(rng.direction(), rng.range(0.0, 6.0)),
+        rng.point(-spread, spread),
+    )
+}
+
 fn identity_instance(geometries: Vec<Arc<GeometryBvh>>) -> InstanceDesc {
     InstanceDesc {
         transform: Affine3A::IDENTITY,

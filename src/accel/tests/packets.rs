@@ -58,15 +58,7 @@ fn scene_packets_match_single_rays() {
     let mut instances = vec![identity_instance(geometries.clone())];
     for i in 0..30 {
         instances.push(InstanceDesc {
-            transform: Affine3A::from_scale_rotation_translation(
-                vec3(
-                    rng.range(0.3, 2.0),
-                    rng.range(0.3, 2.0),
-                    rng.range(0.3, 2.0),
-                ),
-                Quat::from_axis_angle(rng.direction(), rng.range(0.0, 6.0)),
-                rng.point(-12.0, 12.0),
-            ),
+            transform: random_transform(&mut rng, 12.0),
             geometries: vec![geometries[i % 3].clone()],
         });
     }
@@ -188,15 +180,7 @@ fn scene_frustum_packets_match_single_rays() {
     let mut instances = vec![identity_instance(geometries.clone())];
     for i in 0..40 {
         instances.push(InstanceDesc {
-            transform: Affine3A::from_scale_rotation_translation(
-                vec3(
-                    rng.range(0.3, 2.0),
-                    rng.range(0.3, 2.0),
-                    rng.range(0.3, 2.0),
-                ),
-                Quat::from_axis_angle(rng.direction(), rng.range(0.0, 6.0)),
-                rng.point(-10.0, 10.0),
-            ),
+            transform: random_transform(&mut rng, 10.0),
             geometries: vec![geometries[i % 3].clone()],
         });
     }
