@@ -247,20 +247,7 @@ impl FrustumPacket {
             .map(|ray| RayPacket::pack(&[None; LANES], &ray));
         FrustumPacket {
             // The blank ray is valid, so `pack` always runs; the fallback is never used.
-            groups: [blank.unwrap_or(RayPacket {
-                origin: [Vec4::ZERO; 3],
-                direction: [Vec4::ZERO; 3],
-                inv_direction: [Vec4::ZERO; 3],
-                t_min: Vec4::INFINITY,
-                t_max: Vec4::NEG_INFINITY,
-                hit_uv: [Vec4::ZERO; 2],
-                hit_normal: [Vec4::ZERO; 3],
-                octant_inv: 0,
-                shear_axes: [0, 1, 2],
-                shear: [Vec4::ZERO; 3],
-                permuted_origin: [Vec4::ZERO; 3],
-                lanes: 0,
-            }); FRUSTUM_GROUPS],
+            groups: [blank.unwrap_or(RayPacket::blank(0, [0, 1, 2])); FRUSTUM_GROUPS],
             group_count: 0,
             whole: RayBounds::EMPTY,
             quadrants: [RayBounds::EMPTY; QUADRANTS],

@@ -55,10 +55,9 @@ impl RayPacket {
         consistent.then(|| RayPacket::pack(rays, first))
     }
 
-    /// Packs the rays without checking that they agree; missing lanes copy `filler`'s
-    /// geometry with an empty interval, so they never hit.
-    pub(super) fn pack(rays: &[Option<TraversalRay>; LANES], filler: &TraversalRay) -> RayPacket {
-        let mut packet = RayPacket {
+    /// A packet of no rays (every lane's interval empty) for `octant_inv` and `shear_axes`.
+    pub(super) const fn blank(octant_inv: u32, shear_axes: [usize; 3]) -> RayPacket {
+        RayPacket {
             origin: [Vec4::ZERO; 3],
             direction: [Vec4::ZERO; 3],
             inv_direction: [Vec4::ZERO; 3],
@@ -66,12 +65,18 @@ impl RayPacket {
             t_max: Vec4::NEG_INFINITY,
             hit_uv: [Vec4::ZERO; 2],
             hit_normal: [Vec4::ZERO; 3],
-            octant_inv: filler.octant_inv,
-            shear_axes: filler.shear_axes,
+            octant_inv,
+            shear_axes,
             shear: [Vec4::ZERO; 3],
             permuted_origin: [Vec4::ZERO; 3],
             lanes: 0,
-        };
+        }
+    }
+
+    /// Packs the rays without checking that they agree; missing lanes copy `filler`'s
+    /// geometry with an empty interval, so they never hit.
+    pub(super) fn pack(rays: &[Option<TraversalRay>; LANES], filler: &TraversalRay) -> RayPacket {
+        let mut packet = RayPacket::blank(filler.octant_inv, filler.shear_axes);
         for (lane, ray) in rays.iter().enumerate() {
             packet.set_lane(lane, ray.as_ref().unwrap_or(filler));
         }
