@@ -18,7 +18,7 @@ use std::arch::x86_64::*;
 use std::mem::MaybeUninit;
 
 use crate::accel::eights::RAYS;
-use crate::accel::walk::{BoxRay, ORDER, SLAB_ERROR, TraversalRay};
+use crate::accel::walk::{BoxRay, ORDER, TraversalRay};
 use crate::accel::wide_bvh::{LEAF_BIT, WIDTH, WideNode};
 
 /// What the walk hands back to its caller.
@@ -175,12 +175,7 @@ fn child_lanes(
         near = _mm256_max_ps(near, _mm256_mul_ps(_mm256_sub_ps(entry, origin), inverse));
         far = _mm256_min_ps(far, _mm256_mul_ps(_mm256_sub_ps(exit, origin), inverse));
     }
-    let error = _mm256_set1_ps(SLAB_ERROR);
-    let sign = _mm256_set1_ps(-0.0);
-    let near = _mm256_sub_ps(near, _mm256_mul_ps(_mm256_andnot_ps(sign, near), error));
-    let far = _mm256_add_ps(far, _mm256_mul_ps(_mm256_andnot_ps(sign, far), error));
-    let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
-    (mask, near)
+    crate::accel::walk::avx2::widened_hits(near, far)
 }
 
 /// A blend mask of the lanes in `lanes` (bit per lane).

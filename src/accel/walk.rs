@@ -285,6 +285,21 @@ pub(crate) mod avx2 {
     use super::{BoxRay, SLAB_ERROR, WideNode};
     use std::arch::x86_64::*;
 
+    /// The lanes whose interval `[near, far]` holds something once both ends are widened by
+    /// `SLAB_ERROR` of their magnitude, and the widened entries: the end of this walk's box
+    /// test, shared with the walk of eight rays over a top level (`top_eights`), which must
+    /// reach the boxes this walk reaches.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn widened_hits(near: __m256, far: __m256) -> (u32, __m256) {
+        let error = _mm256_set1_ps(SLAB_ERROR);
+        let sign = _mm256_set1_ps(-0.0);
+        let near = _mm256_sub_ps(near, _mm256_mul_ps(_mm256_andnot_ps(sign, near), error));
+        let far = _mm256_add_ps(far, _mm256_mul_ps(_mm256_andnot_ps(sign, far), error));
+        let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+        (mask, near)
+    }
+
     crate::isa::avx2_and_avx512! {
         #[inline]
         pub(crate) fn [child_hits_avx2, child_hits_avx512](
@@ -308,11 +323,7 @@ pub(crate) mod avx2 {
                 near = _mm256_max_ps(near, _mm256_mul_ps(_mm256_sub_ps(entry, origin), inv));
                 far = _mm256_min_ps(far, _mm256_mul_ps(_mm256_sub_ps(exit, origin), inv));
             }
-            let error = _mm256_set1_ps(SLAB_ERROR);
-            let sign = _mm256_set1_ps(-0.0);
-            let near = _mm256_sub_ps(near, _mm256_mul_ps(_mm256_andnot_ps(sign, near), error));
-            let far = _mm256_add_ps(far, _mm256_mul_ps(_mm256_andnot_ps(sign, far), error));
-            let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+            let (mask, near) = widened_hits(near, far);
             let mut nears = [0.0f32; 8];
             // SAFETY: `nears` holds eight floats.
             unsafe { _mm256_storeu_ps(nears.as_mut_ptr(), near) };
