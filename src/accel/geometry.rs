@@ -652,6 +652,24 @@ impl GeometryBvh {
                     groups |= u32::from(*lanes != 0) << group;
                 }
                 let (closest_by_group, _) = closest.as_chunks_mut::<LANES>();
+                // Two neighbouring groups reaching a triangle leaf together: one eight-ray test.
+                let mut pairs = groups & (groups >> 1) & 0x5555;
+                while AVX2 && pairs != 0 {
+                    let first = pairs.trailing_zeros() as usize;
+                    pairs &= pairs - 1;
+                    let pair = first..first + 2;
+                    if let (Ok(packets), Ok(closest_pair)) = (
+                        <&mut [RayPacket; 2]>::try_from(&mut frustum.groups[pair.clone()]),
+                        <&mut [[Option<u32>; LANES]; 2]>::try_from(&mut closest_by_group[pair]),
+                    ) && self.test_leaf_pair::<AVX2>(
+                        code,
+                        packets,
+                        [lanes[first], lanes[first + 1]],
+                        closest_pair,
+                    ) {
+                        groups &= !(3 << first);
+                    }
+                }
                 while groups != 0 {
                     let group = groups.trailing_zeros() as usize;
                     groups &= groups - 1;
@@ -706,6 +724,68 @@ impl GeometryBvh {
             }
             PrimitiveData::Procedural(_) => {}
         }
+    }
+
+    /// [`Self::test_leaf_packet`] of a triangle leaf for two neighbouring groups of a frustum
+    /// packet at once (`AVX2`: only inside an AVX2 or AVX-512 function), when both take its
+    /// triangles one by one over their rays (at least as many rays as triangles) and share
+    /// their shear axes; false, with nothing done, otherwise. The same hits.
+    #[inline(always)]
+    fn test_leaf_pair<const AVX2: bool>(
+        &self,
+        code: u32,
+        packets: &mut [RayPacket; 2],
+        lanes: [u32; 2],
+        closest: &mut [[Option<u32>; LANES]; 2],
+    ) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 {
+            let (PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups)) =
+                &self.primitives
+            else {
+                return false;
+            };
+            let (group_index, triangles) = group_leaf(code);
+            if lanes
+                .iter()
+                .any(|lanes| lanes.count_ones() < triangles.count_ones())
+                || packets[0].shear_axes != packets[1].shear_axes
+            {
+                return false;
+            }
+            crate::accel::counters::add(|counts| {
+                for lanes in lanes {
+                    counts.packet_leaf_groups += 1;
+                    counts.packet_leaf_rays += u64::from(lanes.count_ones());
+                    counts.packet_triangle_rays +=
+                        u64::from(lanes.count_ones() * triangles.count_ones());
+                }
+            });
+            let base = group_index as u32 * GROUP_LANES as u32;
+            let write = |triangle_lane: usize, hits: [u32; 2]| {
+                let slot = base + triangle_lane as u32;
+                for (closest, mut hits) in closest.iter_mut().zip(hits) {
+                    while hits != 0 {
+                        closest[hits.trailing_zeros() as usize] = Some(slot);
+                        hits &= hits - 1;
+                    }
+                }
+            };
+            // SAFETY: `AVX2` is set only by walks compiled for AVX2 or AVX-512, entered only on
+            // CPUs with them.
+            unsafe {
+                crate::accel::packet::pair_avx2::group_pair(
+                    &groups[group_index],
+                    triangles,
+                    packets,
+                    lanes,
+                    write,
+                )
+            };
+            return true;
+        }
+        let _ = (code, packets, lanes, closest);
+        false
     }
 
     /// Tests a leaf's primitives against the packet's `lanes`; lanes that hit get their
