@@ -12,6 +12,9 @@ use crate::accel::walk::{ORDER, SLAB_ERROR, TraversalRay, TraversalStack, prefet
 use crate::accel::wide_bvh::{LEAF_BIT, WideNode};
 use glam::{Vec3A, Vec4};
 
+#[cfg(target_arch = "x86_64")]
+mod fill_avx2;
+
 /// Most rays in a frustum packet (an 8x8 block of primary rays).
 pub const FRUSTUM_RAYS: usize = 64;
 const FRUSTUM_GROUPS: usize = FRUSTUM_RAYS / LANES;
@@ -48,29 +51,6 @@ impl RayBounds {
         origin_centre: Vec3A::ZERO,
         widening: Vec3A::ZERO,
     };
-
-    /// Bounds of the `lanes` of `group` (active ones only); `shared_origin`, when every ray
-    /// starts there, spares the origins' reduction.
-    fn of_group(group: &RayPacket, lanes: u32, shared_origin: Option<Vec3A>) -> RayBounds {
-        let active = lane_mask(group.lanes & lanes);
-        let low = |values: Vec4| Vec4::select(active, values, Vec4::INFINITY).min_element();
-        let high = |values: Vec4| Vec4::select(active, values, Vec4::NEG_INFINITY).max_element();
-        let lows = |values: &[Vec4; 3]| Vec3A::new(low(values[0]), low(values[1]), low(values[2]));
-        let highs =
-            |values: &[Vec4; 3]| Vec3A::new(high(values[0]), high(values[1]), high(values[2]));
-        let (origin_low, origin_high) = match shared_origin {
-            Some(origin) => (origin, origin),
-            None => (lows(&group.origin), highs(&group.origin)),
-        };
-        RayBounds {
-            inv_low: lows(&group.inv_direction),
-            inv_high: highs(&group.inv_direction),
-            origin_low,
-            origin_high,
-            t_min_low: low(group.t_min),
-            ..RayBounds::EMPTY
-        }
-    }
 
     fn union(self, other: RayBounds) -> RayBounds {
         RayBounds {
@@ -117,19 +97,68 @@ fn bounds_into(
 ) {
     *whole = RayBounds::EMPTY;
     for (quadrant, members) in quadrants.iter_mut().zip(QUADRANT_GROUPS) {
-        *quadrant = RayBounds::EMPTY;
-        for group in members {
-            if let Some(packet) = groups.get(group)
-                && packet.lanes & active[group] != 0
-            {
-                *quadrant =
-                    quadrant.union(RayBounds::of_group(packet, active[group], shared_origin));
-            }
-        }
+        *quadrant = quadrant_bounds(groups, members, active, shared_origin);
         *whole = whole.union(*quadrant);
         *quadrant = quadrant.finished();
     }
     *whole = whole.finished();
+}
+
+/// Ray bounds of the `active` lanes of the `members` groups (unfinished). The groups' vectors
+/// are reduced lane by lane first and across lanes once at the end: a minimum or maximum does
+/// not depend on the order it is taken in, so these are the bounds group by group would give.
+#[inline(always)]
+fn quadrant_bounds(
+    groups: &[RayPacket],
+    members: [usize; 4],
+    active: &[u32; FRUSTUM_GROUPS],
+    shared_origin: Option<Vec3A>,
+) -> RayBounds {
+    let mut inv_low = [Vec4::INFINITY; 3];
+    let mut inv_high = [Vec4::NEG_INFINITY; 3];
+    let mut origin_low = [Vec4::INFINITY; 3];
+    let mut origin_high = [Vec4::NEG_INFINITY; 3];
+    let mut t_min_low = Vec4::INFINITY;
+    let mut any = false;
+    for group in members {
+        let Some(packet) = groups.get(group) else {
+            continue;
+        };
+        let lanes = packet.lanes & active[group];
+        if lanes == 0 {
+            continue;
+        }
+        any = true;
+        let mask = lane_mask(lanes);
+        let low = |values: Vec4| Vec4::select(mask, values, Vec4::INFINITY);
+        let high = |values: Vec4| Vec4::select(mask, values, Vec4::NEG_INFINITY);
+        for axis in 0..3 {
+            inv_low[axis] = inv_low[axis].min(low(packet.inv_direction[axis]));
+            inv_high[axis] = inv_high[axis].max(high(packet.inv_direction[axis]));
+            if shared_origin.is_none() {
+                origin_low[axis] = origin_low[axis].min(low(packet.origin[axis]));
+                origin_high[axis] = origin_high[axis].max(high(packet.origin[axis]));
+            }
+        }
+        t_min_low = t_min_low.min(low(packet.t_min));
+    }
+    if !any {
+        return RayBounds::EMPTY;
+    }
+    let lows = |values: [Vec4; 3]| values.map(Vec4::min_element).into();
+    let highs = |values: [Vec4; 3]| values.map(Vec4::max_element).into();
+    let (origin_low, origin_high) = match shared_origin {
+        Some(origin) => (origin, origin),
+        None => (lows(origin_low), highs(origin_high)),
+    };
+    RayBounds {
+        inv_low: lows(inv_low),
+        inv_high: highs(inv_high),
+        origin_low,
+        origin_high,
+        t_min_low: t_min_low.min_element(),
+        ..RayBounds::EMPTY
+    }
 }
 
 /// Whether the rays added so far all start at one point.
@@ -278,6 +307,33 @@ impl FrustumPacket {
             |group| RayPacket::prepare_arrays(arrays, group),
             |index| prepare_one(&arrays.ray(index)).is_some(),
         )
+    }
+
+    /// [`Self::fill_from_arrays`]; `AVX2`: eight lanes at a time, writing the groups in place
+    /// (only inside an AVX2 or AVX-512 function): the same packet, value for value.
+    #[inline(always)]
+    pub fn fill_from_arrays_on<const AVX2: bool>(&mut self, arrays: &RayArrays) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 {
+            // SAFETY: `AVX2` is set only by functions compiled for AVX2 or AVX-512, entered
+            // only on CPUs with them.
+            return unsafe { fill_avx2::fill_from_arrays(self, arrays) };
+        }
+        self.fill_from_arrays(arrays)
+    }
+
+    /// [`Self::fill_from_rays`]; `AVX2`: a full packet's rays turned into lanes eight at a time
+    /// and filled as [`Self::fill_from_arrays_on`] does (only inside an AVX2 or AVX-512
+    /// function): the same packet, value for value.
+    #[inline(always)]
+    pub fn fill_from_rays_on<const AVX2: bool>(&mut self, rays: &[Ray]) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if AVX2 && let Ok(rays) = <&[Ray; FRUSTUM_RAYS]>::try_from(rays) {
+            // SAFETY: `AVX2` is set only by functions compiled for AVX2 or AVX-512, entered
+            // only on CPUs with them.
+            return unsafe { fill_avx2::fill_from_rays(self, rays) };
+        }
+        self.fill_from_rays(rays)
     }
 
     /// Fills `count` rays group by group: `prepare_group(g)` prepares group `g`, and when it

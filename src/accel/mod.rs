@@ -75,7 +75,9 @@ use glam::{Vec2, Vec3};
 use std::sync::Arc;
 
 /// A ray segment `origin + t * direction` for `t` in `[t_min, t_max]` (both inclusive).
+/// Laid out as eight floats in this order, so packets load rays eight floats at a time.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Ray {
     pub origin: Vec3,
     /// Unit length, so that `t` is a distance.

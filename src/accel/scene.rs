@@ -516,9 +516,48 @@ impl SceneBvh {
         rays: &[Ray],
         hits: &mut [Option<SceneHit>],
     ) {
+        #[cfg(target_arch = "x86_64")]
+        use crate::isa::Isa;
+        match crate::isa::selected() {
+            // SAFETY: a path is selected only on CPUs that have it (`crate::isa`).
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => unsafe { self.intersect_rays_avx512(scratch, rays, hits) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { self.intersect_rays_avx2(scratch, rays, hits) },
+            _ => self.intersect_rays_on::<false>(scratch, rays, hits),
+        }
+    }
+
+    crate::isa::avx2_and_avx512! {
+        /// [`Self::intersect_packet_with`] compiled for AVX2 (or AVX-512) as a whole, as
+        /// [`Self::intersect_arrays_avx2`].
+        ///
+        /// # Safety
+        /// The CPU has the path's features.
+        #[inline(never)]
+        unsafe fn [intersect_rays_avx2, intersect_rays_avx512](
+            &self,
+            scratch: &mut PacketScratch,
+            rays: &[Ray],
+            hits: &mut [Option<SceneHit>],
+        ) {
+            self.intersect_rays_on::<true>(scratch, rays, hits);
+        }
+    }
+
+    /// The body of [`Self::intersect_packet_with`]; `AVX2`: inside a function compiled for AVX2
+    /// or AVX-512.
+    #[inline(always)]
+    fn intersect_rays_on<const AVX2: bool>(
+        &self,
+        scratch: &mut PacketScratch,
+        rays: &[Ray],
+        hits: &mut [Option<SceneHit>],
+    ) {
         let frustum = &mut scratch.frustum;
         for (rays, hits) in rays.chunks(FRUSTUM_RAYS).zip(hits.chunks_mut(FRUSTUM_RAYS)) {
-            if frustum.fill_from_rays(rays) {
+            if frustum.fill_from_rays_on::<AVX2>(rays) {
                 self.frustum_hits(frustum, hits);
             } else {
                 self.small_packet_hits(rays, hits);
@@ -534,8 +573,48 @@ impl SceneBvh {
         arrays: &RayArrays,
         hits: &mut [Option<SceneHit>; FRUSTUM_RAYS],
     ) {
+        #[cfg(target_arch = "x86_64")]
+        use crate::isa::Isa;
+        match crate::isa::selected() {
+            // SAFETY: a path is selected only on CPUs that have it (`crate::isa`).
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => unsafe { self.intersect_arrays_avx512(scratch, arrays, hits) },
+            // SAFETY: as above.
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { self.intersect_arrays_avx2(scratch, arrays, hits) },
+            _ => self.intersect_arrays_on::<false>(scratch, arrays, hits),
+        }
+    }
+
+    crate::isa::avx2_and_avx512! {
+        /// [`Self::intersect_arrays_with`] compiled for AVX2 (or AVX-512) as a whole: the
+        /// packet's fill, bounds and hit records in VEX code. The same operations in the same
+        /// order (no fused multiply-adds), so the same hits.
+        ///
+        /// # Safety
+        /// The CPU has the path's features.
+        #[inline(never)]
+        unsafe fn [intersect_arrays_avx2, intersect_arrays_avx512](
+            &self,
+            scratch: &mut PacketScratch,
+            arrays: &RayArrays,
+            hits: &mut [Option<SceneHit>; FRUSTUM_RAYS],
+        ) {
+            self.intersect_arrays_on::<true>(scratch, arrays, hits);
+        }
+    }
+
+    /// The body of [`Self::intersect_arrays_with`]; `AVX2`: inside a function compiled for AVX2
+    /// or AVX-512.
+    #[inline(always)]
+    fn intersect_arrays_on<const AVX2: bool>(
+        &self,
+        scratch: &mut PacketScratch,
+        arrays: &RayArrays,
+        hits: &mut [Option<SceneHit>; FRUSTUM_RAYS],
+    ) {
         let frustum = &mut scratch.frustum;
-        if frustum.fill_from_arrays(arrays) {
+        if frustum.fill_from_arrays_on::<AVX2>(arrays) {
             self.frustum_hits(frustum, hits);
         } else {
             let rays: [Ray; FRUSTUM_RAYS] = std::array::from_fn(|lane| arrays.ray(lane));

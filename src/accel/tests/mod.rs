@@ -22,33 +22,33 @@ use glam::{Affine3A, Quat, UVec3, UVec4, Vec3, Vec3A, vec3};
 use std::sync::Arc;
 
 /// Small deterministic generator (xorshift64*), so failures reproduce.
-struct Rng(u64);
+pub(super) struct Rng(u64);
 
 impl Rng {
-    fn new(seed: u64) -> Rng {
+    pub(super) fn new(seed: u64) -> Rng {
         Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
     }
-    fn next_u64(&mut self) -> u64 {
+    pub(super) fn next_u64(&mut self) -> u64 {
         self.0 ^= self.0 >> 12;
         self.0 ^= self.0 << 25;
         self.0 ^= self.0 >> 27;
         self.0.wrapping_mul(0x2545_F491_4F6C_DD1D)
     }
     /// Uniform in [0, 1).
-    fn unit(&mut self) -> f32 {
+    pub(super) fn unit(&mut self) -> f32 {
         (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
     }
-    fn range(&mut self, low: f32, high: f32) -> f32 {
+    pub(super) fn range(&mut self, low: f32, high: f32) -> f32 {
         low + (high - low) * self.unit()
     }
-    fn point(&mut self, low: f32, high: f32) -> Vec3 {
+    pub(super) fn point(&mut self, low: f32, high: f32) -> Vec3 {
         vec3(
             self.range(low, high),
             self.range(low, high),
             self.range(low, high),
         )
     }
-    fn direction(&mut self) -> Vec3 {
+    pub(super) fn direction(&mut self) -> Vec3 {
         loop {
             let v = self.point(-1.0, 1.0);
             let length = v.length();

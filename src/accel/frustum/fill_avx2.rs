@@ -1,0 +1,624 @@
+//! [`FrustumPacket::fill_from_arrays`] with AVX2, for the frame's blocks: two groups of four per
+//! vector, written straight into the packet's groups, and the quadrants' bounds reduced while
+//! the lanes are in registers. Lane by lane the operations of `RayPacket::prepare_lanes`, in
+//! the same order and with the same operand order (no fused multiply-add), so every value of
+//! the packet is the one the four-lane fill gives; the bounds are minima and maxima of the same
+//! values, which do not depend on the order they are taken in.
+
+use super::{FRUSTUM_GROUPS, FRUSTUM_RAYS, FrustumPacket, QUADRANTS, RayArrays, RayBounds};
+use crate::accel::geometry::prepare as prepare_one;
+use crate::accel::packet::LANES;
+use crate::accel::walk::MAX_INV_DIRECTION;
+use crate::accel::{MAX_COORDINATE, Ray};
+use glam::{Vec3A, Vec4};
+use std::arch::x86_64::*;
+
+/// The two pairs of groups (eight lanes each) making quadrant `q`: groups 2p and 2p + 1.
+const QUADRANT_PAIRS: [[usize; 2]; QUADRANTS] = [[0, 2], [1, 3], [4, 6], [5, 7]];
+
+/// Eight lanes of a block's value array, from lane `8 * pair`.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn lanes_of(values: &[f32; 64], pair: usize) -> __m256 {
+    let lanes = &values[8 * pair..8 * pair + 8];
+    // SAFETY: `lanes` holds eight floats (the slice above is bounds-checked).
+    unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
+}
+
+#[target_feature(enable = "avx2")]
+#[inline]
+fn abs(values: __m256) -> __m256 {
+    _mm256_andnot_ps(_mm256_set1_ps(-0.0), values)
+}
+
+/// `Vec4::select`'s bit operations on eight lanes.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn select(mask: __m256, if_true: __m256, if_false: __m256) -> __m256 {
+    _mm256_or_ps(
+        _mm256_andnot_ps(mask, if_false),
+        _mm256_and_ps(if_true, mask),
+    )
+}
+
+/// Lanes 4h … 4h + 3 of `values`.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn half(values: __m256, h: usize) -> Vec4 {
+    Vec4::from(match h {
+        0 => _mm256_castps256_ps128(values),
+        _ => _mm256_extractf128_ps::<1>(values),
+    })
+}
+
+#[target_feature(enable = "avx2")]
+#[inline]
+fn smallest(values: __m256) -> f32 {
+    let four = _mm_min_ps(
+        _mm256_castps256_ps128(values),
+        _mm256_extractf128_ps::<1>(values),
+    );
+    Vec4::from(four).min_element()
+}
+
+#[target_feature(enable = "avx2")]
+#[inline]
+fn largest(values: __m256) -> f32 {
+    let four = _mm_max_ps(
+        _mm256_castps256_ps128(values),
+        _mm256_extractf128_ps::<1>(values),
+    );
+    Vec4::from(four).max_element()
+}
+
+/// Rays turned into lane arrays ([`RayArrays`]), eight at a time.
+struct LaneArrays {
+    origin: [[f32; FRUSTUM_RAYS]; 3],
+    direction: [[f32; FRUSTUM_RAYS]; 3],
+    t_min: [f32; FRUSTUM_RAYS],
+    t_max: [f32; FRUSTUM_RAYS],
+}
+
+/// [`FrustumPacket::fill_from_rays`] of a full packet on the AVX2 path: each eight rays'
+/// floats transposed into lanes, then [`fill_from_arrays`] (which makes the packet the
+/// four-lane fill makes of the same rays).
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn fill_from_rays(packet: &mut FrustumPacket, rays: &[Ray; FRUSTUM_RAYS]) -> bool {
+    let mut lanes = LaneArrays {
+        origin: [[0.0; FRUSTUM_RAYS]; 3],
+        direction: [[0.0; FRUSTUM_RAYS]; 3],
+        t_min: [0.0; FRUSTUM_RAYS],
+        t_max: [0.0; FRUSTUM_RAYS],
+    };
+    for (pair, eight) in rays.as_chunks::<8>().0.iter().enumerate() {
+        // SAFETY: `Ray` is `repr(C)`, eight `f32`s (asserted below), so each ray is one
+        // unaligned 32-byte load.
+        let rows = eight
+            .each_ref()
+            .map(|ray| unsafe { _mm256_loadu_ps(std::ptr::from_ref(ray).cast::<f32>()) });
+        let columns = transposed(rows);
+        let lanes_at = 8 * pair..8 * pair + 8;
+        let store = |target: &mut [f32; FRUSTUM_RAYS], column: __m256| {
+            let target = &mut target[lanes_at.clone()];
+            // SAFETY: `target` holds eight floats (the slice above is bounds-checked).
+            unsafe { _mm256_storeu_ps(target.as_mut_ptr(), column) };
+        };
+        for axis in 0..3 {
+            store(&mut lanes.origin[axis], columns[axis]);
+            store(&mut lanes.direction[axis], columns[3 + axis]);
+        }
+        store(&mut lanes.t_min, columns[6]);
+        store(&mut lanes.t_max, columns[7]);
+    }
+    let arrays = RayArrays {
+        origin: &lanes.origin,
+        direction: &lanes.direction,
+        t_min: &lanes.t_min,
+        t_max: &lanes.t_max,
+    };
+    fill_from_arrays(packet, &arrays)
+}
+
+const _: () = assert!(
+    size_of::<Ray>() == 32
+        && std::mem::offset_of!(Ray, direction) == 12
+        && std::mem::offset_of!(Ray, t_min) == 24
+        && std::mem::offset_of!(Ray, t_max) == 28
+);
+
+/// An 8×8 block of floats transposed: column `k` of the result holds float `k` of each row.
+#[target_feature(enable = "avx2")]
+#[inline]
+fn transposed(rows: [__m256; 8]) -> [__m256; 8] {
+    let [r0, r1, r2, r3, r4, r5, r6, r7] = rows;
+    // Pairs of rows interleaved, then quarters of four rows, then halves across 128-bit lanes.
+    let (a0, a1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
+    let (a2, a3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
+    let (a4, a5) = (_mm256_unpacklo_ps(r4, r5), _mm256_unpackhi_ps(r4, r5));
+    let (a6, a7) = (_mm256_unpacklo_ps(r6, r7), _mm256_unpackhi_ps(r6, r7));
+    let b0 = _mm256_shuffle_ps::<0x44>(a0, a2);
+    let b1 = _mm256_shuffle_ps::<0xee>(a0, a2);
+    let b2 = _mm256_shuffle_ps::<0x44>(a1, a3);
+    let b3 = _mm256_shuffle_ps::<0xee>(a1, a3);
+    let b4 = _mm256_shuffle_ps::<0x44>(a4, a6);
+    let b5 = _mm256_shuffle_ps::<0xee>(a4, a6);
+    let b6 = _mm256_shuffle_ps::<0x44>(a5, a7);
+    let b7 = _mm256_shuffle_ps::<0xee>(a5, a7);
+    [
+        _mm256_permute2f128_ps::<0x20>(b0, b4),
+        _mm256_permute2f128_ps::<0x20>(b1, b5),
+        _mm256_permute2f128_ps::<0x20>(b2, b6),
+        _mm256_permute2f128_ps::<0x20>(b3, b7),
+        _mm256_permute2f128_ps::<0x31>(b0, b4),
+        _mm256_permute2f128_ps::<0x31>(b1, b5),
+        _mm256_permute2f128_ps::<0x31>(b2, b6),
+        _mm256_permute2f128_ps::<0x31>(b3, b7),
+    ]
+}
+
+/// Per lane, lows and highs of what a quadrant's bounds take (inactive lanes ±∞).
+struct LaneBounds {
+    inv_low: [__m256; 3],
+    inv_high: [__m256; 3],
+    origin_low: [__m256; 3],
+    origin_high: [__m256; 3],
+    t_min_low: __m256,
+}
+
+/// [`FrustumPacket::fill_from_arrays`] on the AVX2 path: the same packet, value for value, and
+/// the same answer.
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -> bool {
+    let infinity = _mm256_set1_ps(f32::INFINITY);
+    let negative_infinity = _mm256_set1_ps(f32::NEG_INFINITY);
+    let max_coordinate = _mm256_set1_ps(MAX_COORDINATE);
+    let tiny = _mm256_set1_ps(1.0 / MAX_INV_DIRECTION);
+    let zero = _mm256_setzero_ps();
+    let one = _mm256_set1_ps(1.0);
+    let all_ones = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+    let mut octant: Option<u32> = None;
+    let mut valid_lanes = 0u64;
+    let mut quadrants = [RayBounds::EMPTY; QUADRANTS];
+    let mut holds_rays = [false; QUADRANTS];
+    packet.group_count = FRUSTUM_GROUPS;
+    for ((quadrant, holds_rays), pairs) in quadrants
+        .iter_mut()
+        .zip(&mut holds_rays)
+        .zip(QUADRANT_PAIRS)
+    {
+        let mut lane_bounds = LaneBounds {
+            inv_low: [infinity; 3],
+            inv_high: [negative_infinity; 3],
+            origin_low: [infinity; 3],
+            origin_high: [negative_infinity; 3],
+            t_min_low: infinity,
+        };
+        for pair in pairs {
+            let origin = arrays.origin.each_ref().map(|axis| lanes_of(axis, pair));
+            let direction = arrays.direction.each_ref().map(|axis| lanes_of(axis, pair));
+            let t_min = lanes_of(arrays.t_min, pair);
+            let t_max = lanes_of(arrays.t_max, pair);
+            let finite = |v: &[__m256; 3]| {
+                let each = v.map(|axis| _mm256_cmp_ps::<_CMP_LT_OQ>(abs(axis), infinity));
+                _mm256_and_ps(_mm256_and_ps(each[0], each[1]), each[2])
+            };
+            let abs_origin = origin.map(|v| abs(v));
+            let abs_direction = direction.map(|v| abs(v));
+            let longest = _mm256_max_ps(
+                _mm256_max_ps(abs_direction[0], abs_direction[1]),
+                abs_direction[2],
+            );
+            let nearest_origin =
+                _mm256_max_ps(_mm256_max_ps(abs_origin[0], abs_origin[1]), abs_origin[2]);
+            let valid = _mm256_and_ps(
+                _mm256_and_ps(
+                    _mm256_and_ps(
+                        _mm256_and_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(t_min, t_max), finite(&origin)),
+                        _mm256_cmp_ps::<_CMP_LE_OQ>(nearest_origin, max_coordinate),
+                    ),
+                    finite(&direction),
+                ),
+                _mm256_cmp_ps::<_CMP_GE_OQ>(longest, tiny),
+            );
+            let valid_bits = _mm256_movemask_ps(valid) as u32;
+            valid_lanes |= u64::from(valid_bits) << (8 * pair);
+            let negative = direction.map(|d| _mm256_cmp_ps::<_CMP_LT_OQ>(d, zero));
+            let inverse = [0, 1, 2].map(|axis| {
+                let clamped = select(
+                    negative[axis],
+                    _mm256_set1_ps(-MAX_INV_DIRECTION),
+                    _mm256_set1_ps(MAX_INV_DIRECTION),
+                );
+                select(
+                    _mm256_cmp_ps::<_CMP_LT_OQ>(abs_direction[axis], tiny),
+                    clamped,
+                    _mm256_div_ps(one, direction[axis]),
+                )
+            });
+            let negative_bits = negative.map(|mask| _mm256_movemask_ps(mask) as u32);
+            let [ax, ay, az] = abs_direction;
+            let x_dominant = _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_GE_OQ>(ax, ay),
+                _mm256_cmp_ps::<_CMP_GE_OQ>(ax, az),
+            );
+            let y_dominant = _mm256_and_ps(
+                _mm256_xor_ps(x_dominant, all_ones),
+                _mm256_cmp_ps::<_CMP_GE_OQ>(ay, az),
+            );
+            let (x_bits, y_bits) = (
+                _mm256_movemask_ps(x_dominant) as u32,
+                _mm256_movemask_ps(y_dominant) as u32,
+            );
+            for h in 0..2 {
+                let group_index = 2 * pair + h;
+                let lanes = (valid_bits >> (LANES * h)) & 0xf;
+                if lanes == 0 {
+                    // No valid ray: as in the four-lane fill, the group is left out unless a
+                    // ray of it could be traced alone (then there is no frustum packet).
+                    let first = LANES * group_index;
+                    if (first..first + LANES).any(|index| prepare_one(&arrays.ray(index)).is_some())
+                    {
+                        return false;
+                    }
+                    packet.groups[group_index].reset();
+                    continue;
+                }
+                let negative_bits = negative_bits.map(|bits| (bits >> (LANES * h)) & lanes);
+                if negative_bits
+                    .iter()
+                    .any(|bits| *bits != 0 && *bits != lanes)
+                {
+                    return false;
+                }
+                let octant_inv = (if negative_bits[0] != 0 { 0 } else { 4 })
+                    | (if negative_bits[1] != 0 { 0 } else { 2 })
+                    | (if negative_bits[2] != 0 { 0 } else { 1 });
+                let (x_lanes, y_lanes) = (
+                    (x_bits >> (LANES * h)) & lanes,
+                    (y_bits >> (LANES * h)) & lanes,
+                );
+                let kz = if x_lanes == lanes {
+                    0
+                } else if y_lanes == lanes {
+                    1
+                } else if x_lanes | y_lanes == 0 {
+                    2
+                } else {
+                    return false;
+                };
+                if *octant.get_or_insert(octant_inv) != octant_inv {
+                    return false;
+                }
+                let kx = (kz + 1) % 3;
+                let ky = (kx + 1) % 3;
+                // Written field by field from the registers: building the arrays first and
+                // copying them stalled on every copy (wide loads of narrow stores).
+                let group = &mut packet.groups[group_index];
+                for axis in 0..3 {
+                    group.origin[axis] = half(origin[axis], h);
+                    group.direction[axis] = half(direction[axis], h);
+                    group.inv_direction[axis] = half(inverse[axis], h);
+                }
+                group.t_min = half(select(valid, t_min, infinity), h);
+                group.t_max = half(select(valid, t_max, negative_infinity), h);
+                group.hit_uv = [Vec4::ZERO; 2];
+                group.hit_normal = [Vec4::ZERO; 3];
+                group.octant_inv = octant_inv;
+                group.shear_axes = [kx, ky, kz];
+                let inv_dominant = half(inverse[kz], h);
+                group.shear[0] = half(direction[kx], h) * inv_dominant;
+                group.shear[1] = half(direction[ky], h) * inv_dominant;
+                group.shear[2] = inv_dominant;
+                for (permuted, axis) in [kx, ky, kz].into_iter().enumerate() {
+                    group.permuted_origin[permuted] = half(origin[axis], h);
+                }
+                group.lanes = lanes;
+            }
+            // Bounds over the valid lanes (groups without one were reset: no lane of theirs
+            // is valid either).
+            for axis in 0..3 {
+                let b = &mut lane_bounds;
+                b.inv_low[axis] =
+                    _mm256_min_ps(b.inv_low[axis], select(valid, inverse[axis], infinity));
+                b.inv_high[axis] = _mm256_max_ps(
+                    b.inv_high[axis],
+                    select(valid, inverse[axis], negative_infinity),
+                );
+                b.origin_low[axis] =
+                    _mm256_min_ps(b.origin_low[axis], select(valid, origin[axis], infinity));
+                b.origin_high[axis] = _mm256_max_ps(
+                    b.origin_high[axis],
+                    select(valid, origin[axis], negative_infinity),
+                );
+            }
+            lane_bounds.t_min_low =
+                _mm256_min_ps(lane_bounds.t_min_low, select(valid, t_min, infinity));
+        }
+        let quadrant_lanes = pairs.iter().fold(0, |lanes, pair| {
+            lanes | ((valid_lanes >> (8 * pair)) & 0xff)
+        });
+        if quadrant_lanes != 0 {
+            *holds_rays = true;
+            let b = &lane_bounds;
+            *quadrant = RayBounds {
+                inv_low: Vec3A::from(b.inv_low.map(|v| smallest(v))),
+                inv_high: Vec3A::from(b.inv_high.map(|v| largest(v))),
+                origin_low: Vec3A::from(b.origin_low.map(|v| smallest(v))),
+                origin_high: Vec3A::from(b.origin_high.map(|v| largest(v))),
+                t_min_low: smallest(b.t_min_low),
+                ..RayBounds::EMPTY
+            };
+        }
+    }
+    let Some(octant_inv) = octant else {
+        return false;
+    };
+    packet.octant_inv = octant_inv;
+    // One shared origin: every valid lane's equals the first valid lane's (compared as the
+    // four-lane fill does, `==` per axis), which is then each quadrant's origin bounds.
+    let first = valid_lanes.trailing_zeros() as usize;
+    let first_origin = arrays.origin.each_ref().map(|axis| axis[first]);
+    let mut differ = false;
+    for pair in 0..8 {
+        let valid = ((valid_lanes >> (8 * pair)) & 0xff) as u32;
+        let mut same = all_ones;
+        for (axis, values) in arrays.origin.iter().enumerate() {
+            let equal = _mm256_cmp_ps::<_CMP_EQ_OQ>(
+                lanes_of(values, pair),
+                _mm256_set1_ps(first_origin[axis]),
+            );
+            same = _mm256_and_ps(same, equal);
+        }
+        differ |= valid & !(_mm256_movemask_ps(same) as u32) != 0;
+    }
+    let shared = (!differ).then(|| Vec3A::from(first_origin));
+    let mut whole = RayBounds::EMPTY;
+    for (quadrant, holds_rays) in quadrants.iter_mut().zip(holds_rays) {
+        if let Some(origin) = shared
+            && holds_rays
+        {
+            quadrant.origin_low = origin;
+            quadrant.origin_high = origin;
+        }
+        whole = whole.union(*quadrant);
+        *quadrant = quadrant.finished();
+    }
+    packet.whole = whole.finished();
+    packet.quadrants = quadrants;
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::accel::packet::RayPacket;
+    use crate::accel::tests::Rng;
+    use glam::Vec3;
+
+    /// A block's lane arrays, owned.
+    struct Block {
+        origin: [[f32; FRUSTUM_RAYS]; 3],
+        direction: [[f32; FRUSTUM_RAYS]; 3],
+        t_min: [f32; FRUSTUM_RAYS],
+        t_max: [f32; FRUSTUM_RAYS],
+    }
+
+    impl Block {
+        fn arrays(&self) -> RayArrays<'_> {
+            RayArrays {
+                origin: &self.origin,
+                direction: &self.direction,
+                t_min: &self.t_min,
+                t_max: &self.t_max,
+            }
+        }
+
+        fn set(&mut self, lane: usize, origin: Vec3, direction: Vec3) {
+            for axis in 0..3 {
+                self.origin[axis][lane] = origin[axis];
+                self.direction[axis][lane] = direction[axis];
+            }
+        }
+    }
+
+    /// A block of kind `kind % 8`: a pinhole's rays, several origins, mixed octants, invalid
+    /// lanes and groups, tiny and zero direction components, dominant-axis ties, nothing valid.
+    fn random_block(rng: &mut Rng, kind: u32) -> Block {
+        let mut block = Block {
+            origin: [[0.0; FRUSTUM_RAYS]; 3],
+            direction: [[0.0; FRUSTUM_RAYS]; 3],
+            t_min: [0.0; FRUSTUM_RAYS],
+            t_max: [f32::INFINITY; FRUSTUM_RAYS],
+        };
+        let eye = rng.point(-3.0, 3.0);
+        let centre = rng.direction();
+        for lane in 0..FRUSTUM_RAYS {
+            let spread = if kind % 8 == 2 { 2.0 } else { 0.05 };
+            let direction = centre + spread * rng.point(-1.0, 1.0);
+            let origin = match kind % 8 {
+                1 => eye + rng.point(-0.1, 0.1),
+                _ => eye,
+            };
+            block.set(lane, origin, direction);
+            block.t_min[lane] = if kind % 8 == 1 {
+                rng.range(0.0, 0.5)
+            } else {
+                0.0
+            };
+        }
+        let invalid = [
+            (Vec3::new(f32::NAN, 0.0, 0.0), Vec3::X),
+            (Vec3::new(0.0, f32::INFINITY, 0.0), Vec3::X),
+            (Vec3::splat(2.0e12), Vec3::X),
+            (Vec3::ZERO, Vec3::new(0.0, f32::NAN, 1.0)),
+            (Vec3::ZERO, Vec3::ZERO),
+            (Vec3::ZERO, Vec3::splat(1.0e-20)),
+        ];
+        match kind % 8 {
+            3 => {
+                for _ in 0..1 + rng.next_u64() % 12 {
+                    let lane = (rng.next_u64() % 64) as usize;
+                    let (origin, direction) = invalid[(rng.next_u64() % 6) as usize];
+                    block.set(lane, origin, direction);
+                    if rng.next_u64().is_multiple_of(4) {
+                        block.t_min[lane] = 2.0;
+                        block.t_max[lane] = 1.0;
+                    }
+                }
+            }
+            4 => {
+                // Components below the clamp (or zero), keeping the centre's octant.
+                let axis = (0..3)
+                    .min_by(|a, b| centre[*a].abs().total_cmp(&centre[*b].abs()))
+                    .unwrap_or(0);
+                for _ in 0..1 + rng.next_u64() % 16 {
+                    let lane = (rng.next_u64() % 64) as usize;
+                    let tiny = [0.0, 1.0e-19, 3.0e-18, 1.0 / MAX_INV_DIRECTION]
+                        [(rng.next_u64() % 4) as usize];
+                    block.direction[axis][lane] = match centre[axis] < 0.0 {
+                        true if tiny == 0.0 => -1.0e-30,
+                        true => -tiny,
+                        false => tiny,
+                    };
+                }
+            }
+            5 => {
+                // Every ray's two largest components tie in magnitude.
+                let dominant = (0..3)
+                    .max_by(|a, b| centre[*a].abs().total_cmp(&centre[*b].abs()))
+                    .unwrap_or(0);
+                let other = (dominant + 1 + (rng.next_u64() % 2) as usize) % 3;
+                for lane in 0..FRUSTUM_RAYS {
+                    block.direction[other][lane] =
+                        block.direction[dominant][lane].copysign(centre[other]);
+                }
+            }
+            6 => {
+                let group = (rng.next_u64() % 16) as usize;
+                for lane in 4 * group..4 * group + 4 {
+                    let (origin, direction) = invalid[(rng.next_u64() % 6) as usize];
+                    block.set(lane, origin, direction);
+                }
+            }
+            7 => {
+                for lane in 0..FRUSTUM_RAYS {
+                    block.set(lane, Vec3::ZERO, Vec3::ZERO);
+                }
+            }
+            _ => {}
+        }
+        block
+    }
+
+    fn bits(values: &[Vec4]) -> Vec<u32> {
+        values
+            .iter()
+            .flat_map(|v| v.to_array().map(f32::to_bits))
+            .collect()
+    }
+
+    /// Equal bounds (compared as floats: a bound may be +0 where the other has −0, which no
+    /// box test tells apart).
+    fn same_bounds(a: &RayBounds, b: &RayBounds) -> bool {
+        a.inv_low == b.inv_low
+            && a.inv_high == b.inv_high
+            && a.origin_low == b.origin_low
+            && a.origin_high == b.origin_high
+            && a.t_min_low == b.t_min_low
+            && a.origin_centre == b.origin_centre
+            && a.widening == b.widening
+    }
+
+    fn differences(a: &FrustumPacket, b: &FrustumPacket) -> Vec<String> {
+        let mut found = Vec::new();
+        if (a.group_count, a.octant_inv) != (b.group_count, b.octant_inv) {
+            found.push("group count or octant".to_string());
+        }
+        for (index, (x, y)) in a.groups.iter().zip(&b.groups).enumerate() {
+            let scalars = |p: &RayPacket| (p.lanes, bits(&[p.t_min, p.t_max]));
+            if scalars(x) != scalars(y) {
+                found.push(format!("group {index}: lanes or interval"));
+            }
+            if x.lanes == 0 {
+                continue;
+            }
+            let vectors = |p: &RayPacket| {
+                let mut all = vec![p.octant_inv, p.shear_axes[0] as u32, p.shear_axes[1] as u32];
+                all.extend(bits(&p.origin));
+                all.extend(bits(&p.direction));
+                all.extend(bits(&p.inv_direction));
+                all.extend(bits(&p.hit_uv));
+                all.extend(bits(&p.hit_normal));
+                all.extend(bits(&p.shear));
+                all.extend(bits(&p.permuted_origin));
+                all
+            };
+            if vectors(x) != vectors(y) {
+                found.push(format!("group {index}: rays"));
+            }
+        }
+        for (quadrant, (x, y)) in a.quadrants.iter().zip(&b.quadrants).enumerate() {
+            if !same_bounds(x, y) {
+                found.push(format!("quadrant {quadrant}: {x:?} against {y:?}"));
+            }
+        }
+        if !same_bounds(&a.whole, &b.whole) {
+            found.push(format!("whole: {:?} against {:?}", a.whole, b.whole));
+        }
+        found
+    }
+
+    #[test]
+    fn the_avx2_fills_make_the_packets_of_the_four_lane_fills() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            return;
+        }
+        let mut rng = Rng::new(31);
+        // Reused from block to block, as a frame's scratch is.
+        let (mut plain, mut wide) = (FrustumPacket::empty(), FrustumPacket::empty());
+        let (mut filled, mut refused) = ([0; 8], 0);
+        for case in 0..4000 {
+            let block = random_block(&mut rng, case);
+            let expected = plain.fill_from_arrays(&block.arrays());
+            // SAFETY: the CPU has AVX2 (checked above).
+            let answer = unsafe { fill_from_arrays(&mut wide, &block.arrays()) };
+            assert_eq!(answer, expected, "block {case} (kind {})", case % 8);
+            if !expected {
+                refused += 1;
+                continue;
+            }
+            filled[case as usize % 8] += 1;
+            let found = differences(&plain, &wide);
+            assert!(
+                found.is_empty(),
+                "block {case} (kind {}): {found:?}",
+                case % 8
+            );
+            // The same rays as `Ray`s, transposed eight at a time.
+            let rays: [Ray; FRUSTUM_RAYS] = std::array::from_fn(|lane| block.arrays().ray(lane));
+            assert!(plain.fill_from_rays(&rays), "block {case}");
+            // SAFETY: as above.
+            assert!(unsafe { fill_from_rays(&mut wide, &rays) }, "block {case}");
+            let found = differences(&plain, &wide);
+            assert!(
+                found.is_empty(),
+                "rays of block {case} (kind {}): {found:?}",
+                case % 8
+            );
+            assert!(
+                found.is_empty(),
+                "block {case} (kind {}): {found:?}",
+                case % 8
+            );
+        }
+        // Both answers occur often, and filled packets of every kind but the empty one.
+        assert!(
+            refused > 700 && filled[7] == 0,
+            "{filled:?} filled, {refused} refused"
+        );
+        let every_kind = [0, 1, 3, 4, 5, 6].iter().all(|kind| filled[*kind] > 100);
+        assert!(every_kind, "{filled:?} filled, {refused} refused");
+    }
+}
