@@ -87,6 +87,18 @@ impl GeometryBvh {
         unsafe { single_ray::test_paths::with_small_stack(&self.nodes, groups, ray) }
     }
 
+    /// For triangles and quads: the closest hit's slot and `t` of the walk of large trees
+    /// (`single_ray::LARGE_TREE_NODES`) run on this one, with the inline stack and with a
+    /// stack of eight entries.
+    pub(crate) fn walks_of_large_trees(&self, ray: &TraversalRay) -> [Option<(u32, f32)>; 2] {
+        let (PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups)) = &self.primitives
+        else {
+            panic!("only triangle and quad BVHs have these walks");
+        };
+        // SAFETY: checked at build (`checked`).
+        unsafe { single_ray::test_paths::with_always_push(&self.nodes, groups, ray) }
+    }
+
     /// FNV-1a over the layout: every node's planes (bits) and child codes, the source ids
     /// per slot (quads: with `QUAD_SECOND_HALF`; padding slots repeat their group's first)
     /// and, for triangles and quads, every group's vertex coordinates (bits).

@@ -519,6 +519,21 @@ pub(crate) fn prefetch_node(node: &WideNode) {
     prefetch(&node.children);
 }
 
+/// Hints the CPU to start loading the cache line of `address`, which may point anywhere (a
+/// prefetch never faults; no-op off x86_64).
+#[inline(always)]
+pub(crate) fn prefetch_address(address: *const u8) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        // SAFETY: SSE is part of the x86_64 baseline, and a prefetch never faults or changes
+        // memory, whatever the address.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(address.cast::<i8>()) }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = address;
+}
+
 /// Hints the CPU to start loading `value`'s cache line (no-op off x86_64).
 #[inline(always)]
 pub(crate) fn prefetch<T>(value: &T) {

@@ -174,6 +174,29 @@ fn single_ray_walks_restart_with_a_larger_stack_and_find_the_same_hits() {
 }
 
 #[test]
+fn the_walk_of_large_trees_finds_the_hits_of_the_walk_of_small_ones() {
+    // The walk that pushes at every node with hits (trees of `LARGE_TREE_NODES` and more) run
+    // on small trees: the same closest hits, ids and `t`, also when its stack restarts.
+    let mut rng = Rng::new(29);
+    let geometries = [
+        GeometryBvh::build(random_triangles(&mut rng, 3000, 6.0, 1.5)),
+        GeometryBvh::build(random_quads(&mut rng, 1500, 6.0, 1.5)),
+    ];
+    let mut hits = 0;
+    for geometry in &geometries {
+        for test_ray in random_rays(&mut rng, 2000, 6.0) {
+            let ray = traversal_ray(&test_ray);
+            let expected = geometry.closest_slot_and_t(&ray);
+            for found in geometry.walks_of_large_trees(&ray) {
+                assert_eq!(found, expected, "{test_ray:?}");
+            }
+            hits += usize::from(expected.is_some());
+        }
+    }
+    assert!(hits > 1000, "{hits}");
+}
+
+#[test]
 fn traversal_ray_rejects_degenerate_input_and_clamps_inverse() {
     let prepared = TraversalRay::new(Vec3A::ZERO, Vec3A::new(0.0, -0.0, 1.0), 0.0, 1.0).unwrap();
     assert!(prepared.inv_direction.is_finite());
