@@ -307,13 +307,19 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
                 group.hit_normal = [Vec4::ZERO; 3];
                 group.octant_inv = octant_inv;
                 group.shear_axes = [kx, ky, kz];
-                let inv_dominant = half(inverse[kz], h);
-                group.shear[0] = half(direction[kx], h) * inv_dominant;
-                group.shear[1] = half(direction[ky], h) * inv_dominant;
+                // The axes in sheared order by constant indices (indexing by `kz` put the
+                // vectors through memory and stalled on reading half of one back).
+                let in_order = |values: &[__m256; 3]| match kz {
+                    0 => [values[1], values[2], values[0]],
+                    1 => [values[2], values[0], values[1]],
+                    _ => *values,
+                };
+                let [direction_x, direction_y, _] = in_order(&direction);
+                let inv_dominant = half(in_order(&inverse)[2], h);
+                group.shear[0] = half(direction_x, h) * inv_dominant;
+                group.shear[1] = half(direction_y, h) * inv_dominant;
                 group.shear[2] = inv_dominant;
-                for (permuted, axis) in [kx, ky, kz].into_iter().enumerate() {
-                    group.permuted_origin[permuted] = half(origin[axis], h);
-                }
+                group.permuted_origin = in_order(&origin).map(|axis| half(axis, h));
                 group.lanes = lanes;
             }
             // Bounds over the valid lanes (groups without one were reset: no lane of theirs
