@@ -125,17 +125,20 @@ impl TileMap for InterleavedTile {
         self.set
     }
 
-    /// A row of points steps `across` pixels along one frame row (from a column that depends
-    /// on the row's parity), cut at the frame's right edge; a row past the top is skipped.
+    /// A row of a lattice whose points step one pixel across (an eye's rows of a
+    /// rowInterleaved frame) is a run of one frame row, cut at the frame's right edge; a row
+    /// past the top is skipped.
     #[inline]
     fn point_row(&self, t: u32) -> Option<PointRow> {
+        if self.steps.across != 1 {
+            return None;
+        }
         let (x, y) = self.pixel(self.s0, t);
-        let step = self.steps.across;
         let count = match y < self.height && x < self.width {
-            true => (self.s1 - self.s0).min((self.width - x).div_ceil(step)),
+            true => (self.s1 - self.s0).min(self.width - x),
             false => 0,
         };
-        Some(PointRow { x, y, count, step })
+        Some(PointRow { x, y, count })
     }
 
     /// A point's column is `across`·s plus a shift by its t's parity, its row `up`·t: both

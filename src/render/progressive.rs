@@ -118,8 +118,8 @@ pub trait TileMap: Copy {
     fn pixels(&self) -> PixelSet {
         PixelSet::All
     }
-    /// The pixels of the tile's row `t` of points as a run of one frame row, when the map
-    /// says so (then the row is written without a map look-up per point).
+    /// The pixels of the tile's row `t` of points as a run of consecutive pixels of one frame
+    /// row, when the map says so (then the row is written in one copy).
     #[inline]
     fn point_row(&self, t: u32) -> Option<PointRow> {
         let _ = t;
@@ -143,14 +143,13 @@ pub trait TileMap: Copy {
     }
 }
 
-/// [`TileMap::point_row`]: the first `count` points of a row of points are pixels x,
-/// x + `step`, x + 2·`step`, … of frame row y; the row's other points are skipped.
+/// [`TileMap::point_row`]: the first `count` points of a row of points are the consecutive
+/// pixels x, x + 1, … of frame row y; the row's other points are skipped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PointRow {
     pub x: u32,
     pub y: u32,
     pub count: u32,
-    pub step: u32,
 }
 
 /// [`TileMap::block_pixels`]: a block's pixel columns for its even and odd rows (counted from

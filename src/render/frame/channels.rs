@@ -350,33 +350,18 @@ impl Channel {
     }
 
     /// [`Channel::write_area`] for `bytes`-byte pixels, row by row: a row of points that is a
-    /// run of one frame row (an interleaved eye's: every pixel, or every other) without a map
-    /// look-up per point, and a run of consecutive pixels in one copy; other rows point by
-    /// point.
+    /// run of consecutive pixels of one frame row (an eye's row of a rowInterleaved frame) in
+    /// one copy, other rows point by point (a map look-up, a bounds check and a store each).
     #[inline(always)]
     fn scatter(&mut self, map: &impl TileMap, frame_width: u32, tile: &[u8], bytes: usize) {
         let area = map.area();
         let row_bytes = (area.s1 - area.s0) as usize * bytes;
         for (t, sources) in (area.t0..area.t1).zip(tile.chunks_exact(row_bytes)) {
-            if let Some(row) = map.point_row(t)
-                && row.count > 0
-            {
+            if let Some(row) = map.point_row(t) {
                 let start = (row.y as usize * frame_width as usize + row.x as usize) * bytes;
-                let (count, step) = (row.count as usize, row.step as usize);
-                let length = ((count - 1) * step + 1) * bytes;
-                let Some(target) = self.bytes.get_mut(start..start + length) else {
-                    continue;
-                };
-                let sources = &sources[..count * bytes];
-                if step == 1 {
-                    target.copy_from_slice(sources);
-                    continue;
-                }
-                for (pixel, source) in target
-                    .chunks_mut(step * bytes)
-                    .zip(sources.chunks_exact(bytes))
-                {
-                    pixel[..bytes].copy_from_slice(source);
+                let length = row.count as usize * bytes;
+                if let Some(target) = self.bytes.get_mut(start..start + length) {
+                    target.copy_from_slice(&sources[..length]);
                 }
                 continue;
             }
