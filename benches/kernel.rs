@@ -29,7 +29,10 @@
 //! still traces the whole frame, so its ratios do not apply). `stride-N`: the points a budgeted
 //! render's refinement level of stride N traces (N = 64, 32, 16, 8, 4, 2; in 8×8 blocks of
 //! lattice points, skipped points as rays that hit nothing). `CAVETRACE_BENCH_REPEAT=n`: the
-//! rays n times over (for the small sparse levels).
+//! rays n times over (for the small sparse levels). `CAVETRACE_BENCH_SHAPE=Q,K,G` (lattices):
+//! blocks of other shapes, `Q` quadrants, `K` groups per quadrant and `G` lanes per group
+//! across (`2,2,2`: the renderer's 8×8 points of 2×2 quads; `4,1,4`: 16×4 points, groups of
+//! 4×1). `CAVETRACE_BENCH_CHUNK=n`: packets of n rays instead of 64.
 //! `CAVETRACE_BENCH_PARTS=...,eights` (only when named): the same 64-ray chunks also as eight
 //! eights through `SceneBvh::intersect8_with`, grouped 4×2 points (two quads side by side) or,
 //! for `columns` and `checker`, 2×4 (`CAVETRACE_BENCH_EIGHTS=4x2|2x4` to choose; `packed`: a
@@ -191,7 +194,10 @@ fn trace(
     counts: &mut TraversalCounts,
 ) -> (f64, f64, u64) {
     let next = AtomicUsize::new(0);
-    let packets = rays.len().div_ceil(64);
+    let chunk_rays: usize = std::env::var("CAVETRACE_BENCH_CHUNK")
+        .ok()
+        .map_or(64, |n| n.parse().expect("CAVETRACE_BENCH_CHUNK: a number"));
+    let packets = rays.len().div_ceil(chunk_rays);
     let (start, cpu_start) = (Instant::now(), cpu_ms());
     let checksum = std::thread::scope(|scope| {
         let workers: Vec<_> = (0..threads)
@@ -207,7 +213,8 @@ fn trace(
                             break (checksum, counters::take());
                         }
                         for packet in first..(first + 16).min(packets) {
-                            let chunk = &rays[packet * 64..((packet + 1) * 64).min(rays.len())];
+                            let chunk = &rays
+                                [packet * chunk_rays..((packet + 1) * chunk_rays).min(rays.len())];
                             match walk {
                                 Walk::OneByOne => {
                                     for (hit, ray) in hits.iter_mut().zip(chunk) {
@@ -306,6 +313,55 @@ fn block_point(i: u32) -> (u32, u32) {
     ((quad % 4) * 2 + lane % 2, (quad / 4) * 2 + lane / 2)
 }
 
+/// Ray `i` of a block at another point (`CAVETRACE_BENCH_SHAPE=Q,K,G`, lattices only): the
+/// packet's four quadrants (`QUADRANT_GROUPS`) lie `Q` across, a quadrant's four groups `K`
+/// across, a group's four lanes `G` across (the rest of each of the three 4s down); the block
+/// is then `Q·K·G` points across. `2,2,2` is [`block_point`].
+fn shaped_block_point(
+    i: u32,
+    (quadrants_across, groups_across, lanes_across): Shape,
+) -> (u32, u32) {
+    const QUADRANT_GROUPS: [[u32; 4]; 4] =
+        [[0, 1, 4, 5], [2, 3, 6, 7], [8, 9, 12, 13], [10, 11, 14, 15]];
+    let (group, lane) = (i / 4, i % 4);
+    let (quadrant, k) = (0..4)
+        .find_map(|q| {
+            let at = QUADRANT_GROUPS[q as usize].iter().position(|&g| g == group);
+            at.map(|k| (q, k as u32))
+        })
+        .expect("every group is in a quadrant");
+    let (group_width, group_height) = (lanes_across, 4 / lanes_across);
+    let quadrant_width = groups_across * group_width;
+    let quadrant_height = (4 / groups_across) * group_height;
+    (
+        (quadrant % quadrants_across) * quadrant_width
+            + (k % groups_across) * group_width
+            + lane % lanes_across,
+        (quadrant / quadrants_across) * quadrant_height
+            + (k / groups_across) * group_height
+            + lane / lanes_across,
+    )
+}
+
+/// Quadrants, groups and lanes across (`shaped_block_point`).
+type Shape = (u32, u32, u32);
+
+fn bench_shape() -> Option<Shape> {
+    let shape = std::env::var("CAVETRACE_BENCH_SHAPE").ok()?;
+    let across: Vec<u32> = shape
+        .split(',')
+        .map(|n| {
+            n.trim()
+                .parse()
+                .expect("CAVETRACE_BENCH_SHAPE=Q,K,G: numbers")
+        })
+        .collect();
+    match across[..] {
+        [q, k, g] if [q, k, g].iter().all(|n| [1, 2, 4].contains(n)) => Some((q, k, g)),
+        _ => panic!("CAVETRACE_BENCH_SHAPE={shape}: three of 1, 2, 4"),
+    }
+}
+
 /// The rays of an interleaved stereo frame's eyes (`CAVETRACE_BENCH_LATTICE`), each eye's
 /// pixels as a lattice of 8×8 blocks of 2×2 quads, as the renderer packs them: `rows` (every
 /// other row), `columns` (every other column), `checker` (x + y even): one eye, half the rays,
@@ -341,9 +397,16 @@ fn lattice_rays(rays: Vec<((u32, u32), Ray)>, size: u32, lattice: &str) -> Vec<R
     for ((x, y), ray) in rays {
         by_pixel[(y * size + x) as usize] = Some(ray);
     }
+    let shape = bench_shape();
+    let (block_width, block_height) =
+        shape.map_or((8, 8), |(q, k, g)| (q * k * g, 64 / (q * k * g)));
     let blocks: Vec<(u32, u32)> = (0..height)
-        .step_by(8)
-        .flat_map(|by| (0..width).step_by(8).map(move |bx| (bx, by)))
+        .step_by(block_height as usize)
+        .flat_map(|by| {
+            (0..width)
+                .step_by(block_width as usize)
+                .map(move |bx| (bx, by))
+        })
         .collect();
     let order: Vec<(u32, (u32, u32))> = match pairs {
         true => blocks
@@ -357,7 +420,7 @@ fn lattice_rays(rays: Vec<((u32, u32), Ray)>, size: u32, lattice: &str) -> Vec<R
     let mut lattice_rays = Vec::with_capacity(order.len() * 64);
     for (eye, (bx, by)) in order {
         for i in 0..64 {
-            let (dx, dy) = block_point(i);
+            let (dx, dy) = shape.map_or(block_point(i), |shape| shaped_block_point(i, shape));
             let (x, y) = pixel(bx + dx, by + dy, eye);
             lattice_rays.push(by_pixel[(y * size + x) as usize].expect("a pixel's ray"));
         }

@@ -3,7 +3,7 @@
 //! side by side as in a mono frame.
 
 use crate::camera::PixelSet;
-use crate::render::progressive::{Area, BlockPixels, Lattice, TileMap};
+use crate::render::progressive::{Area, BlockPixels, Lattice, PointRow, TileMap};
 
 /// A rectangle `[s0, s1) × [t0, t1)` of the lattice of one eye's pixels of a `width`×`height`
 /// frame.
@@ -123,6 +123,22 @@ impl TileMap for InterleavedTile {
 
     fn pixels(&self) -> PixelSet {
         self.set
+    }
+
+    /// A row of a lattice whose points step one pixel across (an eye's rows of a
+    /// rowInterleaved frame) is a run of one frame row, cut at the frame's right edge; a row
+    /// past the top is skipped.
+    #[inline]
+    fn point_row(&self, t: u32) -> Option<PointRow> {
+        if self.steps.across != 1 {
+            return None;
+        }
+        let (x, y) = self.pixel(self.s0, t);
+        let count = match y < self.height && x < self.width {
+            true => (self.s1 - self.s0).min(self.width - x),
+            false => 0,
+        };
+        Some(PointRow { x, y, count })
     }
 
     /// A point's column is `across`·s plus a shift by its t's parity, its row `up`·t: both

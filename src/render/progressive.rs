@@ -118,6 +118,13 @@ pub trait TileMap: Copy {
     fn pixels(&self) -> PixelSet {
         PixelSet::All
     }
+    /// The pixels of the tile's row `t` of points as a run of consecutive pixels of one frame
+    /// row, when the map says so (then the row is written in one copy).
+    #[inline]
+    fn point_row(&self, t: u32) -> Option<PointRow> {
+        let _ = t;
+        None
+    }
     /// The pixels of the N×N block of points from (s, t) by column and row, when a point's
     /// pixel column depends only on its s and the parity of its t, and its pixel row only on
     /// its t: the columns of points (s + i, t) and (s + i, t + 1), and the rows of points
@@ -134,6 +141,15 @@ pub trait TileMap: Copy {
             rows,
         })
     }
+}
+
+/// [`TileMap::point_row`]: the first `count` points of a row of points are the consecutive
+/// pixels x, x + 1, … of frame row y; the row's other points are skipped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PointRow {
+    pub x: u32,
+    pub y: u32,
+    pub count: u32,
 }
 
 /// [`TileMap::block_pixels`]: a block's pixel columns for its even and odd rows (counted from

@@ -349,12 +349,22 @@ impl Channel {
         }
     }
 
-    /// [`Channel::write_area`] for `bytes`-byte pixels, row by row.
+    /// [`Channel::write_area`] for `bytes`-byte pixels, row by row: a row of points that is a
+    /// run of consecutive pixels of one frame row (an eye's row of a rowInterleaved frame) in
+    /// one copy, other rows point by point (a map look-up, a bounds check and a store each).
     #[inline(always)]
     fn scatter(&mut self, map: &impl TileMap, frame_width: u32, tile: &[u8], bytes: usize) {
         let area = map.area();
         let row_bytes = (area.s1 - area.s0) as usize * bytes;
         for (t, sources) in (area.t0..area.t1).zip(tile.chunks_exact(row_bytes)) {
+            if let Some(row) = map.point_row(t) {
+                let start = (row.y as usize * frame_width as usize + row.x as usize) * bytes;
+                let length = row.count as usize * bytes;
+                if let Some(target) = self.bytes.get_mut(start..start + length) {
+                    target.copy_from_slice(&sources[..length]);
+                }
+                continue;
+            }
             for (s, source) in (area.s0..).zip(sources.chunks_exact(bytes)) {
                 if map.skips(s, t) {
                     continue;
@@ -570,5 +580,73 @@ mod tests {
         let target = FrameTarget::of(&mut frame, 7);
         // SAFETY: the only tile of this target; the call panics before any row is handed out.
         let _rows = unsafe { target.tile(5, 0, 3, 1) };
+    }
+
+    #[test]
+    fn interleaved_tiles_land_on_the_pixels_a_point_by_point_copy_gives() {
+        // Odd frame sizes, so that a lattice's last row or column leaves the frame; tiles of
+        // 3, 8 or 17 × 2 points; pixels of 4, 8, 12 and 16 bytes; each point's bytes numbered
+        // by point so that any misplaced one shows.
+        use crate::camera::PixelSet;
+        use crate::render::interleave::{InterleavedTile, lattice_size};
+        for (width, height, tile_width) in [
+            (7u32, 5u32, 3u32),
+            (8, 6, 3),
+            (9, 7, 3),
+            (37, 5, 17),
+            (40, 4, 8),
+        ] {
+            for set in [0, 1].map(PixelSet::Rows).into_iter().chain(
+                [0, 1]
+                    .into_iter()
+                    .flat_map(|p| [PixelSet::Columns(p), PixelSet::Checkerboard(p)]),
+            ) {
+                for data_type in [
+                    ANARI_FLOAT32,
+                    ANARI_FLOAT32_VEC2,
+                    ANARI_FLOAT32_VEC3,
+                    ANARI_FLOAT32_VEC4,
+                ] {
+                    let pixels = (width * height) as usize;
+                    let mut written = channel(ChannelKind::Depth, data_type, pixels);
+                    let mut expected = written.bytes.clone();
+                    let bytes = written.format.pixel_bytes;
+                    let (lattice_width, lattice_height) = lattice_size(set, width, height);
+                    for t0 in (0..lattice_height).step_by(2) {
+                        for s0 in (0..lattice_width).step_by(tile_width as usize) {
+                            let (s1, t1) = (
+                                (s0 + tile_width).min(lattice_width),
+                                (t0 + 2).min(lattice_height),
+                            );
+                            let tile_map =
+                                InterleavedTile::new(set, (s0, t0), (s1, t1), (width, height));
+                            let points: Vec<(u32, u32)> = (t0..t1)
+                                .flat_map(|t| (s0..s1).map(move |s| (s, t)))
+                                .collect();
+                            let tile: Vec<u8> = points
+                                .iter()
+                                .flat_map(|&(s, t)| {
+                                    let number = 1 + t * lattice_width + s;
+                                    (0..bytes).map(move |k| (number as usize * 31 + k) as u8)
+                                })
+                                .collect();
+                            written.write_area(&tile_map, width, &tile);
+                            for (&(s, t), source) in points.iter().zip(tile.chunks_exact(bytes)) {
+                                if tile_map.skips(s, t) {
+                                    continue;
+                                }
+                                let (x, y) = tile_map.pixel(s, t);
+                                let start = (y * width + x) as usize * bytes;
+                                expected[start..start + bytes].copy_from_slice(source);
+                            }
+                        }
+                    }
+                    assert_eq!(
+                        written.bytes, expected,
+                        "{width}x{height} {set:?} {data_type}"
+                    );
+                }
+            }
+        }
     }
 }
