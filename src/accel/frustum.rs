@@ -582,15 +582,10 @@ fn frustum_box_hits<const SPREAD: bool>(
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use super::{PlaneRows, RayBounds};
+    use crate::accel::lanes8::abs;
     use crate::accel::walk::SLAB_ERROR;
     use crate::accel::wide_bvh::WideNode;
     use std::arch::x86_64::*;
-
-    #[target_feature(enable = "avx2")]
-    #[inline]
-    fn abs(values: __m256) -> __m256 {
-        _mm256_andnot_ps(_mm256_set1_ps(-0.0), values)
-    }
 
     /// The operations of `frustum_box_hits`, in the same order, on eight children.
     #[target_feature(enable = "avx2")]

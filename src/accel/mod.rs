@@ -49,6 +49,8 @@ pub use crate::isa;
 mod binned_sah;
 mod collapse;
 mod frustum;
+#[cfg(target_arch = "x86_64")]
+mod lanes8;
 mod packet;
 mod primitives;
 mod procedural;

@@ -18,6 +18,7 @@ use std::arch::x86_64::*;
 use std::mem::MaybeUninit;
 
 use crate::accel::eights::RAYS;
+use crate::accel::lanes8::lane_mask;
 use crate::accel::walk::{BoxRay, ORDER, TraversalRay};
 use crate::accel::wide_bvh::{LEAF_BIT, WIDTH, WideNode};
 
@@ -176,13 +177,4 @@ fn child_lanes(
         far = _mm256_min_ps(far, _mm256_mul_ps(_mm256_sub_ps(exit, origin), inverse));
     }
     crate::accel::walk::avx2::widened_hits(near, far)
-}
-
-/// A blend mask of the lanes in `lanes` (bit per lane).
-#[target_feature(enable = "avx2")]
-#[inline]
-fn lane_mask(lanes: u32) -> __m256 {
-    let bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-    let set = _mm256_and_si256(_mm256_set1_epi32(lanes as i32), bits);
-    _mm256_castsi256_ps(_mm256_cmpeq_epi32(set, bits))
 }

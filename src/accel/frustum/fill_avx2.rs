@@ -7,6 +7,7 @@
 
 use super::{FRUSTUM_GROUPS, FRUSTUM_RAYS, FrustumPacket, QUADRANTS, RayArrays, RayBounds};
 use crate::accel::geometry::prepare as prepare_one;
+use crate::accel::lanes8::{abs, half, select};
 use crate::accel::packet::LANES;
 use crate::accel::walk::MAX_INV_DIRECTION;
 use crate::accel::{MAX_COORDINATE, Ray};
@@ -23,32 +24,6 @@ fn lanes_of(values: &[f32; 64], pair: usize) -> __m256 {
     let lanes = &values[8 * pair..8 * pair + 8];
     // SAFETY: `lanes` holds eight floats (the slice above is bounds-checked).
     unsafe { _mm256_loadu_ps(lanes.as_ptr()) }
-}
-
-#[target_feature(enable = "avx2")]
-#[inline]
-fn abs(values: __m256) -> __m256 {
-    _mm256_andnot_ps(_mm256_set1_ps(-0.0), values)
-}
-
-/// `Vec4::select`'s bit operations on eight lanes.
-#[target_feature(enable = "avx2")]
-#[inline]
-fn select(mask: __m256, if_true: __m256, if_false: __m256) -> __m256 {
-    _mm256_or_ps(
-        _mm256_andnot_ps(mask, if_false),
-        _mm256_and_ps(if_true, mask),
-    )
-}
-
-/// Lanes 4h … 4h + 3 of `values`.
-#[target_feature(enable = "avx2")]
-#[inline]
-fn half(values: __m256, h: usize) -> Vec4 {
-    Vec4::from(match h {
-        0 => _mm256_castps256_ps128(values),
-        _ => _mm256_extractf128_ps::<1>(values),
-    })
 }
 
 #[target_feature(enable = "avx2")]

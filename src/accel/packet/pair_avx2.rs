@@ -5,44 +5,9 @@
 //! `t`, barycentrics and normal, and triangles are taken in the same (slot) order per ray.
 
 use super::{RayPacket, triangle_on_edges};
+use crate::accel::lanes8::{half, joined, lane_mask, select};
 use crate::accel::primitives::TriangleGroup;
 use std::arch::x86_64::*;
-
-/// Two packets' four-lane values as one eight-lane vector (the first packet's in lanes 0–3).
-#[target_feature(enable = "avx2")]
-#[inline]
-fn joined(low: glam::Vec4, high: glam::Vec4) -> __m256 {
-    _mm256_set_m128(high.into(), low.into())
-}
-
-/// Lanes 0–3 and 4–7 of `values`.
-#[target_feature(enable = "avx2")]
-#[inline]
-fn halves(values: __m256) -> [glam::Vec4; 2] {
-    [
-        _mm256_castps256_ps128(values).into(),
-        _mm256_extractf128_ps::<1>(values).into(),
-    ]
-}
-
-/// The lanes of an 8-bit mask as a vector mask.
-#[target_feature(enable = "avx2")]
-#[inline]
-fn lane_mask(bits: u32) -> __m256 {
-    let each = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-    let set = _mm256_and_si256(_mm256_set1_epi32(bits as i32), each);
-    _mm256_castsi256_ps(_mm256_cmpeq_epi32(set, each))
-}
-
-/// `Vec4::select`'s bit operations on eight lanes.
-#[target_feature(enable = "avx2")]
-#[inline]
-fn select(mask: __m256, if_true: __m256, if_false: __m256) -> __m256 {
-    _mm256_or_ps(
-        _mm256_andnot_ps(mask, if_false),
-        _mm256_and_ps(if_true, mask),
-    )
-}
 
 /// What a test updates per ray, held in registers over a leaf and written back after it.
 struct Records {
@@ -66,18 +31,15 @@ impl Records {
     #[target_feature(enable = "avx2")]
     #[inline]
     fn store(&self, packets: &mut [RayPacket; 2]) {
-        let [t_a, t_b] = halves(self.t_max);
-        packets[0].t_max = t_a;
-        packets[1].t_max = t_b;
-        for i in 0..2 {
-            let [a, b] = halves(self.uv[i]);
-            packets[0].hit_uv[i] = a;
-            packets[1].hit_uv[i] = b;
-        }
-        for i in 0..3 {
-            let [a, b] = halves(self.normal[i]);
-            packets[0].hit_normal[i] = a;
-            packets[1].hit_normal[i] = b;
+        // Field by field (arrays built first are copied with wide loads of narrow stores).
+        for (h, packet) in packets.iter_mut().enumerate() {
+            packet.t_max = half(self.t_max, h);
+            for (uv, lanes) in packet.hit_uv.iter_mut().zip(self.uv) {
+                *uv = half(lanes, h);
+            }
+            for (normal, lanes) in packet.hit_normal.iter_mut().zip(self.normal) {
+                *normal = half(lanes, h);
+            }
         }
     }
 }

@@ -151,17 +151,22 @@ fn single_ray_box_tests_keep_every_box_an_exact_test_reaches() {
     assert_eq!(missed, 0, "of {reached}");
 }
 
+/// A few thousand random triangles and quads: eight inline stack entries overflow on most rays
+/// through them.
+fn small_stack_overflowing_trees(rng: &mut Rng) -> [GeometryBvh; 2] {
+    [
+        GeometryBvh::build(random_triangles(rng, 3000, 6.0, 1.5)),
+        GeometryBvh::build(random_quads(rng, 1500, 6.0, 1.5)),
+    ]
+}
+
 #[test]
 fn single_ray_walks_restart_with_a_larger_stack_and_find_the_same_hits() {
     // Eight inline entries overflow on most rays through a few thousand triangles; the walks
     // then restart on the heap and must still give the answers of the inline-stack walk.
     let mut rng = Rng::new(23);
-    let geometries = [
-        GeometryBvh::build(random_triangles(&mut rng, 3000, 6.0, 1.5)),
-        GeometryBvh::build(random_quads(&mut rng, 1500, 6.0, 1.5)),
-    ];
     let mut hits = 0;
-    for geometry in &geometries {
+    for geometry in &small_stack_overflowing_trees(&mut rng) {
         for test_ray in random_rays(&mut rng, 2000, 6.0) {
             let ray = traversal_ray(&test_ray);
             let (closest, any) = geometry.walks_with_small_stack(&ray);
@@ -178,12 +183,8 @@ fn the_walk_of_large_trees_finds_the_hits_of_the_walk_of_small_ones() {
     // The walk that pushes at every node with hits (trees of `LARGE_TREE_NODES` and more) run
     // on small trees: the same closest hits, ids and `t`, also when its stack restarts.
     let mut rng = Rng::new(29);
-    let geometries = [
-        GeometryBvh::build(random_triangles(&mut rng, 3000, 6.0, 1.5)),
-        GeometryBvh::build(random_quads(&mut rng, 1500, 6.0, 1.5)),
-    ];
     let mut hits = 0;
-    for geometry in &geometries {
+    for geometry in &small_stack_overflowing_trees(&mut rng) {
         for test_ray in random_rays(&mut rng, 2000, 6.0) {
             let ray = traversal_ray(&test_ray);
             let expected = geometry.closest_slot_and_t(&ray);
