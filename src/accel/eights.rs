@@ -22,6 +22,7 @@
 
 use std::arch::x86_64::*;
 
+use crate::accel::lanes8::LaneStack;
 use crate::accel::primitives::{GroupRayValues, SplatOnUse, TriangleGroup, closest_lane};
 use crate::accel::single_ray::{self, Hit, rows};
 use crate::accel::walk::{ORDER as ORDERED, TraversalRay};
@@ -196,23 +197,8 @@ unsafe fn walk<const ORDER: usize, const ENTRIES: usize>(
         found[rest.trailing_zeros() as usize] = None;
         rest &= rest - 1;
     }
-    let mut codes = [std::mem::MaybeUninit::<u32>::uninit(); ENTRIES];
-    let mut masks = [std::mem::MaybeUninit::<u32>::uninit(); ENTRIES];
-    let mut nears = [std::mem::MaybeUninit::<__m256>::uninit(); ENTRIES];
-    codes[0].write(0);
-    masks[0].write(lanes);
-    nears[0].write(_mm256_set1_ps(f32::NEG_INFINITY));
-    let mut len = 1;
-    while len > 0 {
-        len -= 1;
-        // SAFETY: entries below `len` were written.
-        let (code, mask, near) = unsafe {
-            (
-                codes[len].assume_init(),
-                masks[len].assume_init(),
-                nears[len].assume_init(),
-            )
-        };
+    let mut stack = LaneStack::<ENTRIES>::with_root(lanes);
+    while let Some((code, mask, near)) = stack.pop() {
         let active = mask & _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, t_max)) as u32;
         if active == 0 {
             continue;
@@ -261,7 +247,7 @@ unsafe fn walk<const ORDER: usize, const ENTRIES: usize>(
             }
             continue;
         }
-        if len + WIDTH > ENTRIES {
+        if !stack.has_room(WIDTH) {
             return false;
         }
         // SAFETY: inner codes index `nodes` (the caller's promise).
@@ -282,10 +268,7 @@ unsafe fn walk<const ORDER: usize, const ENTRIES: usize>(
             let (hit, child_near) = child_lanes::<ORDER>(node, slot, box_rays, t_max);
             let hit = hit & active;
             if hit != 0 {
-                codes[len].write(node.children[slot]);
-                masks[len].write(hit);
-                nears[len].write(child_near);
-                len += 1;
+                stack.push(node.children[slot], hit, child_near);
             }
         }
     }

@@ -47,3 +47,61 @@ pub(crate) fn half(values: __m256, h: usize) -> Vec4 {
         _ => _mm256_extractf128_ps::<1>(values),
     })
 }
+
+/// The stack of a walk of eight rays: per entry a node code, the lanes that reach it (bit per
+/// lane) and their entry distances. Fixed capacity (`ENTRIES`), no heap.
+pub(crate) struct LaneStack<const ENTRIES: usize> {
+    codes: [std::mem::MaybeUninit<u32>; ENTRIES],
+    masks: [std::mem::MaybeUninit<u32>; ENTRIES],
+    nears: [std::mem::MaybeUninit<__m256>; ENTRIES],
+    /// Entries below `len` are written.
+    len: usize,
+}
+
+impl<const ENTRIES: usize> LaneStack<ENTRIES> {
+    /// A stack holding the root (code 0) for `lanes`, entered at −∞.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn with_root(lanes: u32) -> LaneStack<ENTRIES> {
+        let mut stack = LaneStack {
+            codes: [std::mem::MaybeUninit::uninit(); ENTRIES],
+            masks: [std::mem::MaybeUninit::uninit(); ENTRIES],
+            nears: [std::mem::MaybeUninit::uninit(); ENTRIES],
+            len: 0,
+        };
+        stack.push(0, lanes, _mm256_set1_ps(f32::NEG_INFINITY));
+        stack
+    }
+
+    /// Whether `count` more entries fit.
+    #[inline(always)]
+    pub(crate) fn has_room(&self, count: usize) -> bool {
+        self.len + count <= ENTRIES
+    }
+
+    /// Pushes an entry (panics when full: callers check [`Self::has_room`] first).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn push(&mut self, code: u32, mask: u32, near: __m256) {
+        self.codes[self.len].write(code);
+        self.masks[self.len].write(mask);
+        self.nears[self.len].write(near);
+        self.len += 1;
+    }
+
+    /// The last entry pushed, removed.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    pub(crate) fn pop(&mut self) -> Option<(u32, u32, __m256)> {
+        self.len = self.len.checked_sub(1)?;
+        let len = self.len;
+        // SAFETY: entries below the old `len` were written (`push` is the only writer).
+        Some(unsafe {
+            (
+                self.codes[len].assume_init(),
+                self.masks[len].assume_init(),
+                self.nears[len].assume_init(),
+            )
+        })
+    }
+}

@@ -15,10 +15,9 @@
 //! most `single_up_to` lanes reach goes to each of them alone ([`TopLevelVisits::alone`]).
 
 use std::arch::x86_64::*;
-use std::mem::MaybeUninit;
 
 use crate::accel::eights::RAYS;
-use crate::accel::lanes8::lane_mask;
+use crate::accel::lanes8::{LaneStack, lane_mask};
 use crate::accel::walk::{BoxRay, ORDER, TraversalRay};
 use crate::accel::wide_bvh::{LEAF_BIT, WIDTH, WideNode};
 
@@ -76,23 +75,8 @@ pub(crate) fn walk_top8<const ENTRIES: usize>(
     // SAFETY: eight floats.
     let load = |t_max: &[f32; RAYS]| unsafe { _mm256_loadu_ps(t_max.as_ptr()) };
     let mut t_max_lanes = load(t_max);
-    let mut codes = [MaybeUninit::<u32>::uninit(); ENTRIES];
-    let mut masks = [MaybeUninit::<u32>::uninit(); ENTRIES];
-    let mut nears = [MaybeUninit::<__m256>::uninit(); ENTRIES];
-    codes[0].write(0);
-    masks[0].write(lanes);
-    nears[0].write(_mm256_set1_ps(f32::NEG_INFINITY));
-    let mut len = 1;
-    while len > 0 {
-        len -= 1;
-        // SAFETY: entries below `len` were written.
-        let (code, mask, near) = unsafe {
-            (
-                codes[len].assume_init(),
-                masks[len].assume_init(),
-                nears[len].assume_init(),
-            )
-        };
+    let mut stack = LaneStack::<ENTRIES>::with_root(lanes);
+    while let Some((code, mask, near)) = stack.pop() {
         let active =
             mask & _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, t_max_lanes)) as u32;
         if active == 0 {
@@ -141,15 +125,12 @@ pub(crate) fn walk_top8<const ENTRIES: usize>(
                 count += 1;
             }
         }
-        if len + count > ENTRIES {
+        if !stack.has_room(count) {
             return false;
         }
         // Farthest first, so that the nearest is popped first.
         for &(child, hit, child_near) in children[..count].iter().rev() {
-            codes[len].write(child);
-            masks[len].write(hit);
-            nears[len].write(child_near);
-            len += 1;
+            stack.push(child, hit, child_near);
         }
     }
     true
