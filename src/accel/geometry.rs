@@ -758,29 +758,20 @@ impl GeometryBvh {
                 return false;
             };
             let (group_index, triangles) = group_leaf(code);
-            if lanes
+            if !lanes
                 .iter()
-                .any(|lanes| lanes.count_ones() < triangles.count_ones())
+                .all(|lanes| tests_triangle_by_triangle(*lanes, triangles))
                 || packets[0].shear_axes != packets[1].shear_axes
             {
                 return false;
             }
-            crate::accel::counters::add(|counts| {
-                for lanes in lanes {
-                    counts.packet_leaf_groups += 1;
-                    counts.packet_leaf_rays += u64::from(lanes.count_ones());
-                    counts.packet_triangle_rays +=
-                        u64::from(lanes.count_ones() * triangles.count_ones());
-                }
-            });
+            for lanes in lanes {
+                count_triangle_leaf_test(lanes, triangles);
+            }
             let base = group_index as u32 * GROUP_LANES as u32;
             let write = |triangle_lane: usize, hits: [u32; 2]| {
-                let slot = base + triangle_lane as u32;
-                for (closest, mut hits) in closest.iter_mut().zip(hits) {
-                    while hits != 0 {
-                        closest[hits.trailing_zeros() as usize] = Some(slot);
-                        hits &= hits - 1;
-                    }
+                for (closest, hits) in closest.iter_mut().zip(hits) {
+                    record_slot(closest, base + triangle_lane as u32, hits);
                 }
             };
             // SAFETY: `AVX2` is set only by walks compiled for AVX2 or AVX-512, entered only on
@@ -834,13 +825,8 @@ impl GeometryBvh {
                 let group = &groups[group_index];
                 let base = group_index as u32 * GROUP_LANES as u32;
                 let triangles = leaf_lanes;
-                crate::accel::counters::add(|counts| {
-                    counts.packet_leaf_groups += 1;
-                    counts.packet_leaf_rays += u64::from(lanes.count_ones());
-                    counts.packet_triangle_rays +=
-                        u64::from(lanes.count_ones() * triangles.count_ones());
-                });
-                if lanes.count_ones() < triangles.count_ones() {
+                count_triangle_leaf_test(lanes, triangles);
+                if !tests_triangle_by_triangle(lanes, triangles) {
                     // Fewer rays than triangles: each ray takes the whole group in one pass
                     // (lanes = triangles), the single-ray test with the same hits.
                     let mut remaining = lanes;
@@ -856,19 +842,9 @@ impl GeometryBvh {
                     }
                     return;
                 }
-                group_packet(
-                    group,
-                    triangles,
-                    packet,
-                    lanes,
-                    |triangle_lane, mut hits| {
-                        let slot = base + triangle_lane as u32;
-                        while hits != 0 {
-                            closest[hits.trailing_zeros() as usize] = Some(slot);
-                            hits &= hits - 1;
-                        }
-                    },
-                );
+                group_packet(group, triangles, packet, lanes, |triangle_lane, hits| {
+                    record_slot(closest, base + triangle_lane as u32, hits)
+                });
             }
             PrimitiveData::Spheres(spheres) => {
                 for slot in first..first + count {
@@ -1186,4 +1162,31 @@ pub(crate) fn prepare(ray: &Ray) -> Option<TraversalRay> {
         ray.t_min,
         ray.t_max,
     )
+}
+
+/// Whether a group of four rays (`lanes`, bit per lane) takes a leaf's `triangles` one by one
+/// over its rays; with fewer rays than triangles each ray takes the whole group instead (the
+/// single-ray test, lanes = triangles). The same hits either way.
+#[inline(always)]
+fn tests_triangle_by_triangle(lanes: u32, triangles: u32) -> bool {
+    lanes.count_ones() >= triangles.count_ones()
+}
+
+/// Counts one (group of four rays, triangle leaf) test (`--features kernel-counters`).
+#[inline(always)]
+fn count_triangle_leaf_test(lanes: u32, triangles: u32) {
+    crate::accel::counters::add(|counts| {
+        counts.packet_leaf_groups += 1;
+        counts.packet_leaf_rays += u64::from(lanes.count_ones());
+        counts.packet_triangle_rays += u64::from(lanes.count_ones() * triangles.count_ones());
+    });
+}
+
+/// Records `slot` as the closest primitive of the rays in `hits` (bit per lane).
+#[inline(always)]
+fn record_slot(closest: &mut [Option<u32>; LANES], slot: u32, mut hits: u32) {
+    while hits != 0 {
+        closest[hits.trailing_zeros() as usize] = Some(slot);
+        hits &= hits - 1;
+    }
 }
