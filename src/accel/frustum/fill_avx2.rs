@@ -46,12 +46,23 @@ fn largest(values: __m256) -> f32 {
     Vec4::from(four).max_element()
 }
 
-/// Rays turned into lane arrays ([`RayArrays`]), eight at a time.
+/// A block's lane arrays, owned ([`RayArrays`] borrows them).
 struct LaneArrays {
     origin: [[f32; FRUSTUM_RAYS]; 3],
     direction: [[f32; FRUSTUM_RAYS]; 3],
     t_min: [f32; FRUSTUM_RAYS],
     t_max: [f32; FRUSTUM_RAYS],
+}
+
+impl LaneArrays {
+    fn arrays(&self) -> RayArrays<'_> {
+        RayArrays {
+            origin: &self.origin,
+            direction: &self.direction,
+            t_min: &self.t_min,
+            t_max: &self.t_max,
+        }
+    }
 }
 
 /// [`FrustumPacket::fill_from_rays`] of a full packet on the AVX2 path: each eight rays'
@@ -86,13 +97,7 @@ pub(super) fn fill_from_rays(packet: &mut FrustumPacket, rays: &[Ray; FRUSTUM_RA
         store(&mut lanes.t_min, columns[6]);
         store(&mut lanes.t_max, columns[7]);
     }
-    let arrays = RayArrays {
-        origin: &lanes.origin,
-        direction: &lanes.direction,
-        t_min: &lanes.t_min,
-        t_max: &lanes.t_max,
-    };
-    fill_from_arrays(packet, &arrays)
+    fill_from_arrays(packet, &lanes.arrays())
 }
 
 const _: () = assert!(
@@ -378,24 +383,7 @@ mod tests {
     use crate::accel::tests::Rng;
     use glam::Vec3;
 
-    /// A block's lane arrays, owned.
-    struct Block {
-        origin: [[f32; FRUSTUM_RAYS]; 3],
-        direction: [[f32; FRUSTUM_RAYS]; 3],
-        t_min: [f32; FRUSTUM_RAYS],
-        t_max: [f32; FRUSTUM_RAYS],
-    }
-
-    impl Block {
-        fn arrays(&self) -> RayArrays<'_> {
-            RayArrays {
-                origin: &self.origin,
-                direction: &self.direction,
-                t_min: &self.t_min,
-                t_max: &self.t_max,
-            }
-        }
-
+    impl LaneArrays {
         fn set(&mut self, lane: usize, origin: Vec3, direction: Vec3) {
             for axis in 0..3 {
                 self.origin[axis][lane] = origin[axis];
@@ -406,8 +394,8 @@ mod tests {
 
     /// A block of kind `kind % 8`: a pinhole's rays, several origins, mixed octants, invalid
     /// lanes and groups, tiny and zero direction components, dominant-axis ties, nothing valid.
-    fn random_block(rng: &mut Rng, kind: u32) -> Block {
-        let mut block = Block {
+    fn random_block(rng: &mut Rng, kind: u32) -> LaneArrays {
+        let mut block = LaneArrays {
             origin: [[0.0; FRUSTUM_RAYS]; 3],
             direction: [[0.0; FRUSTUM_RAYS]; 3],
             t_min: [0.0; FRUSTUM_RAYS],
