@@ -1,9 +1,8 @@
 //! The collapse of a binary BVH into [`WideNode`]s: a plan by surface-area cost of which
 //! binary subtrees become wide nodes and leaves ([`slot_costs`], after Ylitie et al. 2017), the
 //! collapse that follows it in parallel, and the placement of children in slots for
-//! nearest-first visits (`i ^ octant`).
+//! nearest-first visits (slots `i ^ orders[octant]`, [`WideNode::orders`]).
 
-use glam::Vec4;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::node::Bvh2Node;
@@ -405,12 +404,11 @@ fn wide_node(
     primitive_order: &mut Vec<u32>,
     plan: &[AtomicU64],
 ) -> (WideNode, InnerChildren) {
-    let binary = &bvh2.nodes;
     let children = wide_children(bvh2, binary_index, may_be_leaf, sizing, alignment, plan);
     let children = children.as_slice();
-    let parent_box = *binary[binary_index].aabb();
-    let slots = assign_slots(children, &parent_box);
     let mut node = WideNode::default();
+    let (slots, orders) = assign_slots(children);
+    node.orders = orders;
     let mut inner_children = InnerChildren::new((0, 0));
     // Grouped leaves: (slot, count, primitives), packed into shared groups below.
     let mut group_leaves = WideList::new((0u8, 0u32, [0u32; MAX_PRIMS_PER_LEAF as usize]));
@@ -731,58 +729,75 @@ fn wide_children(
     children
 }
 
-/// Assigns children to the eight slots so that, for a ray of octant `o`, the traversal order
-/// `slot ^ (7 - o)` visits near children first: slot `s` prefers the child that comes first
-/// along the direction whose signs are the bits of `s` (set = negative). Returns, per slot,
-/// the position of its child in `children` or [`EMPTY_SLOT`].
-fn assign_slots(children: &[Candidate], parent: &Aabb) -> [u8; WIDTH] {
-    let centre = parent.center();
-    // costs[child][slot]: how far along slot's direction the child's centre lies, i.e. the dot
-    // product of the offset with (+-1, +-1, +-1) summed as (x + y) + z, as `Vec3A::dot`
-    // rounds it (the negations are exact).
-    let mut costs = [[f32::INFINITY; WIDTH]; WIDTH];
-    for (child, row) in children.iter().zip(costs.iter_mut()) {
-        let offset = child.aabb.center() - centre;
-        let y = Vec4::new(offset.y, offset.y, -offset.y, -offset.y);
-        let z = Vec4::new(offset.z, -offset.z, offset.z, -offset.z);
-        (Vec4::splat(offset.x) + y + z).write_to_slice(&mut row[..4]);
-        (Vec4::splat(-offset.x) + y + z).write_to_slice(&mut row[4..]);
+/// Places children in slots for nearest-first visits and returns, per slot, the position of
+/// its child in `children` (or [`EMPTY_SLOT`]) and the node's visiting orders
+/// ([`WideNode::orders`]).
+///
+/// A three-level split of the children's centres: slot bit 2 halves them along the axis they
+/// spread most, bit 1 halves each half along the axis the halves spread most, bit 0 each pair
+/// likewise; a ray then visits, at every level, the half nearer along that level's axis first
+/// (slot `i ^ orders[order]`). The order `i ^ octant` of slot bits tied to x, y, z (before
+/// 2026-11-28) wasted a bit on nodes whose children spread in two axes only, such as a height
+/// field's (docs/kernel.md, "Single rays, 2026-11-27 23:15").
+fn assign_slots(children: &[Candidate]) -> ([u8; WIDTH], [u8; WIDTH]) {
+    let centres: [[f32; 3]; WIDTH] = std::array::from_fn(|position| {
+        children
+            .get(position)
+            .map_or([0.0; 3], |child| child.aabb.center().to_array())
+    });
+    // Positions in slot order; the parts of level `level` are runs of `2^level` slots, each
+    // holding its children first, then empty slots.
+    let mut positions = [EMPTY_SLOT; WIDTH];
+    for (position, slot) in positions.iter_mut().enumerate().take(children.len()) {
+        *slot = position as u8;
     }
-    // Greedy: repeatedly place the (child, slot) pair with the lowest cost, the first in
-    // (child, slot) order among equal ones. Taken slots cost infinity (real costs are finite);
-    // every child keeps its cheapest slot, recomputed only when another child takes it.
-    let mut cheapest = [(f32::INFINITY, 0u8); WIDTH];
-    for (row, best) in costs.iter().zip(cheapest.iter_mut()).take(children.len()) {
-        *best = first_minimum(row);
-    }
-    let mut placed = 0u32;
-    let mut slots = [EMPTY_SLOT; WIDTH];
-    for _ in 0..children.len() {
-        // Placed children and unused rows have infinite costs.
-        let (_, position) = first_minimum(&cheapest.map(|(cost, _)| cost));
-        let position = position as usize;
-        let slot = cheapest[position].1 as usize;
-        slots[slot] = position as u8;
-        placed |= 1 << position;
-        cheapest[position].0 = f32::INFINITY;
-        for row in costs.iter_mut().take(children.len()) {
-            row[slot] = f32::INFINITY;
-        }
-        for (other, best) in cheapest.iter_mut().enumerate().take(children.len()) {
-            if placed & (1 << other) == 0 && best.1 as usize == slot {
-                *best = first_minimum(&costs[other]);
+    let mut axes = [0usize; 3];
+    for level in (0..3).rev() {
+        let part = 2 << level;
+        // The parts' spreads of centres per axis, summed.
+        let mut spread = [0.0f32; 3];
+        for run in positions.chunks(part) {
+            let filled = &run[..run.iter().take_while(|&&p| p != EMPTY_SLOT).count()];
+            for (axis, spread) in spread.iter_mut().enumerate() {
+                let (low, high) =
+                    filled
+                        .iter()
+                        .fold((f32::INFINITY, f32::NEG_INFINITY), |(low, high), &p| {
+                            let c = centres[p as usize][axis];
+                            (low.min(c), high.max(c))
+                        });
+                if filled.len() > 1 {
+                    *spread += high - low;
+                }
             }
         }
+        let axis = (1..3).fold(0, |best, axis| {
+            if spread[axis] > spread[best] {
+                axis
+            } else {
+                best
+            }
+        });
+        axes[level] = axis;
+        let half = 1 << level;
+        for run in positions.chunks_mut(part) {
+            let count = run.iter().take_while(|&&p| p != EMPTY_SLOT).count();
+            run[..count]
+                .sort_by(|&a, &b| centres[a as usize][axis].total_cmp(&centres[b as usize][axis]));
+            // The lower half first; neither half larger than its slots.
+            let lower = count.div_ceil(2).max(count.saturating_sub(half));
+            let mut split = [EMPTY_SLOT; WIDTH];
+            split[..lower].copy_from_slice(&run[..lower]);
+            split[half..half + count - lower].copy_from_slice(&run[lower..count]);
+            run.copy_from_slice(&split[..part]);
+        }
     }
-    slots
-}
-
-/// The smallest of eight values and the first index holding it.
-#[inline(always)]
-fn first_minimum(values: &[f32; WIDTH]) -> (f32, u8) {
-    let low = Vec4::from_slice(&values[..4]);
-    let high = Vec4::from_slice(&values[4..]);
-    let minimum = Vec4::splat(low.min(high).min_element());
-    let at = low.cmpeq(minimum).bitmask() | (high.cmpeq(minimum).bitmask() << 4);
-    (minimum.x, at.trailing_zeros() as u8)
+    let mut orders = [0u8; WIDTH];
+    for (order, mask) in orders.iter_mut().enumerate() {
+        for (level, &axis) in axes.iter().enumerate() {
+            // Order bit `2 - axis` is set for rays going down `axis`: the upper half first.
+            *mask |= (((order >> (2 - axis)) & 1) as u8) << level;
+        }
+    }
+    (positions, orders)
 }

@@ -260,11 +260,13 @@ unsafe fn walk<const ORDER: usize, const ENTRIES: usize>(
             ))
         } as usize;
         // Farthest first, so that the nearest is popped first.
-        let mut ordered = u32::from(ORDERED[ORDER][occupied]);
+        // The node's own visiting order for the octant (the plane rows stay the octant's).
+        let order = usize::from(node.orders[ORDER]);
+        let mut ordered = u32::from(ORDERED[order][occupied]);
         while ordered != 0 {
             let i = 31 - ordered.leading_zeros();
             ordered &= !(1 << i);
-            let slot = i as usize ^ ORDER;
+            let slot = i as usize ^ order;
             let (hit, child_near) = child_lanes::<ORDER>(node, slot, box_rays, t_max);
             let hit = hit & active;
             if hit != 0 {

@@ -754,6 +754,8 @@ fn walk_frustum<const SPREAD: bool, const AVX2: bool, F, P>(
     let mut t_max_high = frustum.t_max_high(active);
     while let Some((index, quadrants)) = stack.pop() {
         let node = &nodes[index as usize];
+        // The node's own visiting order for the packet's octant.
+        let order = usize::from(node.orders[order]);
         crate::accel::counters::add(|counts| counts.packet_nodes += 1);
         // Per child slot (4 bits each, as `child_lane_masks`), the quadrants reaching it.
         let mut quadrant_masks = 0u32;

@@ -102,6 +102,12 @@ impl GeometryBvh {
     /// FNV-1a over the layout: every node's planes (bits) and child codes, the source ids
     /// per slot (quads: with `QUAD_SECOND_HALF`; padding slots repeat their group's first)
     /// and, for triangles and quads, every group's vertex coordinates (bits).
+    /// The wide nodes (tests inspect their visiting orders).
+    #[cfg(test)]
+    pub(crate) fn wide_nodes(&self) -> &[WideNode] {
+        &self.nodes
+    }
+
     pub(crate) fn layout_fingerprint(&self) -> u64 {
         let mut hash = 0xcbf2_9ce4_8422_2325u64;
         let mut add = |word: u32| {
@@ -115,6 +121,7 @@ impl GeometryBvh {
                 .flatten()
                 .for_each(|plane| add(plane.to_bits()));
             node.children.iter().for_each(|&code| add(code));
+            node.orders.iter().for_each(|&order| add(u32::from(order)));
         }
         if let PrimitiveData::Triangles(groups) | PrimitiveData::Quads(groups) = &self.primitives {
             groups.iter().flat_map(|group| group.ids).for_each(&mut add);

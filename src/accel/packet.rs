@@ -408,6 +408,8 @@ pub(crate) fn traverse_packet<F>(
         for child in 0..8 {
             hit |= u32::from((masks >> (4 * child)) & 0xf != 0) << child;
         }
+        // The node's own visiting order for the packet's octant.
+        let order = usize::from(node.orders[order]);
         let ordered = u32::from(ORDER[order][hit as usize]);
         let mut inner = 0u32;
         let mut remaining = ordered;
@@ -459,6 +461,7 @@ fn walk_lane<F>(
         }
         let node = &nodes[code as usize];
         let (mask, nears) = child_hits(node, &box_ray, ray.t_min, packet.t_max[lane]);
+        let order = usize::from(node.orders[order]);
         let mut remaining = u32::from(ORDER[order][mask as usize]);
         while remaining != 0 {
             let i = 31 - remaining.leading_zeros();

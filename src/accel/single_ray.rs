@@ -37,16 +37,15 @@
 use crate::accel::primitives::{
     GROUP_LANES, GroupRay, GroupRayValues, SplatOnUse, TriangleGroup, closest_lane, group_closest,
 };
-use crate::accel::walk::{
-    SLAB_ERROR, TraversalRay, prefetch, prefetch_address, prefetch_node, traverse,
-};
+use crate::accel::walk::{SLAB_ERROR, TraversalRay, prefetch_address, traverse};
 use crate::accel::wide_bvh::{LEAF_BIT, WIDTH, WideNode, group_leaf};
 use glam::{Vec2, Vec3, Vec3A, Vec4, Vec4Swizzles};
 use std::mem::MaybeUninit;
 
 /// `VISIT[order][mask]` for the hit children `mask` (bit per slot) of a ray whose children
-/// are visited nearest-first in slots `i ^ order`: the nearest hit child's slot in bits 0..3,
-/// the other hit children's slots three bits each from bit 3 on, farthest first, and their
+/// are visited nearest-first in slots `i ^ order`: the nearest hit child's slot alone in the
+/// low byte (so the walk loads it with one byte load, nothing to mask on its chain), the other
+/// hit children's slots three bits each from bit [`OTHERS_SLOTS`] on, farthest first, and their
 /// number from bit [`OTHERS_SHIFT`] on.
 pub(crate) static VISIT: [[u32; 256]; 8] = {
     let mut table = [[0u32; 256]; 8];
@@ -63,7 +62,7 @@ pub(crate) static VISIT: [[u32; 256]; 8] = {
             let mut position = 7;
             while position > nearest {
                 if mask & (1 << (position ^ order)) != 0 {
-                    entry |= ((position ^ order) as u32) << (3 + 3 * others);
+                    entry |= ((position ^ order) as u32) << (OTHERS_SLOTS + 3 * others);
                     others += 1;
                 }
                 position -= 1;
@@ -76,8 +75,41 @@ pub(crate) static VISIT: [[u32; 256]; 8] = {
     table
 };
 
+/// Where a [`VISIT`] entry keeps the slots of the children to push (seven at most, 21 bits).
+const OTHERS_SLOTS: u32 = 8;
+
 /// Where a [`VISIT`] entry keeps the number of children to push.
-const OTHERS_SHIFT: u32 = 28;
+const OTHERS_SHIFT: u32 = 29;
+
+/// `VISIT[order][mask]`'s address.
+///
+/// # Safety
+/// `order < 8`, `mask < 256`.
+#[inline(always)]
+unsafe fn visit_entry(order: usize, mask: u32) -> *const u32 {
+    // SAFETY: the caller's promise: within the table.
+    unsafe {
+        VISIT
+            .as_ptr()
+            .cast::<u32>()
+            .add(order * 256 + mask as usize)
+    }
+}
+
+/// The nearest hit child's slot of `VISIT[order][mask]`, read as the entry's low byte.
+///
+/// # Safety
+/// `order < 8`, `mask < 256`.
+#[inline(always)]
+unsafe fn nearest_slot(order: usize, mask: u32) -> usize {
+    // SAFETY: the caller's promise; the low byte of a `u32` lies at its address on
+    // little-endian targets, at its last byte on big-endian ones.
+    unsafe {
+        let entry = visit_entry(order, mask).cast::<u8>();
+        let low = if cfg!(target_endian = "little") { 0 } else { 3 };
+        usize::from(*entry.add(low))
+    }
+}
 
 /// Entries of the stack kept inline (the walk restarts with a larger one if it needs more).
 const INLINE_STACK: usize = 128;
@@ -411,19 +443,21 @@ impl Lanes for Avx2 {
 }
 
 /// Whether every code of `nodes` is in range: inner codes index `nodes`, leaf codes address
-/// slots within `group_count` groups. The walks rely on it (no bounds checks); builds assert it.
+/// slots within `group_count` groups; and every node's visiting orders are below 8. The walks
+/// rely on it (no bounds checks); builds assert it.
 pub(crate) fn codes_in_range(nodes: &[WideNode], group_count: usize) -> bool {
     nodes.iter().all(|node| {
-        (0..WIDTH).all(|slot| {
-            let code = node.children[slot];
-            if !crate::accel::wide_bvh::occupied(node, slot) {
-                true
-            } else if code & LEAF_BIT == 0 {
-                (code as usize) < nodes.len()
-            } else {
-                group_leaf(code).0 < group_count
-            }
-        })
+        node.orders.iter().all(|&order| usize::from(order) < WIDTH)
+            && (0..WIDTH).all(|slot| {
+                let code = node.children[slot];
+                if !crate::accel::wide_bvh::occupied(node, slot) {
+                    true
+                } else if code & LEAF_BIT == 0 {
+                    (code as usize) < nodes.len()
+                } else {
+                    group_leaf(code).0 < group_count
+                }
+            })
     })
 }
 
@@ -459,37 +493,39 @@ unsafe fn walk<I: Lanes, const ORDER: usize, const ANY_HIT: bool, const ALWAYS_P
             let node = unsafe { nodes.get_unchecked(code as usize) };
             let (mask, nears) = I::child_hits::<ORDER>(node, box_ray, t_max);
             if mask != 0 {
-                let visit = VISIT[ORDER][(mask & 0xff) as usize];
-                code = node.children[(visit & 7) as usize];
+                // The node's own visiting order for this octant (loaded beside the planes, off
+                // the walk's chain).
+                let order = usize::from(node.orders[ORDER]);
+                // The nearest child's code by its own byte load: on the walk's chain (box test,
+                // mask, slot, code, next node) neither the mask nor the slot is masked first.
+                // SAFETY: a mask of eight children is below 256; node orders are below 8
+                // (the caller's promise, `codes_in_range`).
+                code = unsafe { *node.children.get_unchecked(nearest_slot(order, mask)) };
+                // SAFETY: as above.
+                let visit = unsafe { *visit_entry(order, mask) };
                 let others = visit >> OTHERS_SHIFT;
                 if ALWAYS_PUSH {
                     if stack.len > stack.last_push {
                         return Err(Overflow);
                     }
                     // SAFETY: just checked.
-                    unsafe { I::push(node, visit >> 3, others, nears, stack) };
+                    unsafe { I::push(node, visit >> OTHERS_SLOTS, others, nears, stack) };
                     // The child popped next, or with none pushed the nearest (loading anyway).
-                    let next = node.children[((visit >> (3 * others)) & 7) as usize];
+                    let next =
+                        node.children[((visit >> (OTHERS_SLOTS - 3 + 3 * others)) & 7) as usize];
                     prefetch_either(nodes, groups, next);
                 } else if others != 0 {
                     if stack.len > stack.last_push {
                         return Err(Overflow);
                     }
                     // SAFETY: just checked.
-                    unsafe { I::push(node, visit >> 3, others, nears, stack) };
+                    unsafe { I::push(node, visit >> OTHERS_SLOTS, others, nears, stack) };
                     // The child popped next (the last pushed: the nearest of the others) starts
-                    // loading while the walk descends into the nearest.
-                    let next = node.children[((visit >> (3 * others)) & 7) as usize];
-                    if next & LEAF_BIT == 0 {
-                        // SAFETY: inner codes index `nodes` (the caller's promise).
-                        prefetch_node(unsafe { nodes.get_unchecked(next as usize) });
-                    } else {
-                        // SAFETY: leaf codes address existing groups (the caller's promise).
-                        let group = unsafe { groups.get_unchecked(group_leaf(next).0) };
-                        prefetch(group);
-                        prefetch(&group.vertices[1][1]);
-                        prefetch(&group.vertices[2][2]);
-                    }
+                    // loading while the walk descends into the nearest; node or group chosen
+                    // without a branch (one on the leaf bit was mispredicted at ~0.15 per ray).
+                    let next =
+                        node.children[((visit >> (OTHERS_SLOTS - 3 + 3 * others)) & 7) as usize];
+                    prefetch_either(nodes, groups, next);
                 }
                 continue;
             }
@@ -1089,10 +1125,15 @@ pub(crate) mod test_paths {
                     .map(|i| i ^ order as u32)
                     .collect();
                 let entry = VISIT[order][mask];
-                assert_eq!(entry & 7, slots[0], "order {order} mask {mask:#b}");
+                assert_eq!(entry & 0xff, slots[0], "order {order} mask {mask:#b}");
+                // SAFETY: `mask < 256`.
+                let nearest = unsafe { nearest_slot(order, mask as u32) };
+                assert_eq!(nearest as u32, slots[0], "order {order} mask {mask:#b}");
                 let others = (entry >> OTHERS_SHIFT) as usize;
                 assert_eq!(others, slots.len() - 1, "order {order} mask {mask:#b}");
-                let pushed: Vec<u32> = (0..others).map(|k| (entry >> (3 + 3 * k)) & 7).collect();
+                let pushed: Vec<u32> = (0..others)
+                    .map(|k| (entry >> (OTHERS_SLOTS as usize + 3 * k)) & 7)
+                    .collect();
                 let farthest_first: Vec<u32> = slots[1..].iter().rev().copied().collect();
                 assert_eq!(pushed, farthest_first, "order {order} mask {mask:#b}");
             }

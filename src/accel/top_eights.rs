@@ -110,9 +110,10 @@ pub(crate) fn walk_top8<const ENTRIES: usize>(
         let mut children = [(0u32, 0u32, _mm256_setzero_ps()); WIDTH];
         let mut count = 0;
         let mut unclaimed = active;
-        let mut ordered = u32::from(ORDER[rows.order][occupied]);
+        let order = usize::from(node.orders[rows.order]);
+        let mut ordered = u32::from(ORDER[order][occupied]);
         while ordered != 0 {
-            let slot = ordered.trailing_zeros() as usize ^ rows.order;
+            let slot = ordered.trailing_zeros() as usize ^ order;
             ordered &= ordered - 1;
             let (hit, child_near) = child_lanes(node, slot, &rows, &box_rays, t_max_lanes);
             let hit = hit & active;

@@ -477,6 +477,7 @@ fn walk_from<B: BoxTest, const ANY_HIT: bool, L: LeafTest>(
             let node = &nodes[code as usize];
             let (mask, nears) = B::child_hits(node, &box_ray, ray.t_min, ray.t_max);
             if mask != 0 {
+                let order = usize::from(node.orders[order]);
                 let ordered = u32::from(ORDER[order][mask as usize]);
                 let mut farther = ordered & (ordered - 1);
                 while farther != 0 {

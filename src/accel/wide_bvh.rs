@@ -58,11 +58,18 @@ pub(crate) const PADDING: u32 = u32::MAX;
 /// `planes[2 * axis + 1]`), and their codes (inner: node index; leaf: [`LEAF_BIT`], count,
 /// first slot). 224 bytes.
 #[derive(Clone, Copy, Debug)]
-#[repr(C, align(32))]
+#[repr(C, align(64))]
 pub(crate) struct WideNode {
     pub planes: [[f32; WIDTH]; 6],
     pub children: [u32; WIDTH],
+    /// `orders[order]`: the XOR mask by which a ray of visiting order `order` (see
+    /// `walk::BoxRay::order`) visits this node's children, slots `i ^ orders[order]`.
+    pub orders: [u8; WIDTH],
+    pub spare: [u32; 6],
 }
+
+/// The visiting orders of a node whose slot bits 2, 1, 0 follow the x, y, z axes.
+pub(crate) const IDENTITY_ORDERS: [u8; WIDTH] = [0, 1, 2, 3, 4, 5, 6, 7];
 
 impl Default for WideNode {
     fn default() -> WideNode {
@@ -73,6 +80,8 @@ impl Default for WideNode {
         WideNode {
             planes,
             children: [0; WIDTH],
+            orders: IDENTITY_ORDERS,
+            spare: [0; 6],
         }
     }
 }

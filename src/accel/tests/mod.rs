@@ -10,6 +10,7 @@ mod isa_paths;
 mod packets;
 mod primitives;
 mod scan_chunks;
+mod ties;
 mod watertight;
 
 use crate::accel::geometry::BUILDS_ON_THIS_THREAD;
