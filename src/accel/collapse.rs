@@ -3,6 +3,7 @@
 //! collapse that follows it in parallel, and the placement of children in slots for
 //! nearest-first visits (slots `i ^ orders[octant]`, [`WideNode::orders`]).
 
+use glam::Vec4;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::bvh2::node::Bvh2Node;
@@ -14,8 +15,8 @@ use std::sync::atomic::Ordering::Relaxed;
 
 use crate::accel::walk::prefetch;
 use crate::accel::wide_bvh::{
-    LEAF_BIT, LeafAlignment, LeafSizing, MAX_PRIMS_PER_LEAF, PADDING, WIDTH, WideNode, leaf_code,
-    occupied,
+    IDENTITY_ORDERS, LEAF_BIT, LeafAlignment, LeafSizing, MAX_PRIMS_PER_LEAF, PADDING, WIDTH,
+    WideNode, leaf_code, occupied,
 };
 
 /// Marks an empty slot in [`assign_slots`]' result.
@@ -404,10 +405,20 @@ fn wide_node(
     primitive_order: &mut Vec<u32>,
     plan: &[AtomicU64],
 ) -> (WideNode, InnerChildren) {
+    let binary = &bvh2.nodes;
     let children = wide_children(bvh2, binary_index, may_be_leaf, sizing, alignment, plan);
     let children = children.as_slice();
     let mut node = WideNode::default();
-    let (slots, orders) = assign_slots(children);
+    // Trees of whole leaves (triangles, quads) take the nodes' own orders; the others (top
+    // levels, spheres, tubes, procedural primitives) keep the octant's, so that exact ties
+    // between placements or such primitives resolve as before 2026-11-28.
+    let (slots, orders) = match sizing {
+        LeafSizing::Whole => assign_slots(children),
+        LeafSizing::Split => (
+            assign_slots_by_octant(children, binary[binary_index].aabb()),
+            IDENTITY_ORDERS,
+        ),
+    };
     node.orders = orders;
     let mut inner_children = InnerChildren::new((0, 0));
     // Grouped leaves: (slot, count, primitives), packed into shared groups below.
@@ -727,6 +738,62 @@ fn wide_children(
         children.push(second);
     }
     children
+}
+
+/// Assigns children to the eight slots of a node visited in the octant's order (slots
+/// `i ^ (7 - o)` for a ray of octant `o`, [`IDENTITY_ORDERS`]) so that near children come first: slot `s` prefers the child that comes first
+/// along the direction whose signs are the bits of `s` (set = negative). Returns, per slot,
+/// the position of its child in `children` or [`EMPTY_SLOT`].
+fn assign_slots_by_octant(children: &[Candidate], parent: &Aabb) -> [u8; WIDTH] {
+    let centre = parent.center();
+    // costs[child][slot]: how far along slot's direction the child's centre lies, i.e. the dot
+    // product of the offset with (+-1, +-1, +-1) summed as (x + y) + z, as `Vec3A::dot`
+    // rounds it (the negations are exact).
+    let mut costs = [[f32::INFINITY; WIDTH]; WIDTH];
+    for (child, row) in children.iter().zip(costs.iter_mut()) {
+        let offset = child.aabb.center() - centre;
+        let y = Vec4::new(offset.y, offset.y, -offset.y, -offset.y);
+        let z = Vec4::new(offset.z, -offset.z, offset.z, -offset.z);
+        (Vec4::splat(offset.x) + y + z).write_to_slice(&mut row[..4]);
+        (Vec4::splat(-offset.x) + y + z).write_to_slice(&mut row[4..]);
+    }
+    // Greedy: repeatedly place the (child, slot) pair with the lowest cost, the first in
+    // (child, slot) order among equal ones. Taken slots cost infinity (real costs are finite);
+    // every child keeps its cheapest slot, recomputed only when another child takes it.
+    let mut cheapest = [(f32::INFINITY, 0u8); WIDTH];
+    for (row, best) in costs.iter().zip(cheapest.iter_mut()).take(children.len()) {
+        *best = first_minimum(row);
+    }
+    let mut placed = 0u32;
+    let mut slots = [EMPTY_SLOT; WIDTH];
+    for _ in 0..children.len() {
+        // Placed children and unused rows have infinite costs.
+        let (_, position) = first_minimum(&cheapest.map(|(cost, _)| cost));
+        let position = position as usize;
+        let slot = cheapest[position].1 as usize;
+        slots[slot] = position as u8;
+        placed |= 1 << position;
+        cheapest[position].0 = f32::INFINITY;
+        for row in costs.iter_mut().take(children.len()) {
+            row[slot] = f32::INFINITY;
+        }
+        for (other, best) in cheapest.iter_mut().enumerate().take(children.len()) {
+            if placed & (1 << other) == 0 && best.1 as usize == slot {
+                *best = first_minimum(&costs[other]);
+            }
+        }
+    }
+    slots
+}
+
+/// The smallest of eight values and the first index holding it.
+#[inline(always)]
+fn first_minimum(values: &[f32; WIDTH]) -> (f32, u8) {
+    let low = Vec4::from_slice(&values[..4]);
+    let high = Vec4::from_slice(&values[4..]);
+    let minimum = Vec4::splat(low.min(high).min_element());
+    let at = low.cmpeq(minimum).bitmask() | (high.cmpeq(minimum).bitmask() << 4);
+    (minimum.x, at.trailing_zeros() as u8)
 }
 
 /// Places children in slots for nearest-first visits and returns, per slot, the position of
