@@ -19,7 +19,7 @@ use crate::accel::wide_bvh::{
     WideNode, leaf_code, occupied,
 };
 
-/// Marks an empty slot in [`assign_slots`]' result.
+/// Marks an empty slot in [`assign_slots`]' and [`assign_slots_by_octant`]'s results.
 const EMPTY_SLOT: u8 = u8::MAX;
 
 /// Surface-area cost of a leaf (group) test relative to a wide node visit, in
@@ -29,7 +29,7 @@ const EMPTY_SLOT: u8 = u8::MAX;
 /// as a leaf hit also ends in the hit's bookkeeping.
 const LEAF_TEST_COST: f32 = 4.0;
 
-/// A wide node's 224 bytes as a surface-area cost in [`slot_costs`], in half areas of the
+/// A wide node's memory (224 bytes when this was tuned, 256 since 2026-11-28) as a surface-area cost in [`slot_costs`], in half areas of the
 /// root's box per primitive (about the area a bottom node spends per triangle on a surface):
 /// without it, leaf costs alone spread leaf-sized subtrees over more nodes (1M triangles,
 /// leaf test cost 2: +12 % nodes, +1.9 bytes per triangle).

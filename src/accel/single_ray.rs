@@ -6,7 +6,8 @@
 //! node and per ray:
 //!
 //! - compiled per octant, the plane rows a ray enters and leaves children by are constant
-//!   offsets into the node, and the visiting order a constant table row;
+//!   offsets into the node; the visiting order is the node's own for the octant
+//!   (`WideNode::orders`, a table row chosen by a byte loaded beside the planes, off the chain);
 //! - one table entry per hit mask ([`VISIT`]) holds the nearest child's slot and the other hit
 //!   children's slots farthest first, so the walk descends without sorting and, with AVX2,
 //!   pushes all the others with one permutation of the node's codes and one of the entry

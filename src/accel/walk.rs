@@ -151,7 +151,7 @@ pub(crate) struct BoxRay {
     /// Per axis, the plane row through which the ray enters children, and the one it leaves by.
     pub entry: [usize; 3],
     pub exit: [usize; 3],
-    /// Children are visited nearest-first in slots `i ^ order`, `i = 0..8`.
+    /// Children are visited nearest-first in slots `i ^ node.orders[order]`, `i = 0..8`.
     pub order: usize,
 }
 
@@ -510,8 +510,8 @@ fn walk_from<B: BoxTest, const ANY_HIT: bool, L: LeafTest>(
     }
 }
 
-/// Starts loading every cache line of a node: 224 bytes aligned to 32 span four lines, one
-/// each around bytes 0, 64, 128 and 192 (plane rows 0, 2 and 4, the child codes).
+/// Starts loading every cache line of a node: 256 bytes aligned to 64, four lines at bytes 0,
+/// 64, 128 and 192 (plane rows 0, 2 and 4, the child codes and orders).
 #[inline(always)]
 pub(crate) fn prefetch_node(node: &WideNode) {
     prefetch(&node.planes[0]);

@@ -55,16 +55,19 @@ const EMPTY_PLANE: f32 = 1.0e20;
 pub(crate) const PADDING: u32 = u32::MAX;
 
 /// Eight children: their boxes per axis as minima then maxima (`planes[2 * axis]`,
-/// `planes[2 * axis + 1]`), and their codes (inner: node index; leaf: [`LEAF_BIT`], count,
-/// first slot). 224 bytes.
+/// `planes[2 * axis + 1]`), their codes (inner: node index; leaf: [`LEAF_BIT`], count, first
+/// slot) and the node's visiting orders. 256 bytes, aligned to a cache line: exactly four lines,
+/// and a node index becomes an address by a shift (the single-ray walk's chain).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub(crate) struct WideNode {
     pub planes: [[f32; WIDTH]; 6],
     pub children: [u32; WIDTH],
-    /// `orders[order]`: the XOR mask by which a ray of visiting order `order` (see
-    /// `walk::BoxRay::order`) visits this node's children, slots `i ^ orders[order]`.
+    /// `orders[order]`: the mask by which a ray of visiting order `order` (`walk::BoxRay::order`,
+    /// from its direction octant) visits this node's children: slots `i ^ orders[order]`,
+    /// `i = 0..8`, every walk alike (`collapse::assign_slots`).
     pub orders: [u8; WIDTH],
+    /// Unused (the node's size stays a power of two).
     pub spare: [u32; 6],
 }
 
