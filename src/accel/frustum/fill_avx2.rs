@@ -7,7 +7,7 @@
 
 use super::{FRUSTUM_GROUPS, FRUSTUM_RAYS, FrustumPacket, QUADRANTS, RayArrays, RayBounds};
 use crate::accel::geometry::prepare as prepare_one;
-use crate::accel::lanes8::{abs, half, select};
+use crate::accel::lanes8::{abs, half, lane_mask, select};
 use crate::accel::packet::LANES;
 use crate::accel::walk::MAX_INV_DIRECTION;
 use crate::accel::{MAX_COORDINATE, Ray};
@@ -137,12 +137,11 @@ fn transposed(rows: [__m256; 8]) -> [__m256; 8] {
     ]
 }
 
-/// Per lane, lows and highs of what a quadrant's bounds take (inactive lanes ±∞).
+/// Per lane, lows and highs of what a quadrant's bounds take (inactive lanes ±∞). The
+/// origins' bounds are reduced only for blocks of several origins ([`origin_bounds`]).
 struct LaneBounds {
     inv_low: [__m256; 3],
     inv_high: [__m256; 3],
-    origin_low: [__m256; 3],
-    origin_high: [__m256; 3],
     t_min_low: __m256,
 }
 
@@ -162,6 +161,9 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
     let mut valid_lanes = 0u64;
     let mut quadrants = [RayBounds::EMPTY; QUADRANTS];
     let mut holds_rays = [false; QUADRANTS];
+    let candidate_origin = arrays.origin.each_ref().map(|axis| _mm256_set1_ps(axis[0]));
+    // Valid lanes whose origin differs from lane 0's.
+    let mut other_origins = 0u32;
     packet.group_count = FRUSTUM_GROUPS;
     for ((quadrant, holds_rays), pairs) in quadrants
         .iter_mut()
@@ -171,8 +173,6 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
         let mut lane_bounds = LaneBounds {
             inv_low: [infinity; 3],
             inv_high: [negative_infinity; 3],
-            origin_low: [infinity; 3],
-            origin_high: [negative_infinity; 3],
             t_min_low: infinity,
         };
         for pair in pairs {
@@ -204,6 +204,11 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
             );
             let valid_bits = _mm256_movemask_ps(valid) as u32;
             valid_lanes |= u64::from(valid_bits) << (8 * pair);
+            let same = [0, 1, 2]
+                .map(|axis| _mm256_cmp_ps::<_CMP_EQ_OQ>(origin[axis], candidate_origin[axis]));
+            let same_bits =
+                _mm256_movemask_ps(_mm256_and_ps(_mm256_and_ps(same[0], same[1]), same[2])) as u32;
+            other_origins |= valid_bits & !same_bits;
             let negative = direction.map(|d| _mm256_cmp_ps::<_CMP_LT_OQ>(d, zero));
             let inverse = [0, 1, 2].map(|axis| {
                 let clamped = select(
@@ -304,20 +309,10 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
             }
             // Bounds over the valid lanes (groups without one were reset: no lane of theirs
             // is valid either).
-            for axis in 0..3 {
-                let b = &mut lane_bounds;
-                b.inv_low[axis] =
-                    _mm256_min_ps(b.inv_low[axis], select(valid, inverse[axis], infinity));
-                b.inv_high[axis] = _mm256_max_ps(
-                    b.inv_high[axis],
-                    select(valid, inverse[axis], negative_infinity),
-                );
-                b.origin_low[axis] =
-                    _mm256_min_ps(b.origin_low[axis], select(valid, origin[axis], infinity));
-                b.origin_high[axis] = _mm256_max_ps(
-                    b.origin_high[axis],
-                    select(valid, origin[axis], negative_infinity),
-                );
+            let b = &mut lane_bounds;
+            for ((low, high), inverse) in b.inv_low.iter_mut().zip(&mut b.inv_high).zip(inverse) {
+                *low = _mm256_min_ps(*low, select(valid, inverse, infinity));
+                *high = _mm256_max_ps(*high, select(valid, inverse, negative_infinity));
             }
             lane_bounds.t_min_low =
                 _mm256_min_ps(lane_bounds.t_min_low, select(valid, t_min, infinity));
@@ -331,8 +326,6 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
             *quadrant = RayBounds {
                 inv_low: Vec3A::from(b.inv_low.map(|v| smallest(v))),
                 inv_high: Vec3A::from(b.inv_high.map(|v| largest(v))),
-                origin_low: Vec3A::from(b.origin_low.map(|v| smallest(v))),
-                origin_high: Vec3A::from(b.origin_high.map(|v| largest(v))),
                 t_min_low: smallest(b.t_min_low),
                 ..RayBounds::EMPTY
             };
@@ -343,23 +336,24 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
     };
     packet.octant_inv = octant_inv;
     // One shared origin: every valid lane's equals the first valid lane's (compared as the
-    // four-lane fill does, `==` per axis), which is then each quadrant's origin bounds.
+    // four-lane fill does, `==` per axis), which is then each quadrant's origin bounds. Lane 0
+    // is the first valid lane of nearly every block, so the lanes were compared with it while
+    // loaded; `==` is transitive on the valid (finite) origins, so "all equal lane 0's" means
+    // "all equal the first valid lane's", and only where that fails are the lanes compared
+    // with the first valid lane's and the bounds reduced over them.
     let first = valid_lanes.trailing_zeros() as usize;
     let first_origin = arrays.origin.each_ref().map(|axis| axis[first]);
-    let mut differ = false;
-    for pair in 0..8 {
-        let valid = ((valid_lanes >> (8 * pair)) & 0xff) as u32;
-        let mut same = all_ones;
-        for (axis, values) in arrays.origin.iter().enumerate() {
-            let equal = _mm256_cmp_ps::<_CMP_EQ_OQ>(
-                lanes_of(values, pair),
-                _mm256_set1_ps(first_origin[axis]),
-            );
-            same = _mm256_and_ps(same, equal);
-        }
-        differ |= valid & !(_mm256_movemask_ps(same) as u32) != 0;
-    }
-    let shared = (!differ).then(|| Vec3A::from(first_origin));
+    let shared = if other_origins == 0 {
+        Some(Vec3A::from(first_origin))
+    } else {
+        origin_bounds(
+            arrays,
+            valid_lanes,
+            first_origin,
+            &mut quadrants,
+            &holds_rays,
+        )
+    };
     let mut whole = RayBounds::EMPTY;
     for (quadrant, holds_rays) in quadrants.iter_mut().zip(holds_rays) {
         if let Some(origin) = shared
@@ -374,6 +368,59 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
     packet.whole = whole.finished();
     packet.quadrants = quadrants;
     true
+}
+
+/// For a block whose valid lanes do not all share lane 0's origin: whether they all share the
+/// first valid lane's (`first_origin`, compared as the four-lane fill does), and if not, each
+/// quadrant's origin bounds over its valid lanes (`valid_lanes`, bit per lane).
+#[target_feature(enable = "avx2")]
+#[inline(never)]
+fn origin_bounds(
+    arrays: &RayArrays,
+    valid_lanes: u64,
+    first_origin: [f32; 3],
+    quadrants: &mut [RayBounds; QUADRANTS],
+    holds_rays: &[bool; QUADRANTS],
+) -> Option<Vec3A> {
+    let valid_of = |pair: usize| ((valid_lanes >> (8 * pair)) & 0xff) as u32;
+    let differ = (0..8).any(|pair| {
+        let same = arrays.origin.iter().enumerate().fold(
+            _mm256_castsi256_ps(_mm256_set1_epi32(-1)),
+            |same, (axis, values)| {
+                let first = _mm256_set1_ps(first_origin[axis]);
+                _mm256_and_ps(
+                    same,
+                    _mm256_cmp_ps::<_CMP_EQ_OQ>(lanes_of(values, pair), first),
+                )
+            },
+        );
+        valid_of(pair) & !(_mm256_movemask_ps(same) as u32) != 0
+    });
+    if !differ {
+        return Some(Vec3A::from(first_origin));
+    }
+    let (infinity, negative_infinity) = (
+        _mm256_set1_ps(f32::INFINITY),
+        _mm256_set1_ps(f32::NEG_INFINITY),
+    );
+    for ((quadrant, holds_rays), pairs) in quadrants.iter_mut().zip(holds_rays).zip(QUADRANT_PAIRS)
+    {
+        if !holds_rays {
+            continue;
+        }
+        let (mut low, mut high) = ([infinity; 3], [negative_infinity; 3]);
+        for pair in pairs {
+            let valid = lane_mask(valid_of(pair));
+            for axis in 0..3 {
+                let origin = lanes_of(&arrays.origin[axis], pair);
+                low[axis] = _mm256_min_ps(low[axis], select(valid, origin, infinity));
+                high[axis] = _mm256_max_ps(high[axis], select(valid, origin, negative_infinity));
+            }
+        }
+        quadrant.origin_low = Vec3A::from(low.map(|v| smallest(v)));
+        quadrant.origin_high = Vec3A::from(high.map(|v| largest(v)));
+    }
+    None
 }
 
 #[cfg(test)]
