@@ -383,19 +383,21 @@ fn origin_bounds(
     holds_rays: &[bool; QUADRANTS],
 ) -> Option<Vec3A> {
     let valid_of = |pair: usize| ((valid_lanes >> (8 * pair)) & 0xff) as u32;
-    let differ = (0..8).any(|pair| {
-        let same = arrays.origin.iter().enumerate().fold(
-            _mm256_castsi256_ps(_mm256_set1_epi32(-1)),
-            |same, (axis, values)| {
-                let first = _mm256_set1_ps(first_origin[axis]);
-                _mm256_and_ps(
-                    same,
-                    _mm256_cmp_ps::<_CMP_EQ_OQ>(lanes_of(values, pair), first),
-                )
-            },
-        );
-        valid_of(pair) & !(_mm256_movemask_ps(same) as u32) != 0
-    });
+    // With lane 0 valid it is the first valid lane, and its origin was the one compared.
+    let differ = valid_lanes & 1 != 0
+        || (0..8).any(|pair| {
+            let same = arrays.origin.iter().enumerate().fold(
+                _mm256_castsi256_ps(_mm256_set1_epi32(-1)),
+                |same, (axis, values)| {
+                    let first = _mm256_set1_ps(first_origin[axis]);
+                    _mm256_and_ps(
+                        same,
+                        _mm256_cmp_ps::<_CMP_EQ_OQ>(lanes_of(values, pair), first),
+                    )
+                },
+            );
+            valid_of(pair) & !(_mm256_movemask_ps(same) as u32) != 0
+        });
     if !differ {
         return Some(Vec3A::from(first_origin));
     }
