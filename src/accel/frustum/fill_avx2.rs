@@ -5,7 +5,9 @@
 //! the packet is the one the four-lane fill gives; the bounds are minima and maxima of the same
 //! values, which do not depend on the order they are taken in.
 
-use super::{FRUSTUM_GROUPS, FRUSTUM_RAYS, FrustumPacket, QUADRANTS, RayArrays, RayBounds};
+use super::{
+    FRUSTUM_GROUPS, FRUSTUM_RAYS, FrustumPacket, LaneArrays, QUADRANTS, RayArrays, RayBounds,
+};
 use crate::accel::geometry::prepare as prepare_one;
 use crate::accel::lanes8::{abs, half, lane_mask, select};
 use crate::accel::packet::LANES;
@@ -46,37 +48,13 @@ fn largest(values: __m256) -> f32 {
     Vec4::from(four).max_element()
 }
 
-/// A block's lane arrays, owned ([`RayArrays`] borrows them).
-struct LaneArrays {
-    origin: [[f32; FRUSTUM_RAYS]; 3],
-    direction: [[f32; FRUSTUM_RAYS]; 3],
-    t_min: [f32; FRUSTUM_RAYS],
-    t_max: [f32; FRUSTUM_RAYS],
-}
-
-impl LaneArrays {
-    fn arrays(&self) -> RayArrays<'_> {
-        RayArrays {
-            origin: &self.origin,
-            direction: &self.direction,
-            t_min: &self.t_min,
-            t_max: &self.t_max,
-        }
-    }
-}
-
 /// [`FrustumPacket::fill_from_rays`] of a full packet on the AVX2 path: each eight rays'
 /// floats transposed into lanes, then [`fill_from_arrays`] (which makes the packet the
 /// four-lane fill makes of the same rays).
 #[target_feature(enable = "avx2")]
 #[inline]
 pub(super) fn fill_from_rays(packet: &mut FrustumPacket, rays: &[Ray; FRUSTUM_RAYS]) -> bool {
-    let mut lanes = LaneArrays {
-        origin: [[0.0; FRUSTUM_RAYS]; 3],
-        direction: [[0.0; FRUSTUM_RAYS]; 3],
-        t_min: [0.0; FRUSTUM_RAYS],
-        t_max: [0.0; FRUSTUM_RAYS],
-    };
+    let mut lanes = LaneArrays::default();
     for (pair, eight) in rays.as_chunks::<8>().0.iter().enumerate() {
         // SAFETY: `Ray` is `repr(C)`, eight `f32`s (asserted below), so each ray is one
         // unaligned 32-byte load.
