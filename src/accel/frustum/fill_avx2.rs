@@ -10,7 +10,7 @@ use super::{
 };
 use crate::accel::geometry::prepare as prepare_one;
 use crate::accel::lanes8::{abs, half, lane_mask, select};
-use crate::accel::packet::LANES;
+use crate::accel::packet::{LANES, RayPacket};
 use crate::accel::walk::MAX_INV_DIRECTION;
 use crate::accel::{MAX_COORDINATE, Ray};
 use glam::{Vec3A, Vec4};
@@ -123,6 +123,88 @@ struct LaneBounds {
     t_min_low: __m256,
 }
 
+/// The octant code (`octant_inv`) of rays whose direction components are negative where
+/// `negative_bits` (per axis, bit per lane) are set; all lanes agree.
+#[inline]
+fn octant_of(negative_bits: [u32; 3]) -> u32 {
+    (if negative_bits[0] != 0 { 0 } else { 4 })
+        | (if negative_bits[1] != 0 { 0 } else { 2 })
+        | (if negative_bits[2] != 0 { 0 } else { 1 })
+}
+
+/// Two groups' lanes as loaded and prepared (intervals of invalid lanes already empty).
+struct PairLanes {
+    origin: [__m256; 3],
+    direction: [__m256; 3],
+    inverse: [__m256; 3],
+    t_min: __m256,
+    t_max: __m256,
+}
+
+/// The values of the watertight test for a dominant axis: the shear and the origin in sheared
+/// axis order.
+struct Sheared {
+    shear: [__m256; 3],
+    permuted_origin: [__m256; 3],
+}
+
+impl PairLanes {
+    /// The shear and permuted origin of the lanes for dominant axis `kz` (per lane what
+    /// `RayPacket::prepare_lanes` computes).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn sheared(&self, kz: usize) -> Sheared {
+        // The axes in sheared order by constant indices (indexing by `kz` put the vectors
+        // through memory and stalled on reading half of one back).
+        let in_order = |values: &[__m256; 3]| match kz {
+            0 => [values[1], values[2], values[0]],
+            1 => [values[2], values[0], values[1]],
+            _ => *values,
+        };
+        let [direction_x, direction_y, _] = in_order(&self.direction);
+        let inv_dominant = in_order(&self.inverse)[2];
+        Sheared {
+            shear: [
+                _mm256_mul_ps(direction_x, inv_dominant),
+                _mm256_mul_ps(direction_y, inv_dominant),
+                inv_dominant,
+            ],
+            permuted_origin: in_order(&self.origin),
+        }
+    }
+
+    /// Writes half `h` of the lanes into `group`, field by field from the registers
+    /// (building the arrays first and copying them stalled on every copy: wide loads of narrow
+    /// stores).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn store(
+        &self,
+        group: &mut RayPacket,
+        h: usize,
+        lanes: u32,
+        octant_inv: u32,
+        kz: usize,
+        sheared: &Sheared,
+    ) {
+        for axis in 0..3 {
+            group.origin[axis] = half(self.origin[axis], h);
+            group.direction[axis] = half(self.direction[axis], h);
+            group.inv_direction[axis] = half(self.inverse[axis], h);
+            group.shear[axis] = half(sheared.shear[axis], h);
+            group.permuted_origin[axis] = half(sheared.permuted_origin[axis], h);
+        }
+        group.t_min = half(self.t_min, h);
+        group.t_max = half(self.t_max, h);
+        group.hit_uv = [Vec4::ZERO; 2];
+        group.hit_normal = [Vec4::ZERO; 3];
+        group.octant_inv = octant_inv;
+        let kx = (kz + 1) % 3;
+        group.shear_axes = [kx, (kx + 1) % 3, kz];
+        group.lanes = lanes;
+    }
+}
+
 /// [`FrustumPacket::fill_from_arrays`] on the AVX2 path: the same packet, value for value, and
 /// the same answer.
 #[target_feature(enable = "avx2")]
@@ -214,7 +296,43 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
                 _mm256_movemask_ps(x_dominant) as u32,
                 _mm256_movemask_ps(y_dominant) as u32,
             );
-            for h in 0..2 {
+            let lanes8 = PairLanes {
+                origin,
+                direction,
+                inverse,
+                t_min: select(valid, t_min, infinity),
+                t_max: select(valid, t_max, negative_infinity),
+            };
+            // Usually both groups hold four valid rays of one octant and one dominant axis:
+            // then they are classified, and their shear made, once for both.
+            let uniform = valid_bits == 0xff
+                && negative_bits.iter().all(|&bits| bits == 0 || bits == 0xff)
+                && (x_bits == 0xff || (x_bits == 0 && (y_bits == 0xff || y_bits == 0)));
+            if uniform {
+                let octant_inv = octant_of(negative_bits);
+                let kz = if x_bits != 0 {
+                    0
+                } else if y_bits != 0 {
+                    1
+                } else {
+                    2
+                };
+                if *octant.get_or_insert(octant_inv) != octant_inv {
+                    return false;
+                }
+                let sheared = lanes8.sheared(kz);
+                for h in 0..2 {
+                    lanes8.store(
+                        &mut packet.groups[2 * pair + h],
+                        h,
+                        0xf,
+                        octant_inv,
+                        kz,
+                        &sheared,
+                    );
+                }
+            }
+            for h in (0..2).filter(|_| !uniform) {
                 let group_index = 2 * pair + h;
                 let lanes = (valid_bits >> (LANES * h)) & 0xf;
                 if lanes == 0 {
@@ -235,9 +353,7 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
                 {
                     return false;
                 }
-                let octant_inv = (if negative_bits[0] != 0 { 0 } else { 4 })
-                    | (if negative_bits[1] != 0 { 0 } else { 2 })
-                    | (if negative_bits[2] != 0 { 0 } else { 1 });
+                let octant_inv = octant_of(negative_bits);
                 let (x_lanes, y_lanes) = (
                     (x_bits >> (LANES * h)) & lanes,
                     (y_bits >> (LANES * h)) & lanes,
@@ -254,36 +370,15 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
                 if *octant.get_or_insert(octant_inv) != octant_inv {
                     return false;
                 }
-                let kx = (kz + 1) % 3;
-                let ky = (kx + 1) % 3;
-                // Written field by field from the registers: building the arrays first and
-                // copying them stalled on every copy (wide loads of narrow stores).
-                let group = &mut packet.groups[group_index];
-                for axis in 0..3 {
-                    group.origin[axis] = half(origin[axis], h);
-                    group.direction[axis] = half(direction[axis], h);
-                    group.inv_direction[axis] = half(inverse[axis], h);
-                }
-                group.t_min = half(select(valid, t_min, infinity), h);
-                group.t_max = half(select(valid, t_max, negative_infinity), h);
-                group.hit_uv = [Vec4::ZERO; 2];
-                group.hit_normal = [Vec4::ZERO; 3];
-                group.octant_inv = octant_inv;
-                group.shear_axes = [kx, ky, kz];
-                // The axes in sheared order by constant indices (indexing by `kz` put the
-                // vectors through memory and stalled on reading half of one back).
-                let in_order = |values: &[__m256; 3]| match kz {
-                    0 => [values[1], values[2], values[0]],
-                    1 => [values[2], values[0], values[1]],
-                    _ => *values,
-                };
-                let [direction_x, direction_y, _] = in_order(&direction);
-                let inv_dominant = half(in_order(&inverse)[2], h);
-                group.shear[0] = half(direction_x, h) * inv_dominant;
-                group.shear[1] = half(direction_y, h) * inv_dominant;
-                group.shear[2] = inv_dominant;
-                group.permuted_origin = in_order(&origin).map(|axis| half(axis, h));
-                group.lanes = lanes;
+                let sheared = lanes8.sheared(kz);
+                lanes8.store(
+                    &mut packet.groups[group_index],
+                    h,
+                    lanes,
+                    octant_inv,
+                    kz,
+                    &sheared,
+                );
             }
             // Bounds over the valid lanes (groups without one were reset: no lane of theirs
             // is valid either).
