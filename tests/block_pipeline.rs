@@ -8,6 +8,7 @@
 mod common;
 use common::*;
 
+use std::sync::Mutex;
 use std::sync::atomic::Ordering;
 
 use cavetrace::render::frame::PLAIN_PER_PIXEL_PATH;
@@ -27,6 +28,9 @@ const CHANNELS: [(&str, ANARIDataType); 9] = [
     ("channel.albedo", ANARI_FLOAT32_VEC3),
     ("channel.parallax", ANARI_FLOAT32),
 ];
+
+/// Held while a frame renders with [`PLAIN_PER_PIXEL_PATH`] set for it.
+static RENDERING: Mutex<()> = Mutex::new(());
 
 /// Each channel's bytes of one render, through the block pipeline or the plain path.
 fn render(
@@ -52,9 +56,16 @@ fn render(
     set_object(dev, frame, "camera", ANARI_CAMERA, camera);
     set_object(dev, frame, "renderer", ANARI_RENDERER, renderer);
     commit(dev, frame);
+    // The switch is the process's: the tests of this file render in turn, else one test's
+    // pipeline frame could start while another has the plain path switched on (and compare
+    // the plain path with itself).
+    let one_at_a_time = RENDERING
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
     PLAIN_PER_PIXEL_PATH.store(plain, Ordering::SeqCst);
     render_and_wait(dev, frame);
     PLAIN_PER_PIXEL_PATH.store(false, Ordering::SeqCst);
+    drop(one_at_a_time);
     let bytes = channels
         .iter()
         .map(|(name, _)| read_channel::<u8>(dev, frame, name).0)

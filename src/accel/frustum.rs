@@ -238,6 +238,61 @@ impl RayArrays<'_> {
     }
 }
 
+/// A block's lane arrays, owned ([`RayArrays`] borrows them).
+#[derive(Clone)]
+pub(crate) struct LaneArrays {
+    pub origin: [[f32; FRUSTUM_RAYS]; 3],
+    pub direction: [[f32; FRUSTUM_RAYS]; 3],
+    pub t_min: [f32; FRUSTUM_RAYS],
+    pub t_max: [f32; FRUSTUM_RAYS],
+}
+
+impl Default for LaneArrays {
+    fn default() -> LaneArrays {
+        LaneArrays {
+            origin: [[0.0; FRUSTUM_RAYS]; 3],
+            direction: [[0.0; FRUSTUM_RAYS]; 3],
+            t_min: [0.0; FRUSTUM_RAYS],
+            t_max: [0.0; FRUSTUM_RAYS],
+        }
+    }
+}
+
+impl LaneArrays {
+    /// A copy of `arrays`.
+    pub fn of(arrays: &RayArrays) -> LaneArrays {
+        LaneArrays {
+            origin: *arrays.origin,
+            direction: *arrays.direction,
+            t_min: *arrays.t_min,
+            t_max: *arrays.t_max,
+        }
+    }
+
+    /// The lanes of 64 rays.
+    pub fn of_rays(rays: &[Ray]) -> LaneArrays {
+        let mut lanes = LaneArrays::default();
+        for (lane, ray) in rays.iter().take(FRUSTUM_RAYS).enumerate() {
+            for axis in 0..3 {
+                lanes.origin[axis][lane] = ray.origin[axis];
+                lanes.direction[axis][lane] = ray.direction[axis];
+            }
+            lanes.t_min[lane] = ray.t_min;
+            lanes.t_max[lane] = ray.t_max;
+        }
+        lanes
+    }
+
+    pub fn arrays(&self) -> RayArrays<'_> {
+        RayArrays {
+            origin: &self.origin,
+            direction: &self.direction,
+            t_min: &self.t_min,
+            t_max: &self.t_max,
+        }
+    }
+}
+
 /// Working memory for tracing packets of primary rays, reusable from one tile to the next.
 pub struct PacketScratch {
     pub(crate) frustum: FrustumPacket,

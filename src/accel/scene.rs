@@ -6,7 +6,7 @@
 //! without renormalizing, which keeps the ray parameter `t` identical in both spaces.
 
 use crate::accel::frustum::{
-    FRUSTUM_RAYS, FrustumPacket, PacketScratch, RayArrays, traverse_frustum,
+    FRUSTUM_RAYS, FrustumPacket, LaneArrays, PacketScratch, RayArrays, traverse_frustum,
 };
 use crate::accel::geometry::{GeometryBvh, prepare};
 use crate::accel::packet::{LANES, RayPacket, traverse_packet};
@@ -23,6 +23,7 @@ use std::sync::Arc;
 
 #[cfg(target_arch = "x86_64")]
 mod placements8;
+mod split_block;
 
 /// One geometry of one instance.
 struct Placement {
@@ -555,10 +556,14 @@ impl SceneBvh {
         rays: &[Ray],
         hits: &mut [Option<SceneHit>],
     ) {
-        let frustum = &mut scratch.frustum;
         for (rays, hits) in rays.chunks(FRUSTUM_RAYS).zip(hits.chunks_mut(FRUSTUM_RAYS)) {
-            if frustum.fill_from_rays_on::<AVX2>(rays) {
-                self.frustum_hits(frustum, hits);
+            if scratch.frustum.fill_from_rays_on::<AVX2>(rays) {
+                self.frustum_hits(&mut scratch.frustum, hits);
+            } else if let Ok(block_hits) =
+                <&mut [Option<SceneHit>; FRUSTUM_RAYS]>::try_from(&mut *hits)
+            {
+                let lanes = LaneArrays::of_rays(rays);
+                self.split_block_hits::<AVX2>(scratch, &lanes.arrays(), block_hits);
             } else {
                 self.small_packet_hits(rays, hits);
             }
@@ -613,12 +618,10 @@ impl SceneBvh {
         arrays: &RayArrays,
         hits: &mut [Option<SceneHit>; FRUSTUM_RAYS],
     ) {
-        let frustum = &mut scratch.frustum;
-        if frustum.fill_from_arrays_on::<AVX2>(arrays) {
-            self.frustum_hits(frustum, hits);
+        if scratch.frustum.fill_from_arrays_on::<AVX2>(arrays) {
+            self.frustum_hits(&mut scratch.frustum, hits);
         } else {
-            let rays: [Ray; FRUSTUM_RAYS] = std::array::from_fn(|lane| arrays.ray(lane));
-            self.small_packet_hits(&rays, hits);
+            self.split_block_hits::<AVX2>(scratch, arrays, hits);
         }
     }
 

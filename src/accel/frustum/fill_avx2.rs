@@ -5,10 +5,12 @@
 //! the packet is the one the four-lane fill gives; the bounds are minima and maxima of the same
 //! values, which do not depend on the order they are taken in.
 
-use super::{FRUSTUM_GROUPS, FRUSTUM_RAYS, FrustumPacket, QUADRANTS, RayArrays, RayBounds};
+use super::{
+    FRUSTUM_GROUPS, FRUSTUM_RAYS, FrustumPacket, LaneArrays, QUADRANTS, RayArrays, RayBounds,
+};
 use crate::accel::geometry::prepare as prepare_one;
-use crate::accel::lanes8::{abs, half, select};
-use crate::accel::packet::LANES;
+use crate::accel::lanes8::{abs, half, lane_mask, select};
+use crate::accel::packet::{LANES, RayPacket};
 use crate::accel::walk::MAX_INV_DIRECTION;
 use crate::accel::{MAX_COORDINATE, Ray};
 use glam::{Vec3A, Vec4};
@@ -46,37 +48,13 @@ fn largest(values: __m256) -> f32 {
     Vec4::from(four).max_element()
 }
 
-/// A block's lane arrays, owned ([`RayArrays`] borrows them).
-struct LaneArrays {
-    origin: [[f32; FRUSTUM_RAYS]; 3],
-    direction: [[f32; FRUSTUM_RAYS]; 3],
-    t_min: [f32; FRUSTUM_RAYS],
-    t_max: [f32; FRUSTUM_RAYS],
-}
-
-impl LaneArrays {
-    fn arrays(&self) -> RayArrays<'_> {
-        RayArrays {
-            origin: &self.origin,
-            direction: &self.direction,
-            t_min: &self.t_min,
-            t_max: &self.t_max,
-        }
-    }
-}
-
 /// [`FrustumPacket::fill_from_rays`] of a full packet on the AVX2 path: each eight rays'
 /// floats transposed into lanes, then [`fill_from_arrays`] (which makes the packet the
 /// four-lane fill makes of the same rays).
 #[target_feature(enable = "avx2")]
 #[inline]
 pub(super) fn fill_from_rays(packet: &mut FrustumPacket, rays: &[Ray; FRUSTUM_RAYS]) -> bool {
-    let mut lanes = LaneArrays {
-        origin: [[0.0; FRUSTUM_RAYS]; 3],
-        direction: [[0.0; FRUSTUM_RAYS]; 3],
-        t_min: [0.0; FRUSTUM_RAYS],
-        t_max: [0.0; FRUSTUM_RAYS],
-    };
+    let mut lanes = LaneArrays::default();
     for (pair, eight) in rays.as_chunks::<8>().0.iter().enumerate() {
         // SAFETY: `Ray` is `repr(C)`, eight `f32`s (asserted below), so each ray is one
         // unaligned 32-byte load.
@@ -137,13 +115,94 @@ fn transposed(rows: [__m256; 8]) -> [__m256; 8] {
     ]
 }
 
-/// Per lane, lows and highs of what a quadrant's bounds take (inactive lanes ±∞).
+/// Per lane, lows and highs of what a quadrant's bounds take (inactive lanes ±∞). The
+/// origins' bounds are reduced only for blocks of several origins ([`origin_bounds`]).
 struct LaneBounds {
     inv_low: [__m256; 3],
     inv_high: [__m256; 3],
-    origin_low: [__m256; 3],
-    origin_high: [__m256; 3],
     t_min_low: __m256,
+}
+
+/// The octant code (`octant_inv`) of rays whose direction components are negative where
+/// `negative_bits` (per axis, bit per lane) are set; all lanes agree.
+#[inline]
+fn octant_of(negative_bits: [u32; 3]) -> u32 {
+    (if negative_bits[0] != 0 { 0 } else { 4 })
+        | (if negative_bits[1] != 0 { 0 } else { 2 })
+        | (if negative_bits[2] != 0 { 0 } else { 1 })
+}
+
+/// Two groups' lanes as loaded and prepared (intervals of invalid lanes already empty).
+struct PairLanes {
+    origin: [__m256; 3],
+    direction: [__m256; 3],
+    inverse: [__m256; 3],
+    t_min: __m256,
+    t_max: __m256,
+}
+
+/// The values of the watertight test for a dominant axis: the shear and the origin in sheared
+/// axis order.
+struct Sheared {
+    shear: [__m256; 3],
+    permuted_origin: [__m256; 3],
+}
+
+impl PairLanes {
+    /// The shear and permuted origin of the lanes for dominant axis `kz` (per lane what
+    /// `RayPacket::prepare_lanes` computes).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn sheared(&self, kz: usize) -> Sheared {
+        // The axes in sheared order by constant indices (indexing by `kz` put the vectors
+        // through memory and stalled on reading half of one back).
+        let in_order = |values: &[__m256; 3]| match kz {
+            0 => [values[1], values[2], values[0]],
+            1 => [values[2], values[0], values[1]],
+            _ => *values,
+        };
+        let [direction_x, direction_y, _] = in_order(&self.direction);
+        let inv_dominant = in_order(&self.inverse)[2];
+        Sheared {
+            shear: [
+                _mm256_mul_ps(direction_x, inv_dominant),
+                _mm256_mul_ps(direction_y, inv_dominant),
+                inv_dominant,
+            ],
+            permuted_origin: in_order(&self.origin),
+        }
+    }
+
+    /// Writes half `h` of the lanes into `group`, field by field from the registers
+    /// (building the arrays first and copying them stalled on every copy: wide loads of narrow
+    /// stores).
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn store(
+        &self,
+        group: &mut RayPacket,
+        h: usize,
+        lanes: u32,
+        octant_inv: u32,
+        kz: usize,
+        sheared: &Sheared,
+    ) {
+        for axis in 0..3 {
+            group.origin[axis] = half(self.origin[axis], h);
+            group.direction[axis] = half(self.direction[axis], h);
+            group.inv_direction[axis] = half(self.inverse[axis], h);
+            group.shear[axis] = half(sheared.shear[axis], h);
+            group.permuted_origin[axis] = half(sheared.permuted_origin[axis], h);
+        }
+        group.t_min = half(self.t_min, h);
+        group.t_max = half(self.t_max, h);
+        group.hit_uv = [Vec4::ZERO; 2];
+        group.hit_normal = [Vec4::ZERO; 3];
+        group.octant_inv = octant_inv;
+        let kx = (kz + 1) % 3;
+        group.shear_axes = [kx, (kx + 1) % 3, kz];
+        group.lanes = lanes;
+    }
 }
 
 /// [`FrustumPacket::fill_from_arrays`] on the AVX2 path: the same packet, value for value, and
@@ -162,6 +221,9 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
     let mut valid_lanes = 0u64;
     let mut quadrants = [RayBounds::EMPTY; QUADRANTS];
     let mut holds_rays = [false; QUADRANTS];
+    let candidate_origin = arrays.origin.each_ref().map(|axis| _mm256_set1_ps(axis[0]));
+    // Valid lanes whose origin differs from lane 0's.
+    let mut other_origins = 0u32;
     packet.group_count = FRUSTUM_GROUPS;
     for ((quadrant, holds_rays), pairs) in quadrants
         .iter_mut()
@@ -171,8 +233,6 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
         let mut lane_bounds = LaneBounds {
             inv_low: [infinity; 3],
             inv_high: [negative_infinity; 3],
-            origin_low: [infinity; 3],
-            origin_high: [negative_infinity; 3],
             t_min_low: infinity,
         };
         for pair in pairs {
@@ -204,6 +264,11 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
             );
             let valid_bits = _mm256_movemask_ps(valid) as u32;
             valid_lanes |= u64::from(valid_bits) << (8 * pair);
+            let same = [0, 1, 2]
+                .map(|axis| _mm256_cmp_ps::<_CMP_EQ_OQ>(origin[axis], candidate_origin[axis]));
+            let same_bits =
+                _mm256_movemask_ps(_mm256_and_ps(_mm256_and_ps(same[0], same[1]), same[2])) as u32;
+            other_origins |= valid_bits & !same_bits;
             let negative = direction.map(|d| _mm256_cmp_ps::<_CMP_LT_OQ>(d, zero));
             let inverse = [0, 1, 2].map(|axis| {
                 let clamped = select(
@@ -231,7 +296,43 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
                 _mm256_movemask_ps(x_dominant) as u32,
                 _mm256_movemask_ps(y_dominant) as u32,
             );
-            for h in 0..2 {
+            let lanes8 = PairLanes {
+                origin,
+                direction,
+                inverse,
+                t_min: select(valid, t_min, infinity),
+                t_max: select(valid, t_max, negative_infinity),
+            };
+            // Usually both groups hold four valid rays of one octant and one dominant axis:
+            // then they are classified, and their shear made, once for both.
+            let uniform = valid_bits == 0xff
+                && negative_bits.iter().all(|&bits| bits == 0 || bits == 0xff)
+                && (x_bits == 0xff || (x_bits == 0 && (y_bits == 0xff || y_bits == 0)));
+            if uniform {
+                let octant_inv = octant_of(negative_bits);
+                let kz = if x_bits != 0 {
+                    0
+                } else if y_bits != 0 {
+                    1
+                } else {
+                    2
+                };
+                if *octant.get_or_insert(octant_inv) != octant_inv {
+                    return false;
+                }
+                let sheared = lanes8.sheared(kz);
+                for h in 0..2 {
+                    lanes8.store(
+                        &mut packet.groups[2 * pair + h],
+                        h,
+                        0xf,
+                        octant_inv,
+                        kz,
+                        &sheared,
+                    );
+                }
+            }
+            for h in (0..2).filter(|_| !uniform) {
                 let group_index = 2 * pair + h;
                 let lanes = (valid_bits >> (LANES * h)) & 0xf;
                 if lanes == 0 {
@@ -252,9 +353,7 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
                 {
                     return false;
                 }
-                let octant_inv = (if negative_bits[0] != 0 { 0 } else { 4 })
-                    | (if negative_bits[1] != 0 { 0 } else { 2 })
-                    | (if negative_bits[2] != 0 { 0 } else { 1 });
+                let octant_inv = octant_of(negative_bits);
                 let (x_lanes, y_lanes) = (
                     (x_bits >> (LANES * h)) & lanes,
                     (y_bits >> (LANES * h)) & lanes,
@@ -271,53 +370,22 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
                 if *octant.get_or_insert(octant_inv) != octant_inv {
                     return false;
                 }
-                let kx = (kz + 1) % 3;
-                let ky = (kx + 1) % 3;
-                // Written field by field from the registers: building the arrays first and
-                // copying them stalled on every copy (wide loads of narrow stores).
-                let group = &mut packet.groups[group_index];
-                for axis in 0..3 {
-                    group.origin[axis] = half(origin[axis], h);
-                    group.direction[axis] = half(direction[axis], h);
-                    group.inv_direction[axis] = half(inverse[axis], h);
-                }
-                group.t_min = half(select(valid, t_min, infinity), h);
-                group.t_max = half(select(valid, t_max, negative_infinity), h);
-                group.hit_uv = [Vec4::ZERO; 2];
-                group.hit_normal = [Vec4::ZERO; 3];
-                group.octant_inv = octant_inv;
-                group.shear_axes = [kx, ky, kz];
-                // The axes in sheared order by constant indices (indexing by `kz` put the
-                // vectors through memory and stalled on reading half of one back).
-                let in_order = |values: &[__m256; 3]| match kz {
-                    0 => [values[1], values[2], values[0]],
-                    1 => [values[2], values[0], values[1]],
-                    _ => *values,
-                };
-                let [direction_x, direction_y, _] = in_order(&direction);
-                let inv_dominant = half(in_order(&inverse)[2], h);
-                group.shear[0] = half(direction_x, h) * inv_dominant;
-                group.shear[1] = half(direction_y, h) * inv_dominant;
-                group.shear[2] = inv_dominant;
-                group.permuted_origin = in_order(&origin).map(|axis| half(axis, h));
-                group.lanes = lanes;
+                let sheared = lanes8.sheared(kz);
+                lanes8.store(
+                    &mut packet.groups[group_index],
+                    h,
+                    lanes,
+                    octant_inv,
+                    kz,
+                    &sheared,
+                );
             }
             // Bounds over the valid lanes (groups without one were reset: no lane of theirs
             // is valid either).
-            for axis in 0..3 {
-                let b = &mut lane_bounds;
-                b.inv_low[axis] =
-                    _mm256_min_ps(b.inv_low[axis], select(valid, inverse[axis], infinity));
-                b.inv_high[axis] = _mm256_max_ps(
-                    b.inv_high[axis],
-                    select(valid, inverse[axis], negative_infinity),
-                );
-                b.origin_low[axis] =
-                    _mm256_min_ps(b.origin_low[axis], select(valid, origin[axis], infinity));
-                b.origin_high[axis] = _mm256_max_ps(
-                    b.origin_high[axis],
-                    select(valid, origin[axis], negative_infinity),
-                );
+            let b = &mut lane_bounds;
+            for ((low, high), inverse) in b.inv_low.iter_mut().zip(&mut b.inv_high).zip(inverse) {
+                *low = _mm256_min_ps(*low, select(valid, inverse, infinity));
+                *high = _mm256_max_ps(*high, select(valid, inverse, negative_infinity));
             }
             lane_bounds.t_min_low =
                 _mm256_min_ps(lane_bounds.t_min_low, select(valid, t_min, infinity));
@@ -331,8 +399,6 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
             *quadrant = RayBounds {
                 inv_low: Vec3A::from(b.inv_low.map(|v| smallest(v))),
                 inv_high: Vec3A::from(b.inv_high.map(|v| largest(v))),
-                origin_low: Vec3A::from(b.origin_low.map(|v| smallest(v))),
-                origin_high: Vec3A::from(b.origin_high.map(|v| largest(v))),
                 t_min_low: smallest(b.t_min_low),
                 ..RayBounds::EMPTY
             };
@@ -343,23 +409,24 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
     };
     packet.octant_inv = octant_inv;
     // One shared origin: every valid lane's equals the first valid lane's (compared as the
-    // four-lane fill does, `==` per axis), which is then each quadrant's origin bounds.
+    // four-lane fill does, `==` per axis), which is then each quadrant's origin bounds. Lane 0
+    // is the first valid lane of nearly every block, so the lanes were compared with it while
+    // loaded; `==` is transitive on the valid (finite) origins, so "all equal lane 0's" means
+    // "all equal the first valid lane's", and only where that fails are the lanes compared
+    // with the first valid lane's and the bounds reduced over them.
     let first = valid_lanes.trailing_zeros() as usize;
     let first_origin = arrays.origin.each_ref().map(|axis| axis[first]);
-    let mut differ = false;
-    for pair in 0..8 {
-        let valid = ((valid_lanes >> (8 * pair)) & 0xff) as u32;
-        let mut same = all_ones;
-        for (axis, values) in arrays.origin.iter().enumerate() {
-            let equal = _mm256_cmp_ps::<_CMP_EQ_OQ>(
-                lanes_of(values, pair),
-                _mm256_set1_ps(first_origin[axis]),
-            );
-            same = _mm256_and_ps(same, equal);
-        }
-        differ |= valid & !(_mm256_movemask_ps(same) as u32) != 0;
-    }
-    let shared = (!differ).then(|| Vec3A::from(first_origin));
+    let shared = if other_origins == 0 {
+        Some(Vec3A::from(first_origin))
+    } else {
+        origin_bounds(
+            arrays,
+            valid_lanes,
+            first_origin,
+            &mut quadrants,
+            &holds_rays,
+        )
+    };
     let mut whole = RayBounds::EMPTY;
     for (quadrant, holds_rays) in quadrants.iter_mut().zip(holds_rays) {
         if let Some(origin) = shared
@@ -374,6 +441,61 @@ pub(super) fn fill_from_arrays(packet: &mut FrustumPacket, arrays: &RayArrays) -
     packet.whole = whole.finished();
     packet.quadrants = quadrants;
     true
+}
+
+/// For a block whose valid lanes do not all share lane 0's origin: whether they all share the
+/// first valid lane's (`first_origin`, compared as the four-lane fill does), and if not, each
+/// quadrant's origin bounds over its valid lanes (`valid_lanes`, bit per lane).
+#[target_feature(enable = "avx2")]
+#[inline(never)]
+fn origin_bounds(
+    arrays: &RayArrays,
+    valid_lanes: u64,
+    first_origin: [f32; 3],
+    quadrants: &mut [RayBounds; QUADRANTS],
+    holds_rays: &[bool; QUADRANTS],
+) -> Option<Vec3A> {
+    let valid_of = |pair: usize| ((valid_lanes >> (8 * pair)) & 0xff) as u32;
+    // With lane 0 valid it is the first valid lane, and its origin was the one compared.
+    let differ = valid_lanes & 1 != 0
+        || (0..8).any(|pair| {
+            let same = arrays.origin.iter().enumerate().fold(
+                _mm256_castsi256_ps(_mm256_set1_epi32(-1)),
+                |same, (axis, values)| {
+                    let first = _mm256_set1_ps(first_origin[axis]);
+                    _mm256_and_ps(
+                        same,
+                        _mm256_cmp_ps::<_CMP_EQ_OQ>(lanes_of(values, pair), first),
+                    )
+                },
+            );
+            valid_of(pair) & !(_mm256_movemask_ps(same) as u32) != 0
+        });
+    if !differ {
+        return Some(Vec3A::from(first_origin));
+    }
+    let (infinity, negative_infinity) = (
+        _mm256_set1_ps(f32::INFINITY),
+        _mm256_set1_ps(f32::NEG_INFINITY),
+    );
+    for ((quadrant, holds_rays), pairs) in quadrants.iter_mut().zip(holds_rays).zip(QUADRANT_PAIRS)
+    {
+        if !holds_rays {
+            continue;
+        }
+        let (mut low, mut high) = ([infinity; 3], [negative_infinity; 3]);
+        for pair in pairs {
+            let valid = lane_mask(valid_of(pair));
+            for axis in 0..3 {
+                let origin = lanes_of(&arrays.origin[axis], pair);
+                low[axis] = _mm256_min_ps(low[axis], select(valid, origin, infinity));
+                high[axis] = _mm256_max_ps(high[axis], select(valid, origin, negative_infinity));
+            }
+        }
+        quadrant.origin_low = Vec3A::from(low.map(|v| smallest(v)));
+        quadrant.origin_high = Vec3A::from(high.map(|v| largest(v)));
+    }
+    None
 }
 
 #[cfg(test)]

@@ -784,3 +784,96 @@ fn frustum_packets_filled_from_lane_arrays_match_those_filled_from_rays() {
     assert!((100..200).contains(&formed), "{formed}");
     assert!(hit_count > 200 * 6, "{hit_count} {formed}");
 }
+
+#[test]
+fn blocks_of_several_octants_or_dominant_axes_find_the_hits_of_single_rays() {
+    use crate::accel::frustum::FrustumPacket;
+    use crate::accel::isa;
+    let mut rng = Rng::new(77);
+    let triangles = TestGeometry::from(random_triangles(&mut rng, 3000, 10.0, 1.5)).build();
+    let scene = SceneBvh::build(vec![identity_instance(vec![Arc::new(triangles)])]);
+    // Blocks the fill refuses, and how many of them have two classes of eight rays or more
+    // (octant × dominant axis): those are split into frustum packets.
+    let (mut refused, mut split) = (0, 0);
+    for round in 0..120 {
+        // An 8x8 block looking at the scene's centre, its rays fanned so wide that they cross
+        // the planes where a direction component changes sign (and, turned by 45°, where two
+        // components are equally long).
+        let eye = rng.point(-1.0, 1.0) + vec3(0.0, 0.0, 25.0);
+        let turn = if round % 2 == 0 {
+            0.0
+        } else {
+            std::f32::consts::FRAC_PI_4
+        };
+        let (sin, cos) = turn.sin_cos();
+        let centre = rng.point(-0.05, 0.05);
+        let rays: Vec<Ray> = (0..64)
+            .map(|lane| {
+                let (x, y) = ((lane % 8) as f32 - 3.5, (lane / 8) as f32 - 3.5);
+                let spread = rng.range(0.5, 1.5);
+                let (u, v) = (x * spread, y * spread);
+                let target = centre + vec3(u * cos - v * sin, u * sin + v * cos, 0.0);
+                let mut ray = Ray::new(eye, (target - eye).normalize(), 0.0, f32::INFINITY);
+                // Some rays in a class of their own, some that cannot be traced.
+                match rng.next_u64() % 24 {
+                    0 => ray.direction = -ray.direction,
+                    1 => ray.t_max = f32::NAN,
+                    _ => {}
+                }
+                ray
+            })
+            .collect();
+        let mut lanes = crate::accel::frustum::LaneArrays::of_rays(&rays);
+        if round % 3 == 2 {
+            // Per-lane origins.
+            for lane in 0..64 {
+                lanes.origin[0][lane] += rng.range(-0.2, 0.2);
+            }
+        }
+        let arrays = lanes.arrays();
+        let rays: Vec<Ray> = (0..64).map(|lane| arrays.ray(lane)).collect();
+        if FrustumPacket::empty().fill_from_arrays(&arrays) {
+            continue;
+        }
+        refused += 1;
+        let mut classes = std::collections::HashMap::new();
+        for ray in rays.iter().filter_map(crate::accel::geometry::prepare) {
+            *classes
+                .entry((ray.octant_inv, ray.shear_axes[2]))
+                .or_insert(0) += 1;
+        }
+        if classes.values().filter(|&&count| count >= 8).count() >= 2 {
+            split += 1;
+        }
+        let single: Vec<String> = isa::on_path(isa::Isa::Baseline, || {
+            rays.iter()
+                .map(|ray| format!("{:?}", scene.intersect(ray)))
+                .collect()
+        });
+        for path in isa::test_paths() {
+            let (from_arrays, from_rays) = isa::on_path(path, || {
+                let mut scratch = PacketScratch::new();
+                let (mut from_arrays, mut from_rays) = ([None; 64], [None; 64]);
+                scene.intersect_arrays_with(&mut scratch, &arrays, &mut from_arrays);
+                scene.intersect_packet_with(&mut scratch, &rays, &mut from_rays);
+                (from_arrays, from_rays)
+            });
+            for lane in 0..64 {
+                assert_eq!(
+                    format!("{:?}", from_arrays[lane]),
+                    single[lane],
+                    "round {round}, lane {lane}, {path:?}"
+                );
+                assert_eq!(
+                    format!("{:?}", from_rays[lane]),
+                    single[lane],
+                    "round {round}, lane {lane}, {path:?}"
+                );
+            }
+        }
+    }
+    assert!(
+        refused >= 60 && split >= 40,
+        "{refused} refused, {split} split"
+    );
+}

@@ -6,7 +6,7 @@
 //! cyclopean point; otherwise lane by lane. Every lane's sample is bit for bit the per-ray
 //! path's.
 
-use glam::{Vec2, Vec4};
+use glam::{Mat4, Vec2, Vec4};
 
 use crate::accel::SceneHit;
 use crate::camera::{BLOCK_RAYS, BlockRays, EyeRays, lane_vec3};
@@ -37,6 +37,8 @@ pub(super) struct FastBlock<'a> {
 struct LaneHits {
     normal: [[f32; BLOCK_RAYS]; 3],
     t: [f32; BLOCK_RAYS],
+    /// Every lane hit.
+    all_hit: bool,
 }
 
 impl FastBlock<'_> {
@@ -95,9 +97,11 @@ impl FastBlock<'_> {
         let mut lanes = LaneHits {
             normal: [[0.0; BLOCK_RAYS]; 3],
             t: [0.0; BLOCK_RAYS],
+            all_hit: true,
         };
         for (lane, hit) in self.hits.iter().enumerate() {
             let Some(hit) = hit else {
+                lanes.all_hit = false;
                 continue;
             };
             match surface {
@@ -173,6 +177,12 @@ impl FastBlock<'_> {
         // Only depth asked for beside colour, and depth is the ray parameter (what a VR
         // application asks of a pinhole eye): a hit's record is its `t`.
         let depth_is_all = depth_is_t && records.as_deref().is_some_and(TileRecords::depth_only);
+        if lanes.all_hit && (records.is_none() || depth_is_all) {
+            // No background and nothing recorded but `t`: quad by quad.
+            let depths = records.and_then(TileRecords::depths_mut);
+            self.add_quads(&color, &lanes.t, colors, covered, depths);
+            return;
+        }
         for lane in 0..BLOCK_RAYS {
             let k = pixel(lane);
             covered[k] = true;
@@ -191,6 +201,42 @@ impl FastBlock<'_> {
                 let primary = surface.primary_hit(hit, point, shading);
                 let depth = |t| self.depth(lane, t, depth_is_t);
                 records.record(k, Some(&primary), || self.block.ray(lane), depth, self.eye);
+            }
+        }
+    }
+
+    /// Adds the colours `color` (alpha 1) of a block whose every lane hit to its pixels'
+    /// `colors`, marks them `covered` and, with `depths` (the tile's channel.depth records),
+    /// records each lane's `t` there: what the lane-by-lane loop of [`Self::shade_arrays`] does
+    /// for such a block, four lanes (a 2×2 quad of pixels, [`PACKET_ORDER`]) at a time, the
+    /// quad's colours transposed from the lane arrays into four pixels.
+    #[inline(always)]
+    fn add_quads(
+        &self,
+        color: &[[f32; BLOCK_RAYS]; 3],
+        t: &[f32; BLOCK_RAYS],
+        colors: &mut [Vec4],
+        covered: &mut [bool],
+        mut depths: Option<&mut [f32]>,
+    ) {
+        let (side, stride) = (PACKET_SIDE as usize, self.row_stride);
+        for row in 0..side {
+            covered[self.first + row * stride..][..side].fill(true);
+        }
+        for (quad, &(x, y)) in PACKET_ORDER.iter().step_by(4).enumerate() {
+            let lane = 4 * quad;
+            let k = self.first + y as usize * stride + x as usize;
+            let [r, g, b] = color.each_ref().map(|axis| Vec4::from_slice(&axis[lane..]));
+            // Columns: the quad's lanes as (r, g, b, 1).
+            let pixels = Mat4::from_cols(r, g, b, Vec4::ONE).transpose();
+            let rows = [k, k + stride];
+            for (row, pair) in rows.into_iter().zip([0, 2]) {
+                let two = &mut colors[row..row + 2];
+                two[0] += pixels.col(pair);
+                two[1] += pixels.col(pair + 1);
+                if let Some(depths) = depths.as_deref_mut() {
+                    depths[row..row + 2].copy_from_slice(&t[lane + pair..lane + pair + 2]);
+                }
             }
         }
     }

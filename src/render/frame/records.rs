@@ -107,6 +107,14 @@ impl TileRecords {
         self.depth_only
     }
 
+    /// The tile's channel.depth records where only depth is wanted ([`Self::depth_only`]), to
+    /// record a whole block's depths at once as [`Self::record_depth`] would one by one; else
+    /// `None`.
+    #[inline(always)]
+    pub(super) fn depths_mut(&mut self) -> Option<&mut [f32]> {
+        self.depth_only.then_some(&mut self.depth[..])
+    }
+
     /// Records depth `depth` of pixel `k`'s first hit where only depth is wanted
     /// ([`TileRecords::depth_only`]): what [`TileRecords::record`] records then.
     #[inline(always)]
