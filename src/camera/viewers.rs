@@ -550,8 +550,17 @@ impl ViewerSet {
         cameras: &mut CameraLanes<N>,
     ) {
         if self.mode == ViewerMode::Tiles {
+            // A frame's block nearly always lies in one tile: its camera is looked up once.
+            let first = self.tile_of(st[0]);
+            if st.iter().all(|st| self.tile_of(*st) == first) {
+                let (head, right) = self.tile_camera(first, needs_right);
+                for l in 0..N {
+                    cameras.set(l, head, right);
+                }
+                return;
+            }
             for (l, st) in st.iter().enumerate() {
-                let (head, right) = self.tile_camera(*st, needs_right);
+                let (head, right) = self.tile_camera(self.tile_of(*st), needs_right);
                 cameras.set(l, head, right);
             }
             return;
@@ -614,14 +623,19 @@ impl ViewerSet {
         }
     }
 
-    /// The camera of the tile holding screen coordinates `st`.
+    /// The (column, row) of the tile holding screen coordinates `st`.
     #[inline]
-    fn tile_camera(&self, st: DVec2, needs_right: bool) -> CameraAt {
+    fn tile_of(&self, st: DVec2) -> (u32, u32) {
         // Truncation is floor for these non-negative values (and needs no libm call).
         let tile = |coordinate: f64, tiles: u32| {
             ((coordinate * f64::from(tiles)).max(0.0) as u32).min(tiles - 1)
         };
-        let (column, row) = (tile(st.x, self.tiles[0]), tile(st.y, self.tiles[1]));
+        (tile(st.x, self.tiles[0]), tile(st.y, self.tiles[1]))
+    }
+
+    /// The camera of tile (column, row).
+    #[inline]
+    fn tile_camera(&self, (column, row): (u32, u32), needs_right: bool) -> CameraAt {
         match self
             .tile_cameras
             .get((row * self.tiles[0] + column) as usize)
