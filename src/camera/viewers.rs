@@ -551,11 +551,27 @@ impl ViewerSet {
     ) {
         if self.mode == ViewerMode::Tiles {
             // A frame's block nearly always lies in one tile: its camera is looked up once.
-            let first = self.tile_of(st[0]);
-            if st.iter().all(|st| self.tile_of(*st) == first) {
+            // Tiles grow with s and t, so the points share a tile when their smallest and
+            // largest coordinates do (NaN, which takes tile 0, is never smallest or largest:
+            // such blocks go point by point).
+            let (mut low, mut high, mut nan) = (st[0], st[0], false);
+            for st in st {
+                low = DVec2::new(
+                    if st.x < low.x { st.x } else { low.x },
+                    if st.y < low.y { st.y } else { low.y },
+                );
+                high = DVec2::new(
+                    if st.x > high.x { st.x } else { high.x },
+                    if st.y > high.y { st.y } else { high.y },
+                );
+                nan |= st.is_nan();
+            }
+            let first = self.tile_of(low);
+            if !nan && self.tile_of(high) == first {
                 let (head, right) = self.tile_camera(first, needs_right);
-                for l in 0..N {
-                    cameras.set(l, head, right);
+                for axis in 0..3 {
+                    cameras.head[axis] = [head[axis]; N];
+                    cameras.right[axis] = [right[axis]; N];
                 }
                 return;
             }
