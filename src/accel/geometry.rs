@@ -99,15 +99,15 @@ impl GeometryBvh {
         unsafe { single_ray::test_paths::with_always_push(&self.nodes, groups, ray) }
     }
 
-    /// FNV-1a over the layout: every node's planes (bits) and child codes, the source ids
-    /// per slot (quads: with `QUAD_SECOND_HALF`; padding slots repeat their group's first)
-    /// and, for triangles and quads, every group's vertex coordinates (bits).
     /// The wide nodes (tests inspect their visiting orders).
     #[cfg(test)]
     pub(crate) fn wide_nodes(&self) -> &[WideNode] {
         &self.nodes
     }
 
+    /// FNV-1a over the layout: every node's planes (bits), child codes and visiting orders,
+    /// the source ids per slot (quads: with `QUAD_SECOND_HALF`; padding slots repeat their
+    /// group's first) and, for triangles and quads, every group's vertex coordinates (bits).
     pub(crate) fn layout_fingerprint(&self) -> u64 {
         let mut hash = 0xcbf2_9ce4_8422_2325u64;
         let mut add = |word: u32| {
