@@ -359,7 +359,7 @@ pub(super) fn light_field_block(
         targets[i] = rays.target(st).to_array();
     }
     with_clip!(rays.clip, clip => eye_lanes(&eyes, &targets, rays.forward, clip, block));
-    block.set_cyclopean(None);
+    block.clear_cyclopean();
 }
 
 /// [`light_field_block`]'s lanes from `eyes` through `targets` with clip range `clip`.

@@ -36,7 +36,8 @@ pub use orthographic::OrthographicDesc;
 pub use perspective::PerspectiveDesc;
 pub(crate) use rays::{BLOCK_RAYS, lane_vec3};
 pub use rays::{
-    BlockRays, DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR, DEFAULT_WINDOW_DEPTH_NEAR, EyeRays,
+    BlockCyclopean, BlockRays, DEFAULT_ORTHOGRAPHIC_WINDOW_DEPTH_FAR, DEFAULT_WINDOW_DEPTH_NEAR,
+    EyeRays,
 };
 pub use screen::OffAxisDesc;
 pub use specs::SPECS;

@@ -517,7 +517,15 @@ impl EyeRays {
                     return false;
                 };
                 pinhole_block(&self.region, pinhole, s, t, block);
-                block.set_cyclopean(cyclopean);
+                match cyclopean {
+                    Some(cyclopean) => {
+                        block.cyclopean = BlockCyclopean::Shared {
+                            origin: pinhole.eye.as_vec3().to_array(),
+                            cyclopean: cyclopean.to_array(),
+                        }
+                    }
+                    None => block.clear_cyclopean(),
+                }
             }
         }
         true
@@ -817,8 +825,39 @@ pub struct BlockRays {
     pub direction: [[f32; BLOCK_RAYS]; 3],
     pub t_min: [f32; BLOCK_RAYS],
     pub t_max: [f32; BLOCK_RAYS],
-    /// As [`CameraRay::cyclopean`], when the rays have one.
-    pub cyclopean: Option<[[f32; BLOCK_RAYS]; 3]>,
+    /// As [`CameraRay::cyclopean`].
+    pub cyclopean: BlockCyclopean,
+}
+
+/// The cyclopean points of a block's rays ([`CameraRay::cyclopean`]).
+// The lanes stay inline: a block is made tens of thousands of times per frame, without
+// allocating.
+#[allow(clippy::large_enum_variant)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BlockCyclopean {
+    /// The rays have none (mono eyes, cameras without stereo).
+    None,
+    /// A pinhole stereo eye's block: every ray starts at `origin` (each lane of
+    /// [`BlockRays::origin`] holds it) and has the cyclopean point `cyclopean`, so that shading
+    /// can take both once for the block.
+    Shared {
+        origin: [f32; 3],
+        cyclopean: [f32; 3],
+    },
+    /// Lane by lane, x, y and z (several viewers' blended heads).
+    Lanes([[f32; BLOCK_RAYS]; 3]),
+}
+
+impl BlockCyclopean {
+    /// Lane `i`'s cyclopean point.
+    #[inline(always)]
+    pub fn lane(&self, i: usize) -> Option<Vec3> {
+        match self {
+            BlockCyclopean::None => None,
+            BlockCyclopean::Shared { cyclopean, .. } => Some(Vec3::from_array(*cyclopean)),
+            BlockCyclopean::Lanes(lanes) => Some(lane_vec3(lanes, i)),
+        }
+    }
 }
 
 impl Default for BlockRays {
@@ -828,7 +867,7 @@ impl Default for BlockRays {
             direction: [[0.0; BLOCK_RAYS]; 3],
             t_min: [0.0; BLOCK_RAYS],
             t_max: [f32::INFINITY; BLOCK_RAYS],
-            cyclopean: None,
+            cyclopean: BlockCyclopean::None,
         }
     }
 }
@@ -843,20 +882,15 @@ impl BlockRays {
             direction: lane(&self.direction),
             t_min: self.t_min[i],
             t_max: self.t_max[i],
-            cyclopean: self.cyclopean.as_ref().map(lane),
+            cyclopean: self.cyclopean.lane(i),
         }
     }
 
-    /// Every ray's cyclopean point `cyclopean`.
-    pub(super) fn set_cyclopean(&mut self, cyclopean: Option<Vec3>) {
-        match cyclopean {
-            Some(c) => self.cyclopean = Some(c.to_array().map(|v| [v; BLOCK_RAYS])),
-            // Only the tag changes: assigning `None` wrote the whole option's bytes per block.
-            None => {
-                if self.cyclopean.is_some() {
-                    self.cyclopean = None;
-                }
-            }
+    /// Rays without a cyclopean point.
+    pub(super) fn clear_cyclopean(&mut self) {
+        // Only the tag changes: assigning over the lanes variant wrote all its bytes per block.
+        if self.cyclopean != BlockCyclopean::None {
+            self.cyclopean = BlockCyclopean::None;
         }
     }
 
@@ -957,7 +991,7 @@ fn blended_block(
         .cameras_into(&targets, &st, stereo, isa, &mut cameras);
     if !stereo {
         with_clip!(b.clip, clip => head_lanes(&cameras, &targets, b.forward, clip, block));
-        block.set_cyclopean(None);
+        block.clear_cyclopean();
         return;
     }
     let mut cyclopean = [[0.0; BLOCK_RAYS]; 3];
@@ -969,7 +1003,7 @@ fn blended_block(
             lanes[i] = heads[i] as f32;
         }
     }
-    block.cyclopean = Some(cyclopean);
+    block.cyclopean = BlockCyclopean::Lanes(cyclopean);
 }
 
 /// [`blended_block`]'s lanes from the blended heads (no stereo offset) with clip range `clip`.

@@ -7,12 +7,12 @@
 
 use crate::camera::BLOCK_RAYS;
 
-use super::cyclopean_views::Lanes3;
+use super::cyclopean_views::{Lanes3, ViewPoints};
 
 /// The views and shading of a stereo block eight lanes per vector.
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
-    use super::Lanes3;
+    use super::{Lanes3, ViewPoints};
     use crate::camera::BLOCK_RAYS;
     use std::arch::x86_64::*;
 
@@ -44,21 +44,21 @@ mod avx2 {
         _mm256_add_ps(xy, _mm256_mul_ps(a[2], b[2]))
     }
 
-    /// Lanes `first..first + 8` of the views (see [`cyclopean_views_into`]).
+    /// Lanes `first..first + 8` of the views (see [`cyclopean_views_into`]) of rays from
+    /// `origin` along `along` to `t`, seen from `viewer`.
     ///
     /// [`cyclopean_views_into`]: super::super::cyclopean_views::cyclopean_views_into
     #[target_feature(enable = "avx2")]
     #[inline]
     fn views(
-        origin: &Lanes3,
+        origin: [__m256; 3],
         along: &[__m256; 3],
         t: __m256,
-        viewer: &Lanes3,
-        first: usize,
+        viewer: [__m256; 3],
     ) -> [__m256; 3] {
         let offset = [0, 1, 2].map(|axis| {
-            let point = _mm256_add_ps(load(&origin[axis], first), _mm256_mul_ps(along[axis], t));
-            _mm256_sub_ps(point, load(&viewer[axis], first))
+            let point = _mm256_add_ps(origin[axis], _mm256_mul_ps(along[axis], t));
+            _mm256_sub_ps(point, viewer[axis])
         });
         let scale = _mm256_div_ps(_mm256_set1_ps(1.0), _mm256_sqrt_ps(dot(&offset, &offset)));
         // Finite (|scale| below infinity, NaN failing) and positive, as glam asks.
@@ -75,41 +75,66 @@ mod avx2 {
         })
     }
 
+    /// Lanes `first..first + 8` of the shading normals and colours (see
+    /// [`super::shade_cyclopean_avx2`]) of rays from `origin` seen from `viewer`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    fn shade_eight(
+        lanes: &super::CyclopeanLanes,
+        first: usize,
+        origin: [__m256; 3],
+        viewer: [__m256; 3],
+        (base, emissive): ([f32; 3], [f32; 3]),
+        normal_out: &mut Lanes3,
+        color_out: &mut Lanes3,
+    ) {
+        let sign = _mm256_set1_ps(-0.0);
+        let along = [0, 1, 2].map(|axis| load(&lanes.direction[axis], first));
+        let view = views(origin, &along, load(lanes.t, first), viewer);
+        // The normal facing the ray: negated where it points along the ray.
+        let normal = [0, 1, 2].map(|axis| load(&lanes.normal[axis], first));
+        let back_face = _mm256_cmp_ps::<_CMP_GT_OQ>(dot(&normal, &along), _mm256_setzero_ps());
+        let flip = _mm256_and_ps(back_face, sign);
+        let normal = normal.map(|n| _mm256_xor_ps(n, flip));
+        // Lit from the eye: base · (0.2 + 0.8 · max(−view · normal, 0)) + emission.
+        let toward = view.map(|v| _mm256_xor_ps(v, sign));
+        let facing = _mm256_max_ps(dot(&toward, &normal), _mm256_setzero_ps());
+        let light = _mm256_add_ps(
+            _mm256_set1_ps(0.2),
+            _mm256_mul_ps(_mm256_set1_ps(0.8), facing),
+        );
+        for axis in 0..3 {
+            let lit = _mm256_mul_ps(_mm256_set1_ps(base[axis]), light);
+            let rgb = _mm256_add_ps(lit, _mm256_set1_ps(emissive[axis]));
+            store(&mut normal_out[axis], first, normal[axis]);
+            store(&mut color_out[axis], first, rgb);
+        }
+    }
+
     crate::isa::avx2_and_avx512! {
         /// [`super::shade_cyclopean_avx2`], compiled for the path.
         pub(super) fn [shade_into_avx2, shade_into_avx512](
             lanes: &super::CyclopeanLanes,
-            (base, emissive): ([f32; 3], [f32; 3]),
+            surface: ([f32; 3], [f32; 3]),
             normal_out: &mut Lanes3,
             color_out: &mut Lanes3,
         ) {
-            let sign = _mm256_set1_ps(-0.0);
-            for first in (0..BLOCK_RAYS).step_by(8) {
-                let along = [0, 1, 2].map(|axis| load(&lanes.direction[axis], first));
-                let view = views(
-                    lanes.origin,
-                    &along,
-                    load(lanes.t, first),
-                    lanes.viewer,
-                    first,
-                );
-                // The normal facing the ray: negated where it points along the ray.
-                let normal = [0, 1, 2].map(|axis| load(&lanes.normal[axis], first));
-                let back_face = _mm256_cmp_ps::<_CMP_GT_OQ>(dot(&normal, &along), _mm256_setzero_ps());
-                let flip = _mm256_and_ps(back_face, sign);
-                let normal = normal.map(|n| _mm256_xor_ps(n, flip));
-                // Lit from the eye: base · (0.2 + 0.8 · max(−view · normal, 0)) + emission.
-                let toward = view.map(|v| _mm256_xor_ps(v, sign));
-                let facing = _mm256_max_ps(dot(&toward, &normal), _mm256_setzero_ps());
-                let light = _mm256_add_ps(
-                    _mm256_set1_ps(0.2),
-                    _mm256_mul_ps(_mm256_set1_ps(0.8), facing),
-                );
-                for axis in 0..3 {
-                    let lit = _mm256_mul_ps(_mm256_set1_ps(base[axis]), light);
-                    let rgb = _mm256_add_ps(lit, _mm256_set1_ps(emissive[axis]));
-                    store(&mut normal_out[axis], first, normal[axis]);
-                    store(&mut color_out[axis], first, rgb);
+            match lanes.points {
+                // A pinhole eye's block: its origin and cyclopean point in registers once.
+                ViewPoints::Shared { origin, viewer } => {
+                    let origin = origin.map(|value| _mm256_set1_ps(value));
+                    let viewer = viewer.map(|value| _mm256_set1_ps(value));
+                    for first in (0..BLOCK_RAYS).step_by(8) {
+                        shade_eight(lanes, first, origin, viewer, surface, normal_out, color_out);
+                    }
+                }
+                ViewPoints::Lanes { origin, viewer } => {
+                    for first in (0..BLOCK_RAYS).step_by(8) {
+                        let origin = [0, 1, 2].map(|axis| load(&origin[axis], first));
+                        let viewer = [0, 1, 2].map(|axis| load(&viewer[axis], first));
+                        shade_eight(lanes, first, origin, viewer, surface, normal_out, color_out);
+                    }
                 }
             }
         }
@@ -117,12 +142,11 @@ mod avx2 {
 }
 
 /// The lane arrays a stereo block's shading on one uniform surface reads: the rays, the hits'
-/// ray parameters `t` and geometric normals, and the cyclopean points.
+/// ray parameters `t` and geometric normals, and where the rays start and the views look from.
 pub(super) struct CyclopeanLanes<'a> {
-    pub origin: &'a Lanes3,
+    pub points: ViewPoints<'a>,
     pub direction: &'a Lanes3,
     pub t: &'a [f32; BLOCK_RAYS],
-    pub viewer: &'a Lanes3,
     pub normal: &'a Lanes3,
 }
 
@@ -165,7 +189,7 @@ mod tests {
     use crate::render::eye_light::{UniformSurface, eye_light_of};
     use glam::Vec3;
 
-    use super::super::cyclopean_views::tests::{hit_at, lanes, ray, settings};
+    use super::super::cyclopean_views::tests::{hit_at, lanes, ray, settings, shared_lanes};
 
     #[cfg(target_arch = "x86_64")]
     #[test]
@@ -175,13 +199,31 @@ mod tests {
             eprintln!("no AVX2 on this CPU: the AVX2 shading is not run");
         }
         for isa in &paths[1..] {
-            shade_and_compare(*isa);
+            let (origin, direction, t, viewer, _) = lanes();
+            let points = ViewPoints::Lanes {
+                origin: &origin,
+                viewer: &viewer,
+            };
+            shade_and_compare(*isa, points, (&origin, &direction, &t, &viewer));
+            let (origin, direction, t, [shared_origin, shared_viewer], _) = shared_lanes();
+            let viewer = std::array::from_fn(|axis| [shared_viewer[axis]; BLOCK_RAYS]);
+            let points = ViewPoints::Shared {
+                origin: shared_origin,
+                viewer: shared_viewer,
+            };
+            shade_and_compare(*isa, points, (&origin, &direction, &t, &viewer));
         }
     }
 
-    /// The shading of path `isa` (AVX2 or AVX-512, one this CPU has) against lane by lane.
-    fn shade_and_compare(isa: Isa) {
-        let (origin, direction, t, viewer, _) = lanes();
+    /// The shading of path `isa` (AVX2 or AVX-512, one this CPU has) of the rays and hits
+    /// from and seen from `points` against lane by lane, where the rays' origins and viewers
+    /// are the lane arrays given.
+    fn shade_and_compare(
+        isa: Isa,
+        points: ViewPoints,
+        (origin, direction, t, viewer): (&Lanes3, &Lanes3, &[f32; BLOCK_RAYS], &Lanes3),
+    ) {
+        let (origin, direction, t, viewer) = (*origin, *direction, *t, *viewer);
         // Geometric normals facing the ray or away from it, by lane; one lane perpendicular.
         let mut normal_in = [[0.0; BLOCK_RAYS]; 3];
         for lane in 0..BLOCK_RAYS {
@@ -202,10 +244,9 @@ mod tests {
         }
         let (base, emissive) = (Vec3::new(0.8, 0.3, 0.55), Vec3::new(0.01, 0.0, 0.2));
         let inputs = CyclopeanLanes {
-            origin: &origin,
+            points,
             direction: &direction,
             t: &t,
-            viewer: &viewer,
             normal: &normal_in,
         };
         let (mut normal, mut color) = ([[0.0; BLOCK_RAYS]; 3], [[0.0; BLOCK_RAYS]; 3]);

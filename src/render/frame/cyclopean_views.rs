@@ -8,12 +8,44 @@
 
 use glam::Vec4;
 
-use crate::camera::BLOCK_RAYS;
+use crate::camera::{BLOCK_RAYS, BlockCyclopean, BlockRays};
 
 /// x, y and z lane arrays of a block.
 pub(super) type Lanes3 = [[f32; BLOCK_RAYS]; 3];
 
-/// Per lane, the view of the hit at ray parameter `t` seen from the cyclopean point `viewer`:
+/// Where a stereo block's rays start and its shading looks from (the cyclopean points).
+#[derive(Clone, Copy)]
+pub(super) enum ViewPoints<'a> {
+    /// One origin and one cyclopean point for every lane (a pinhole eye's block): each is
+    /// loaded once, not once per lane.
+    Shared { origin: [f32; 3], viewer: [f32; 3] },
+    /// Lane by lane (several viewers' blended heads).
+    Lanes {
+        origin: &'a Lanes3,
+        viewer: &'a Lanes3,
+    },
+}
+
+impl<'a> ViewPoints<'a> {
+    /// The points of `block`'s rays, `None` for rays without cyclopean points.
+    #[inline(always)]
+    pub(super) fn of(block: &'a BlockRays) -> Option<ViewPoints<'a>> {
+        match &block.cyclopean {
+            BlockCyclopean::None => None,
+            &BlockCyclopean::Shared { origin, cyclopean } => Some(ViewPoints::Shared {
+                origin,
+                viewer: cyclopean,
+            }),
+            BlockCyclopean::Lanes(viewer) => Some(ViewPoints::Lanes {
+                origin: &block.origin,
+                viewer,
+            }),
+        }
+    }
+}
+
+/// Per lane, the view of the hit at ray parameter `t` seen from the cyclopean point `viewer`
+/// (of `points`):
 /// `(point − viewer).try_normalize()`, else the ray's direction (lanes without a hit get a
 /// view that is not used). The hit point is `origin + direction · t` as
 /// `UniformSurface::point` has it; glam's `try_normalize` is a length, its reciprocal and a
@@ -21,10 +53,9 @@ pub(super) type Lanes3 = [[f32; BLOCK_RAYS]; 3];
 /// keeps the compiler from vectorizing.
 #[inline(always)]
 pub(super) fn cyclopean_views_into(
-    origin: &Lanes3,
+    points: ViewPoints,
     direction: &Lanes3,
     t: &[f32; BLOCK_RAYS],
-    viewer: &Lanes3,
     views: &mut Lanes3,
 ) {
     for first in (0..BLOCK_RAYS).step_by(4) {
@@ -32,9 +63,16 @@ pub(super) fn cyclopean_views_into(
         let load = |values: &[f32; BLOCK_RAYS]| Vec4::from_slice(&values[lanes.clone()]);
         let t = load(t);
         let along = direction.each_ref().map(load);
-        let offset: [Vec4; 3] = std::array::from_fn(|axis| {
-            (load(&origin[axis]) + along[axis] * t) - load(&viewer[axis])
-        });
+        let (origin, viewer): ([Vec4; 3], [Vec4; 3]) = match points {
+            ViewPoints::Shared { origin, viewer } => {
+                (origin.map(Vec4::splat), viewer.map(Vec4::splat))
+            }
+            ViewPoints::Lanes { origin, viewer } => {
+                (origin.each_ref().map(load), viewer.each_ref().map(load))
+            }
+        };
+        let offset: [Vec4; 3] =
+            std::array::from_fn(|axis| (origin[axis] + along[axis] * t) - viewer[axis]);
         let length_squared = offset[0] * offset[0] + offset[1] * offset[1] + offset[2] * offset[2];
         let scale = Vec4::ONE / length_squared.sqrt();
         let normalizable = scale.is_finite_mask() & scale.cmpgt(Vec4::ZERO);
@@ -131,16 +169,58 @@ pub(super) mod tests {
         }
     }
 
+    /// A pinhole eye's block: [`lanes`]' directions from one origin seen from one cyclopean
+    /// point, with lanes whose view cannot be normalized (hit points on the viewer, at a
+    /// NaN or overflowing distance); the lane arrays, the shared points and how many lanes
+    /// fall back.
+    #[allow(clippy::type_complexity)]
+    pub(in crate::render::frame) fn shared_lanes()
+    -> (Lanes3, Lanes3, [f32; BLOCK_RAYS], [[f32; 3]; 2], usize) {
+        let (_, direction, mut t, _, _) = lanes();
+        let (origin, viewer) = ([0.4f32, 1.7, -0.2], [0.43f32, 1.7, -0.2]);
+        let points = origin.map(|value| [value; BLOCK_RAYS]);
+        let mut direction = direction;
+        // Lane 7 hits the viewer itself: along +x by exactly the offset.
+        for (axis, value) in [1.0, 0.0, 0.0].into_iter().enumerate() {
+            direction[axis][7] = value;
+        }
+        t[7] = viewer[0] - origin[0];
+        t[22] = f32::NAN;
+        t[41] = 1e30;
+        (points, direction, t, [origin, viewer], 3)
+    }
+
     #[test]
     fn cyclopean_views_match_the_per_ray_view_direction_bit_for_bit() {
         let (origin, direction, t, viewer, special) = lanes();
+        let points = ViewPoints::Lanes {
+            origin: &origin,
+            viewer: &viewer,
+        };
+        compare_views(points, (&origin, &direction, &t, &viewer), special);
+        let (origin, direction, t, [shared_origin, shared_viewer], special) = shared_lanes();
+        let viewer = std::array::from_fn(|axis| [shared_viewer[axis]; BLOCK_RAYS]);
+        let points = ViewPoints::Shared {
+            origin: shared_origin,
+            viewer: shared_viewer,
+        };
+        compare_views(points, (&origin, &direction, &t, &viewer), special);
+    }
+
+    /// The views of `points` against the per-ray view of the rays and viewers as lane arrays;
+    /// `special` lanes fall back to the ray's direction.
+    fn compare_views(
+        points: ViewPoints,
+        (origin, direction, t, viewer): (&Lanes3, &Lanes3, &[f32; BLOCK_RAYS], &Lanes3),
+        special: usize,
+    ) {
         let mut views = [[0.0; BLOCK_RAYS]; 3];
-        cyclopean_views_into(&origin, &direction, &t, &viewer, &mut views);
+        cyclopean_views_into(points, direction, t, &mut views);
         let mut fallbacks = 0;
         for (lane, &t) in t.iter().enumerate() {
-            let ray = ray(&origin, &direction, lane);
+            let ray = ray(origin, direction, lane);
             let point = UniformSurface::point(&ray, &hit_at(t));
-            let expected = settings().view_direction(&ray, point, Some(lane_vec3(&viewer, lane)));
+            let expected = settings().view_direction(&ray, point, Some(lane_vec3(viewer, lane)));
             let got = lane_vec3(&views, lane);
             assert_eq!(
                 got.to_array().map(f32::to_bits),

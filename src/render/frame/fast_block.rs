@@ -15,7 +15,7 @@ use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
 
 use super::cyclopean_shading_avx2::{CyclopeanLanes, shade_cyclopean_avx2};
-use super::cyclopean_views::cyclopean_views_into;
+use super::cyclopean_views::{ViewPoints, cyclopean_views_into};
 use super::records::TileRecords;
 use super::tile::{PACKET_ORDER, PACKET_SIDE, traced_lane};
 
@@ -79,14 +79,12 @@ impl FastBlock<'_> {
         }
     }
 
-    /// The stereo eye's cyclopean point per lane when shading looks from it (cyclopean
-    /// lighting of a stereo pair), else `None`: the view looks along the rays.
+    /// Where the rays start and the views look from when shading looks from a stereo eye's
+    /// cyclopean point (cyclopean lighting of a stereo pair), else `None`: the view looks
+    /// along the rays.
     #[inline(always)]
-    fn cyclopean_view(&self) -> Option<&[[f32; BLOCK_RAYS]; 3]> {
-        self.block
-            .cyclopean
-            .as_ref()
-            .filter(|_| self.settings.cyclopean_lighting)
+    fn cyclopean_view(&self) -> Option<ViewPoints<'_>> {
+        ViewPoints::of(self.block).filter(|_| self.settings.cyclopean_lighting)
     }
 
     /// The uniform surface every hit of the block lies on, with the hits' normals; `None` when
@@ -138,12 +136,11 @@ impl FastBlock<'_> {
         let viewer = self.cyclopean_view();
         // With AVX2 a stereo eye's views, normals and colours go eight lanes per vector, the
         // views kept in registers.
-        let vectorized = viewer.is_some_and(|viewer| {
+        let vectorized = viewer.is_some_and(|points| {
             let inputs = CyclopeanLanes {
-                origin: &self.block.origin,
+                points,
                 direction,
                 t: &lanes.t,
-                viewer,
                 normal: &lanes.normal,
             };
             let lit = surface.base_and_emissive();
@@ -165,9 +162,9 @@ impl FastBlock<'_> {
         // eye's cyclopean point.
         match viewer {
             _ if vectorized => {}
-            Some(viewer) => {
+            Some(points) => {
                 let mut views = [[0.0; BLOCK_RAYS]; 3];
-                cyclopean_views_into(&self.block.origin, direction, &lanes.t, viewer, &mut views);
+                cyclopean_views_into(points, direction, &lanes.t, &mut views);
                 shade(&views);
             }
             None => shade(direction),
@@ -273,7 +270,7 @@ impl FastBlock<'_> {
         mut records: Option<&mut TileRecords>,
     ) {
         let (scene, settings, block) = (self.scene, self.settings, self.block);
-        let cyclopean = |lane: usize| block.cyclopean.as_ref().map(|c| lane_vec3(c, lane));
+        let cyclopean = |lane: usize| block.cyclopean.lane(lane);
         // The view looks along the ray unless a stereo eye's shading looks from its cyclopean
         // point.
         let cyclopean_view = self.cyclopean_view().is_some();
