@@ -6,7 +6,6 @@
 mod anaglyph;
 mod budget;
 mod channels;
-mod cyclopean_shading_avx2;
 mod cyclopean_views;
 mod eye_groups;
 mod fast_block;
@@ -14,6 +13,7 @@ mod pixel_work;
 mod records;
 mod samples;
 mod tile;
+mod uniform_shading_avx2;
 mod workers;
 
 use std::any::Any;

@@ -2,7 +2,7 @@
 //! arrays: per lane [`RendererSettings::view_direction`] of the lane's hit, bit for bit, four
 //! lanes per vector, with the scalar operations in the same order and no fused multiply-adds.
 //! The AVX2 shading pass that computes these views in registers is
-//! [`super::cyclopean_shading_avx2`].
+//! [`super::uniform_shading_avx2`].
 //!
 //! [`RendererSettings::view_direction`]: crate::render::renderer::RendererSettings::view_direction
 
@@ -83,7 +83,7 @@ pub(super) fn cyclopean_views_into(
     }
 }
 
-/// The lanes here also test [`super::super::cyclopean_shading_avx2`].
+/// The lanes here also test [`super::super::uniform_shading_avx2`].
 #[cfg(test)]
 pub(super) mod tests {
     use super::*;

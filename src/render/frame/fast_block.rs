@@ -14,10 +14,10 @@ use crate::render::eye_light::{UniformSurface, fast_surface_color, fast_surface_
 use crate::render::renderer::RendererSettings;
 use crate::scene::world::SceneSnapshot;
 
-use super::cyclopean_shading_avx2::{CyclopeanLanes, shade_cyclopean_avx2};
 use super::cyclopean_views::{ViewPoints, cyclopean_views_into};
 use super::records::TileRecords;
 use super::tile::{PACKET_ORDER, PACKET_SIDE, traced_lane};
+use super::uniform_shading_avx2::{ShadingLanes, shade_uniform_avx2};
 
 /// One sample of a traced block to shade.
 pub(super) struct FastBlock<'a> {
@@ -134,18 +134,16 @@ impl FastBlock<'_> {
         let mut normal = [[0.0; BLOCK_RAYS]; 3];
         let mut color = [[0.0; BLOCK_RAYS]; 3];
         let viewer = self.cyclopean_view();
-        // With AVX2 a stereo eye's views, normals and colours go eight lanes per vector, the
-        // views kept in registers.
-        let vectorized = viewer.is_some_and(|points| {
-            let inputs = CyclopeanLanes {
-                points,
-                direction,
-                t: &lanes.t,
-                normal: &lanes.normal,
-            };
-            let lit = surface.base_and_emissive();
-            shade_cyclopean_avx2(&inputs, lit, &mut normal, &mut color)
-        });
+        // With AVX2 the normals and colours (and a stereo eye's views, kept in registers) go
+        // eight lanes per vector.
+        let inputs = ShadingLanes {
+            view_from: viewer,
+            direction,
+            t: &lanes.t,
+            normal: &lanes.normal,
+        };
+        let lit = surface.base_and_emissive();
+        let vectorized = shade_uniform_avx2(&inputs, lit, &mut normal, &mut color);
         let at = lane_vec3::<BLOCK_RAYS>;
         let mut shade = |views: &[[f32; BLOCK_RAYS]; 3]| {
             for lane in 0..BLOCK_RAYS {

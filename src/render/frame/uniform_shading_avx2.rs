@@ -1,15 +1,15 @@
-//! The shading of a stereo block whose hits all lie on one uniform surface, lit along each
-//! lane's view from its eye's cyclopean point (cyclopean lighting), with AVX2 (also compiled
-//! for AVX-512; chosen at run time, `crate::isa`): the views (as [`super::cyclopean_views`] computes them four lanes per
-//! vector), shading normals and colours eight lanes per vector, the views kept in registers.
-//! The scalar operations in the same order and no fused multiply-adds, so every lane is bit for
-//! bit the lane-by-lane shading.
+//! The shading of a block whose hits all lie on one uniform surface, with AVX2 (also compiled
+//! for AVX-512; chosen at run time, `crate::isa`): shading normals and colours eight lanes per
+//! vector, lit along the rays or, for a stereo eye under cyclopean lighting, along each lane's
+//! view from its cyclopean point (the views as [`super::cyclopean_views`] computes them four
+//! lanes per vector, kept in registers). The scalar operations in the same order and no fused
+//! multiply-adds, so every lane is bit for bit the lane-by-lane shading.
 
 use crate::camera::BLOCK_RAYS;
 
 use super::cyclopean_views::{Lanes3, ViewPoints};
 
-/// The views and shading of a stereo block eight lanes per vector.
+/// The views and shading of a block eight lanes per vector.
 #[cfg(target_arch = "x86_64")]
 mod avx2 {
     use super::{Lanes3, ViewPoints};
@@ -76,22 +76,23 @@ mod avx2 {
     }
 
     /// Lanes `first..first + 8` of the shading normals and colours (see
-    /// [`super::shade_cyclopean_avx2`]) of rays from `origin` seen from `viewer`.
+    /// [`super::shade_uniform_avx2`]), seen along the rays or, with `points` (the rays'
+    /// origins and the viewers), from the viewers.
     #[target_feature(enable = "avx2")]
     #[inline]
-    #[allow(clippy::too_many_arguments)]
     fn shade_eight(
-        lanes: &super::CyclopeanLanes,
+        lanes: &super::ShadingLanes,
         first: usize,
-        origin: [__m256; 3],
-        viewer: [__m256; 3],
+        points: Option<([__m256; 3], [__m256; 3])>,
         (base, emissive): ([f32; 3], [f32; 3]),
-        normal_out: &mut Lanes3,
-        color_out: &mut Lanes3,
+        (normal_out, color_out): (&mut Lanes3, &mut Lanes3),
     ) {
         let sign = _mm256_set1_ps(-0.0);
         let along = [0, 1, 2].map(|axis| load(&lanes.direction[axis], first));
-        let view = views(origin, &along, load(lanes.t, first), viewer);
+        let view = match points {
+            Some((origin, viewer)) => views(origin, &along, load(lanes.t, first), viewer),
+            None => along,
+        };
         // The normal facing the ray: negated where it points along the ray.
         let normal = [0, 1, 2].map(|axis| load(&lanes.normal[axis], first));
         let back_face = _mm256_cmp_ps::<_CMP_GT_OQ>(dot(&normal, &along), _mm256_setzero_ps());
@@ -113,27 +114,36 @@ mod avx2 {
     }
 
     crate::isa::avx2_and_avx512! {
-        /// [`super::shade_cyclopean_avx2`], compiled for the path.
+        /// [`super::shade_uniform_avx2`], compiled for the path.
         pub(super) fn [shade_into_avx2, shade_into_avx512](
-            lanes: &super::CyclopeanLanes,
+            lanes: &super::ShadingLanes,
             surface: ([f32; 3], [f32; 3]),
             normal_out: &mut Lanes3,
             color_out: &mut Lanes3,
         ) {
-            match lanes.points {
-                // A pinhole eye's block: its origin and cyclopean point in registers once.
-                ViewPoints::Shared { origin, viewer } => {
-                    let origin = origin.map(|value| _mm256_set1_ps(value));
-                    let viewer = viewer.map(|value| _mm256_set1_ps(value));
+            let out = (normal_out, color_out);
+            match lanes.view_from {
+                None => {
                     for first in (0..BLOCK_RAYS).step_by(8) {
-                        shade_eight(lanes, first, origin, viewer, surface, normal_out, color_out);
+                        shade_eight(lanes, first, None, surface, (&mut *out.0, &mut *out.1));
                     }
                 }
-                ViewPoints::Lanes { origin, viewer } => {
+                // A pinhole eye's block: its origin and cyclopean point in registers once.
+                Some(ViewPoints::Shared { origin, viewer }) => {
+                    let points = Some((
+                        origin.map(|value| _mm256_set1_ps(value)),
+                        viewer.map(|value| _mm256_set1_ps(value)),
+                    ));
+                    for first in (0..BLOCK_RAYS).step_by(8) {
+                        shade_eight(lanes, first, points, surface, (&mut *out.0, &mut *out.1));
+                    }
+                }
+                Some(ViewPoints::Lanes { origin, viewer }) => {
                     for first in (0..BLOCK_RAYS).step_by(8) {
                         let origin = [0, 1, 2].map(|axis| load(&origin[axis], first));
                         let viewer = [0, 1, 2].map(|axis| load(&viewer[axis], first));
-                        shade_eight(lanes, first, origin, viewer, surface, normal_out, color_out);
+                        let points = Some((origin, viewer));
+                        shade_eight(lanes, first, points, surface, (&mut *out.0, &mut *out.1));
                     }
                 }
             }
@@ -141,23 +151,25 @@ mod avx2 {
     }
 }
 
-/// The lane arrays a stereo block's shading on one uniform surface reads: the rays, the hits'
-/// ray parameters `t` and geometric normals, and where the rays start and the views look from.
-pub(super) struct CyclopeanLanes<'a> {
-    pub points: ViewPoints<'a>,
+/// The lane arrays the shading of a block's hits on one uniform surface reads: the rays'
+/// directions, the hits' ray parameters `t` and geometric normals, and, for a stereo eye
+/// under cyclopean lighting, where the rays start and the views look from (else the views look
+/// along the rays).
+pub(super) struct ShadingLanes<'a> {
+    pub view_from: Option<ViewPoints<'a>>,
     pub direction: &'a Lanes3,
     pub t: &'a [f32; BLOCK_RAYS],
     pub normal: &'a Lanes3,
 }
 
-/// With AVX2 or AVX-512 (`crate::isa`), per lane the shading normal (`UniformSurface::normal`) and the
-/// colour (`UniformSurface::color` of base colour `base` and emission `emissive`) of a stereo
-/// block's hit lit along its view from the cyclopean point, eight lanes per vector without
-/// writing the views out: the same operations in the same order as lane by lane, bit for bit.
-/// `false` (nothing written) on the baseline path.
+/// With AVX2 or AVX-512 (`crate::isa`), per lane the shading normal (`UniformSurface::normal`)
+/// and the colour (`UniformSurface::color` of base colour `base` and emission `emissive`) of a
+/// block's hit, lit along its ray or its view from the cyclopean point, eight lanes per vector
+/// without writing the views out: the same operations in the same order as lane by lane, bit
+/// for bit. `false` (nothing written) on the baseline path.
 #[inline(always)]
-pub(super) fn shade_cyclopean_avx2(
-    lanes: &CyclopeanLanes,
+pub(super) fn shade_uniform_avx2(
+    lanes: &ShadingLanes,
     (base, emissive): (glam::Vec3, glam::Vec3),
     normal: &mut Lanes3,
     color: &mut Lanes3,
@@ -193,7 +205,7 @@ mod tests {
 
     #[cfg(target_arch = "x86_64")]
     #[test]
-    fn wide_cyclopean_shading_matches_the_per_lane_shading_bit_for_bit() {
+    fn wide_shading_matches_the_per_lane_shading_bit_for_bit() {
         let paths = crate::isa::test_paths();
         if paths.len() == 1 {
             eprintln!("no AVX2 on this CPU: the AVX2 shading is not run");
@@ -204,23 +216,24 @@ mod tests {
                 origin: &origin,
                 viewer: &viewer,
             };
-            shade_and_compare(*isa, points, (&origin, &direction, &t, &viewer));
+            shade_and_compare(*isa, Some(points), (&origin, &direction, &t, &viewer));
+            shade_and_compare(*isa, None, (&origin, &direction, &t, &viewer));
             let (origin, direction, t, [shared_origin, shared_viewer], _) = shared_lanes();
             let viewer = std::array::from_fn(|axis| [shared_viewer[axis]; BLOCK_RAYS]);
             let points = ViewPoints::Shared {
                 origin: shared_origin,
                 viewer: shared_viewer,
             };
-            shade_and_compare(*isa, points, (&origin, &direction, &t, &viewer));
+            shade_and_compare(*isa, Some(points), (&origin, &direction, &t, &viewer));
         }
     }
 
-    /// The shading of path `isa` (AVX2 or AVX-512, one this CPU has) of the rays and hits
-    /// from and seen from `points` against lane by lane, where the rays' origins and viewers
-    /// are the lane arrays given.
+    /// The shading of path `isa` (AVX2 or AVX-512, one this CPU has) of the rays and hits,
+    /// seen from `view_from` (else along the rays), against lane by lane, where the rays'
+    /// origins and viewers are the lane arrays given.
     fn shade_and_compare(
         isa: Isa,
-        points: ViewPoints,
+        view_from: Option<ViewPoints>,
         (origin, direction, t, viewer): (&Lanes3, &Lanes3, &[f32; BLOCK_RAYS], &Lanes3),
     ) {
         let (origin, direction, t, viewer) = (*origin, *direction, *t, *viewer);
@@ -243,8 +256,8 @@ mod tests {
             lanes[9] = perpendicular[axis];
         }
         let (base, emissive) = (Vec3::new(0.8, 0.3, 0.55), Vec3::new(0.01, 0.0, 0.2));
-        let inputs = CyclopeanLanes {
-            points,
+        let inputs = ShadingLanes {
+            view_from,
             direction: &direction,
             t: &t,
             normal: &normal_in,
@@ -262,7 +275,10 @@ mod tests {
         for (lane, &t) in t.iter().enumerate() {
             let ray = ray(&origin, &direction, lane);
             let point = UniformSurface::point(&ray, &hit_at(t));
-            let view = settings().view_direction(&ray, point, Some(lane_vec3(&viewer, lane)));
+            let view = match view_from {
+                Some(_) => settings().view_direction(&ray, point, Some(lane_vec3(&viewer, lane))),
+                None => ray.direction,
+            };
             let shading = UniformSurface::normal(lane_vec3(&normal_in, lane), ray.direction);
             let rgb = eye_light_of(view, shading, base, emissive);
             let bits = |v: Vec3| v.to_array().map(f32::to_bits);
