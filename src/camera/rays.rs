@@ -889,7 +889,7 @@ impl BlockRays {
     /// Rays without a cyclopean point.
     pub(super) fn clear_cyclopean(&mut self) {
         // Only the tag changes: assigning over the lanes variant wrote all its bytes per block.
-        if self.cyclopean != BlockCyclopean::None {
+        if !matches!(self.cyclopean, BlockCyclopean::None) {
             self.cyclopean = BlockCyclopean::None;
         }
     }
