@@ -1036,11 +1036,12 @@ int main(int argc, char **argv) {
     anariUnsetParameter(device, pair_frame, "channel.parallax");
     anariRelease(device, parallax_camera);
 
-    /* Cyclopean lighting: a mirror hung on the front wall reflects the floor behind the
-     * viewer. Lit per eye, each eye sees the reflection from its own position, so it has its
-     * own depth far behind the mirror; lit from the point between the eyes, both eyes see the
-     * same reflection at each point of the mirror, so it lies on the mirror's surface. Rendered
-     * through a 1 m window of the front wall around the mirror, so the shift shows. */
+    /* Cyclopean lighting: a mirror hung on the front wall reflects a board with white bars
+     * behind the viewer. Lit per eye, each eye sees the reflection from its own position, so
+     * it has its own depth far behind the mirror; lit from the point between the eyes, both
+     * eyes see the same reflection at each point of the mirror, so it lies on the mirror's
+     * surface. Rendered through a 1 m window of the front wall around the mirror, so the
+     * shift shows. */
     ANARIWorld mirror = mirror_world(device);
     ANARIRenderer lit = anariNewRenderer(device, "default");
     anariSetParameter(device, lit, "background", ANARI_FLOAT32_VEC4, background);

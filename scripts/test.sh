@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs every test: formatting and lints, Rust unit and integration tests (including the
-# header-up-to-date check), and the C harness with and without sanitizers.
+# header-up-to-date check), the C harness with and without sanitizers, the install test and,
+# where Open MPI is installed, the MPI cluster tests (docs/testing.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
