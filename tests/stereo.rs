@@ -1,5 +1,6 @@
-//! Stereo frames: both eyes of a sideBySide/topBottom frame equal each eye rendered alone,
-//! the parallax channel against the closed form, and cyclopean lighting.
+//! Stereo frames: both eyes of a sideBySide/topBottom frame, and each pixel of an interleaved
+//! one, equal each eye rendered alone (on every camera that takes `stereoMode`), the parallax
+//! channel against the closed form, cyclopean lighting and anaglyphs.
 
 mod common;
 use common::*;
@@ -31,6 +32,63 @@ fn perspective(dev: ANARIDevice, stereo: &str, focus: f32) -> ANARICamera {
     set_string(dev, camera, "stereoMode", stereo);
     commit(dev, camera);
     camera
+}
+
+/// A dome camera at the head looking along −z, its image circle about 69° across.
+fn fisheye(dev: ANARIDevice, stereo: &str) -> ANARICamera {
+    let camera = anariNewCamera(dev, c("fisheye").as_ptr());
+    set(dev, camera, "position", ANARI_FLOAT32_VEC3, &HEAD);
+    set(
+        dev,
+        camera,
+        "dome.direction",
+        ANARI_FLOAT32_VEC3,
+        &[0.0f32, 0.0, -1.0],
+    );
+    set(
+        dev,
+        camera,
+        "dome.up",
+        ANARI_FLOAT32_VEC3,
+        &[0.0f32, 1.0, 0.0],
+    );
+    set(dev, camera, "fov", ANARI_FLOAT32, &1.2f32);
+    set_string(dev, camera, "stereoMode", stereo);
+    commit(dev, camera);
+    camera
+}
+
+/// A 360° camera at the head, its frame the part of the panorama around −z.
+fn omnidirectional(dev: ANARIDevice, stereo: &str) -> ANARICamera {
+    let camera = anariNewCamera(dev, c("omnidirectional").as_ptr());
+    set(dev, camera, "position", ANARI_FLOAT32_VEC3, &HEAD);
+    set(
+        dev,
+        camera,
+        "direction",
+        ANARI_FLOAT32_VEC3,
+        &[0.0f32, 0.0, -1.0],
+    );
+    set(dev, camera, "up", ANARI_FLOAT32_VEC3, &[0.0f32, 1.0, 0.0]);
+    let region = [0.4f32, 0.35, 0.6, 0.65];
+    set(dev, camera, "imageRegion", ANARI_FLOAT32_BOX2, &region);
+    set_string(dev, camera, "stereoMode", stereo);
+    commit(dev, camera);
+    camera
+}
+
+/// The stereo cameras these tests compare: every camera type that takes `stereoMode`.
+const STEREO_CAMERAS: [&str; 4] = ["offAxis", "perspective", "fisheye", "omnidirectional"];
+
+/// A camera of type `camera_type` with stereo mode `mode`.
+fn stereo_camera(dev: ANARIDevice, camera_type: &str, mode: &str) -> ANARICamera {
+    match camera_type {
+        "offAxis" => off_axis(dev, mode, HEAD),
+        "perspective" => perspective(dev, mode, 1.5),
+        "fisheye" => fisheye(dev, mode),
+        "omnidirectional" => omnidirectional(dev, mode),
+        other => panic!("no stereo camera {other}"),
+    }
 }
 
 /// Every channel of one render, as bits (colour as floats).
@@ -118,14 +176,10 @@ fn both_eyes_of_a_stereo_frame_equal_each_eye_rendered_alone() {
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
     let world = mixed_world(dev);
-    let camera_of = |camera_type: &str, mode: &str| match camera_type {
-        "offAxis" => off_axis(dev, mode, HEAD),
-        _ => perspective(dev, mode, 1.5),
-    };
     for renderer_type in ["fast", "default"] {
         let renderer = plain_renderer(dev, renderer_type);
-        for camera_type in ["offAxis", "perspective"] {
-            let make = |mode: &str| camera_of(camera_type, mode);
+        for camera_type in STEREO_CAMERAS {
+            let make = |mode: &str| stereo_camera(dev, camera_type, mode);
             let alone = |eye: &str| {
                 let camera = make(eye);
                 let image = render(dev, world, camera, renderer, [SIZE, SIZE]);
@@ -529,10 +583,7 @@ fn interleaved_pixels_are_the_eye_images_pixels() {
     let world = mixed_world(dev);
     let renderer = plain_renderer(dev, "default");
     let camera_of = |camera_type: &str, mode: &str, right_first: bool| {
-        let camera = match camera_type {
-            "offAxis" => off_axis(dev, mode, HEAD),
-            _ => perspective(dev, mode, 1.5),
-        };
+        let camera = stereo_camera(dev, camera_type, mode);
         set(
             dev,
             camera,
@@ -543,7 +594,7 @@ fn interleaved_pixels_are_the_eye_images_pixels() {
         commit(dev, camera);
         camera
     };
-    for camera_type in ["offAxis", "perspective"] {
+    for camera_type in STEREO_CAMERAS {
         let alone = |eye: &str| {
             let camera = camera_of(camera_type, eye, false);
             let image = render(dev, world, camera, renderer, [SIZE, SIZE]);
