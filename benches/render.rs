@@ -2,6 +2,7 @@
 //!
 //!     cargo bench --bench render            (full size: 1M triangles at 1600×1600)
 //!     CAVETRACE_BENCH_QUICK=1 cargo bench --bench render   (small, for a smoke run)
+//!     CAVETRACE_BENCH_FRAMES=25 cargo bench --bench render  (frames per case, 7 by default)
 //!     cargo bench --bench render -- fast    (only (a) and the same-rays comparison)
 //!     cargo bench --bench render -- budget  (frame-time budgets: frame times, pixels traced,
 //!                                            renders to convergence, image error)
@@ -951,6 +952,15 @@ fn main() {
     } else {
         (708, 1600, 100_000, 7)
     };
+    // `CAVETRACE_BENCH_FRAMES=n` renders n frames per case in every section (medians steadier
+    // on a busy machine).
+    let frames_or = |default: u32| -> u32 {
+        std::env::var("CAVETRACE_BENCH_FRAMES")
+            .ok()
+            .and_then(|n| n.parse().ok())
+            .unwrap_or(default)
+    };
+    let frames = frames_or(frames);
     let log = Log::new();
     let (lib, dev) = device_with_log(&log);
 
@@ -993,11 +1003,19 @@ fn main() {
         }
     };
     let section_run = if section("viewers") {
-        on_scene(&|scene, _| viewers_section(dev, scene, size, if quick { 4 } else { 15 }));
+        on_scene(&|scene, _| {
+            viewers_section(dev, scene, size, frames_or(if quick { 4 } else { 15 }))
+        });
         true
     } else if section("lightfield") {
         on_scene(&|scene, cells| {
-            light_field_section(dev, scene, cells, size, if quick { 3 } else { 7 })
+            light_field_section(
+                dev,
+                scene,
+                cells,
+                size,
+                frames_or(if quick { 3 } else { 7 }),
+            )
         });
         true
     } else if section("depth") {
@@ -1007,10 +1025,16 @@ fn main() {
         } else {
             "fast"
         };
-        depth_section(dev, geometry, renderer, size, if quick { 3 } else { 9 });
+        depth_section(
+            dev,
+            geometry,
+            renderer,
+            size,
+            frames_or(if quick { 3 } else { 9 }),
+        );
         true
     } else if section("budget") {
-        budget_section(dev, geometry, size, if quick { 10 } else { 60 });
+        budget_section(dev, geometry, size, frames_or(if quick { 10 } else { 60 }));
         true
     } else {
         false
@@ -1031,7 +1055,7 @@ fn main() {
             ("100k spheres", cloud),
             ("968-triangle height field", small),
         ];
-        stereo_section(dev, &scenes, size, if quick { 3 } else { 7 });
+        stereo_section(dev, &scenes, size, frames_or(if quick { 3 } else { 7 }));
         anariRelease(dev, small);
         anariRelease(dev, cloud);
         anariRelease(dev, geometry);
