@@ -445,15 +445,16 @@ fn head_at(step: u32) -> Vec3 {
 }
 
 /// Renders `setups` in turn, `frames` rounds (`prepare(k, round)` runs before each render, outside
-/// the timing): per setup the median (wall ms, CPU ms). Cases take turns frame by frame, so that
-/// drift on a shared machine hits them alike.
+/// the timing): per setup the median (wall ms, CPU ms), and the median over rounds of its CPU time
+/// over the first setup's in the same round. Cases take turns frame by frame, so that drift on a
+/// shared machine hits them alike; the paired ratio also cancels drift slower than a round.
 fn alternating_medians(
     setups: &[Setup],
     frames: u32,
     mut prepare: impl FnMut(usize, u32),
-) -> Vec<(f64, f64)> {
+) -> Vec<(f64, f64, f64)> {
     let mut wall = vec![Vec::new(); setups.len()];
-    let mut cpu = vec![Vec::new(); setups.len()];
+    let mut cpu: Vec<Vec<f64>> = vec![Vec::new(); setups.len()];
     for round in 0..frames {
         for (k, s) in setups.iter().enumerate() {
             prepare(k, round);
@@ -462,9 +463,22 @@ fn alternating_medians(
             cpu[k].push((cpu_seconds() - cpu_start) * 1e3);
         }
     }
+    let paired: Vec<f64> = cpu
+        .iter()
+        .map(|times| {
+            median(
+                times
+                    .iter()
+                    .zip(&cpu[0])
+                    .map(|(t, first)| t / first)
+                    .collect(),
+            )
+        })
+        .collect();
     wall.into_iter()
         .zip(cpu)
-        .map(|(w, c)| (median(w), median(c)))
+        .zip(paired)
+        .map(|((w, c), p)| (median(w), median(c), p))
         .collect()
 }
 
@@ -623,12 +637,13 @@ fn viewers_section(dev: ANARIDevice, geometry: ANARIGeometry, size: u32, frames:
         let medians = alternating_medians(&setups, frames, |k, step| {
             commit_camera(&setups[k], &cases[k].1, step)
         });
-        let (base_wall, base_cpu) = medians[0];
+        let (base_wall, base_cpu, _) = medians[0];
         println!("several viewers, {renderer} renderer, {size}x{size}, {frames} frames each:");
         for (k, (label, _)) in cases.iter().enumerate() {
-            let (w, c) = medians[k];
+            let (w, c, paired) = medians[k];
             println!(
-                "  {label:<26} median frame {w:6.1} ms ({:.2}x), {c:6.0} ms CPU ({:.2}x)",
+                "  {label:<26} median frame {w:6.1} ms ({:.2}x), {c:6.0} ms CPU ({:.2}x; \
+                 paired {paired:.2}x)",
                 w / base_wall,
                 c / base_cpu
             );
@@ -701,9 +716,10 @@ fn stereo_section(dev: ANARIDevice, scenes: &[(&str, ANARIGeometry)], size: u32,
                 "stereo, {scene}, {renderer} renderer, {size}x{size} per eye, {frames} frames each:"
             );
             for (k, (label, _, _)) in cases.iter().enumerate() {
-                let (wall, cpu) = medians[k];
+                let (wall, cpu, paired) = medians[k];
                 println!(
-                    "  {label}: {wall:.1} ms ({cpu:.0} ms CPU), {:.2}x mono ({:.2}x in CPU time)",
+                    "  {label}: {wall:.1} ms ({cpu:.0} ms CPU), {:.2}x mono ({:.2}x in CPU \
+                     time; paired {paired:.2}x)",
                     wall / medians[0].0,
                     cpu / medians[0].1
                 );
@@ -781,9 +797,10 @@ fn light_field_section(
         "light field, height field ({scene}), {renderer} renderer, {size}x{size}, {frames} frames each:"
     );
     for (k, (label, _, _)) in cases.iter().enumerate() {
-        let (wall, cpu) = medians[k];
+        let (wall, cpu, paired) = medians[k];
         println!(
-            "  {label}: {wall:.1} ms ({cpu:.0} ms CPU), {:.2}x the mono frame ({:.2}x in CPU time)",
+            "  {label}: {wall:.1} ms ({cpu:.0} ms CPU), {:.2}x the mono frame ({:.2}x in CPU \
+             time; paired {paired:.2}x)",
             wall / medians[0].0,
             cpu / medians[0].1
         );
@@ -927,9 +944,10 @@ fn depth_section(
             .iter()
             .enumerate()
         {
-            let (wall, cpu) = medians[k];
+            let (wall, cpu, paired) = medians[k];
             println!(
-                "  {name}: {wall:.1} ms ({cpu:.0} ms CPU), {:.3}x colour alone ({:.3}x in CPU time)",
+                "  {name}: {wall:.1} ms ({cpu:.0} ms CPU), {:.3}x colour alone ({:.3}x in CPU \
+                 time; paired {paired:.3}x)",
                 wall / medians[0].0,
                 cpu / medians[0].1
             );
