@@ -518,12 +518,7 @@ impl EyeRays {
                 };
                 pinhole_block(&self.region, pinhole, s, t, block);
                 match cyclopean {
-                    Some(cyclopean) => {
-                        block.cyclopean = BlockCyclopean::Shared {
-                            origin: pinhole.eye.as_vec3().to_array(),
-                            cyclopean: cyclopean.to_array(),
-                        }
-                    }
+                    Some(cyclopean) => block.cyclopean = BlockCyclopean::Shared(cyclopean.into()),
                     None => block.clear_cyclopean(),
                 }
             }
@@ -837,13 +832,9 @@ pub struct BlockRays {
 pub enum BlockCyclopean {
     /// The rays have none (mono eyes, cameras without stereo).
     None,
-    /// A pinhole stereo eye's block: every ray starts at `origin` (each lane of
-    /// [`BlockRays::origin`] holds it) and has the cyclopean point `cyclopean`, so that shading
-    /// can take both once for the block.
-    Shared {
-        origin: [f32; 3],
-        cyclopean: [f32; 3],
-    },
+    /// A pinhole stereo eye's block: every ray has this cyclopean point and starts where lane
+    /// 0 does, so that shading can take both once for the block.
+    Shared([f32; 3]),
     /// Lane by lane, x, y and z (several viewers' blended heads).
     Lanes([[f32; BLOCK_RAYS]; 3]),
 }
@@ -854,7 +845,7 @@ impl BlockCyclopean {
     pub fn lane(&self, i: usize) -> Option<Vec3> {
         match self {
             BlockCyclopean::None => None,
-            BlockCyclopean::Shared { cyclopean, .. } => Some(Vec3::from_array(*cyclopean)),
+            BlockCyclopean::Shared(cyclopean) => Some(Vec3::from_array(*cyclopean)),
             BlockCyclopean::Lanes(lanes) => Some(lane_vec3(lanes, i)),
         }
     }

@@ -32,9 +32,9 @@ impl<'a> ViewPoints<'a> {
     pub(super) fn of(block: &'a BlockRays) -> Option<ViewPoints<'a>> {
         match &block.cyclopean {
             BlockCyclopean::None => None,
-            &BlockCyclopean::Shared { origin, cyclopean } => Some(ViewPoints::Shared {
-                origin,
-                viewer: cyclopean,
+            &BlockCyclopean::Shared(viewer) => Some(ViewPoints::Shared {
+                origin: block.origin.map(|axis| axis[0]),
+                viewer,
             }),
             BlockCyclopean::Lanes(viewer) => Some(ViewPoints::Lanes {
                 origin: &block.origin,
