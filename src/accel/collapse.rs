@@ -29,10 +29,11 @@ const EMPTY_SLOT: u8 = u8::MAX;
 /// as a leaf hit also ends in the hit's bookkeeping.
 const LEAF_TEST_COST: f32 = 4.0;
 
-/// A wide node's memory (224 bytes when this was tuned, 256 since 2026-11-28) as a surface-area cost in [`slot_costs`], in half areas of the
-/// root's box per primitive (about the area a bottom node spends per triangle on a surface):
-/// without it, leaf costs alone spread leaf-sized subtrees over more nodes (1M triangles,
-/// leaf test cost 2: +12 % nodes, +1.9 bytes per triangle).
+/// A wide node's memory (224 bytes when this was tuned, 256 since 2026-11-28) as a
+/// surface-area cost in [`slot_costs`], in half areas of the root's box per primitive (about
+/// the area a bottom node spends per triangle on a surface): without it, leaf costs alone
+/// spread leaf-sized subtrees over more nodes (1M triangles, leaf test cost 2: +12 % nodes,
+/// +1.9 bytes per triangle).
 const NODE_MEMORY_COST: f32 = 24.0;
 
 /// Surface-area cost of the node visits and leaf tests below binary subtree `index` when it
@@ -741,8 +742,9 @@ fn wide_children(
 }
 
 /// Assigns children to the eight slots of a node visited in the octant's order (slots
-/// `i ^ (7 - o)` for a ray of octant `o`, [`IDENTITY_ORDERS`]) so that near children come first: slot `s` prefers the child that comes first
-/// along the direction whose signs are the bits of `s` (set = negative). Returns, per slot,
+/// `i ^ (7 - o)` for a ray of octant `o`, [`IDENTITY_ORDERS`]) so that near children come
+/// first: slot `s` prefers the child that comes first along the direction whose signs are the
+/// bits of `s` (set = negative). Returns, per slot,
 /// the position of its child in `children` or [`EMPTY_SLOT`].
 fn assign_slots_by_octant(children: &[Candidate], parent: &Aabb) -> [u8; WIDTH] {
     let centre = parent.center();

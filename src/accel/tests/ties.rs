@@ -6,8 +6,9 @@ use super::*;
 use crate::accel::isa::{self, Isa};
 use crate::accel::wide_bvh::IDENTITY_ORDERS;
 
-/// A bumpy grid whose every triangle is there five times (five ids, one triangle; more than a leaf holds): every hit
-/// is a tie at the same `t`, between lanes of one group or between leaves.
+/// A bumpy grid whose every triangle is there five times (five ids, one triangle; more than a
+/// leaf holds): every hit is a tie at the same `t`, between lanes of one group or between
+/// leaves.
 fn repeated_grid(cells: u32) -> GeometryPrims {
     let GeometryPrims::Triangles { positions, indices } = bumpy_grid(cells).1 else {
         unreachable!("a grid of triangles")
